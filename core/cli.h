@@ -1,0 +1,86 @@
+// Command-line side of the options pattern (core/options.h), for apps only: it pulls in CLI11.
+//
+//   CLI::App app{"what the app does"};
+//   genscene::CommandLine cli(app);
+//   SourceOptions source;  cli.Add(source, "Input");
+//   GENSCENE_PARSE(cli, argc, argv);   // --help, --config, flags, Validate()
+//
+// Precedence: defaults < --config FILE < flags given on the command line.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <functional>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "core/options.h"
+
+namespace genscene {
+
+class CommandLine {
+ public:
+  // Adds --config, --threads and --seed to `app`.
+  explicit CommandLine(CLI::App& app);
+
+  // Registers one flag per field of `options` (help text "<help> [unit]", default shown).
+  template <typename Options>
+  void Add(Options& options, const std::string& group) {
+    options.Visit([&](const char* key, auto& value, const char* unit, const char* help) {
+      using T = std::decay_t<decltype(value)>;
+      std::string text = help;
+      if (unit && *unit) text += Format(" [", unit, "]");
+      CLI::Option* opt = nullptr;
+      if constexpr (std::is_same_v<T, bool>) {
+        // Unbound options (no variable): values are copied in after the config is applied.
+        opt = app_.add_flag(FlagName(key))->description(text);
+        opt->default_str(value ? "true" : "false");
+      } else {
+        opt = app_.add_option(FlagName(key))->description(text);
+        std::ostringstream def;
+        def << value;
+        opt->default_str(def.str());
+        if constexpr (std::is_arithmetic_v<T>) opt->type_name("NUMBER");
+        else opt->type_name("TEXT");
+      }
+      opt->group(group);
+    });
+    appliers_.push_back([this, &options](ConfigFile* config) {
+      if (config) config->Apply(options);
+      options.Visit([&](const char* key, auto& value, const char*, const char*) {
+        CLI::Option* opt = app_.get_option_no_throw(FlagName(key));
+        if (!opt || opt->count() == 0) return;
+        try {
+          opt->results(value);
+        } catch (const CLI::Error&) {
+          throw Error(Format(FlagName(key), ": '", opt->as<std::string>(), "' is not a valid value"));
+        }
+      });
+      options.Validate();
+    });
+  }
+
+  // Parses argv. Returns an exit code when the app should stop now (after --help: 0; after a
+  // usage error: 2, message printed), std::nullopt when it should go on. Applies the config file
+  // and the flags to every registered struct and validates them; throws Error on bad values.
+  std::optional<int> Parse(int argc, char** argv);
+
+  int threads() const { return threads_; }
+  unsigned long long seed() const { return seed_; }
+  const std::string& config_path() const { return config_path_; }
+
+ private:
+  CLI::App& app_;
+  std::string config_path_;
+  int threads_ = 0;
+  unsigned long long seed_ = 0;
+  std::vector<std::function<void(ConfigFile*)>> appliers_;
+};
+
+// Runs an app's body, turning genscene::Error (and any std::exception) into one line on stderr
+// ("<app>: error: <message>") and exit code 1.
+int RunApp(const char* app_name, const std::function<int()>& body);
+
+}  // namespace genscene

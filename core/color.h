@@ -1,0 +1,28 @@
+// Camera response: the conversion of stored pixel values to linear radiance, applied once at
+// input (DESIGN.md §1). 8-bit images are sRGB-encoded unless told otherwise; float EXR is linear.
+#pragma once
+
+#include <string>
+
+namespace genscene {
+
+// sRGB electro-optical transfer (IEC 61966-2-1), value in [0, 1].
+float SrgbToLinear(float encoded);
+float LinearToSrgb(float linear);
+
+struct CameraResponse {
+  enum class Kind { kSrgb, kLinear, kGamma };
+  Kind kind = Kind::kSrgb;
+  double gamma = 2.2;  // used when kind == kGamma: linear = encoded^gamma
+
+  // Parses "srgb", "linear" or "gamma:G" (e.g. "gamma:2.2"); throws Error naming `where`.
+  static CameraResponse Parse(const std::string& text, const std::string& where = "camera response");
+  std::string ToString() const;
+
+  // Encoded value in [0, 1] -> linear.
+  float ToLinear(float encoded) const;
+  // Linear -> encoded value in [0, 1] (clamped).
+  float FromLinear(float linear) const;
+};
+
+}  // namespace genscene

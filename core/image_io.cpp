@@ -1,0 +1,240 @@
+#include "core/image_io.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
+#include <opencv2/core.hpp>
+#include <opencv2/core/utils/logger.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/check.h"
+#include "core/file_util.h"
+
+namespace genscene {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// OpenCV reads OPENCV_IO_ENABLE_OPENEXR once, at the first EXR call (DESIGN.md §5), and logs
+// decoder warnings on stderr; we report our own one-line errors instead.
+void ConfigureOpenCvOnce() {
+  static const bool configured = [] {
+    ::setenv("OPENCV_IO_ENABLE_OPENEXR", "1", /*overwrite=*/0);
+    cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_ERROR);
+    return true;
+  }();
+  (void)configured;
+}
+
+// Walks the chunk structure of a PNG (signature, then length/type/data/CRC chunks up to IEND)
+// so that a truncated or mangled file gets our one-line error instead of libpng's stderr output.
+void CheckPngStructure(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  static const char kSignature[] = "\x89PNG\r\n\x1a\n";
+  if (bytes.size() < 8 || bytes.compare(0, 8, kSignature, 8) != 0) {
+    throw Error(Format(path.string(), ": cannot decode image (not a PNG file)"));
+  }
+  size_t pos = 8;
+  while (pos + 12 <= bytes.size()) {
+    const auto* b = reinterpret_cast<const unsigned char*>(bytes.data() + pos);
+    const size_t length = (size_t(b[0]) << 24) | (size_t(b[1]) << 16) | (size_t(b[2]) << 8) | size_t(b[3]);
+    const std::string type = bytes.substr(pos + 4, 4);
+    if (length > bytes.size() - pos - 12) break;
+    if (type == "IEND") return;
+    pos += 12 + length;
+  }
+  throw Error(Format(path.string(), ": cannot decode image (truncated or corrupt PNG)"));
+}
+
+bool HasExtension(const fs::path& path, const char* extension) {
+  std::string ext = path.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == extension;
+}
+
+cv::Mat ReadWithOpenCv(const fs::path& path, int flags) {
+  ConfigureOpenCvOnce();
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw Error(Format(path.string(), ": file not found"));
+  if (fs::is_directory(path, ec)) throw Error(Format(path.string(), ": is a folder, not an image"));
+  if (fs::file_size(path, ec) == 0) throw Error(Format(path.string(), ": empty file"));
+  if (HasExtension(path, ".png")) CheckPngStructure(path);
+  cv::Mat mat;
+  try {
+    mat = cv::imread(path.string(), flags);
+  } catch (const cv::Exception& e) {
+    throw Error(Format(path.string(), ": cannot decode image (", e.err, ")"));
+  }
+  if (mat.empty()) {
+    throw Error(Format(path.string(), ": cannot decode image (corrupt, truncated or unsupported format)"));
+  }
+  return mat;
+}
+
+void WriteWithOpenCv(const fs::path& path, const cv::Mat& mat, const std::vector<int>& params) {
+  ConfigureOpenCvOnce();
+  WriteFileAtomically(path, [&](const fs::path& tmp) {
+    bool ok = false;
+    try {
+      ok = cv::imwrite(tmp.string(), mat, params);
+    } catch (const cv::Exception& e) {
+      throw Error(Format(path.string(), ": cannot write image (", e.err, ")"));
+    }
+    if (!ok) throw Error(Format(path.string(), ": cannot write image"));
+  });
+}
+
+// Integer depth value -> meters, per encoding.
+float DecodeDepth(uint16_t raw, const DepthEncoding& encoding) {
+  switch (encoding.kind) {
+    case DepthEncoding::Kind::kScaled:
+      return static_cast<float>(raw / encoding.scale);
+    case DepthEncoding::Kind::kNyuDisparity: {
+      // NYU raw PGMs hold the disparity little-endian although PGM is big-endian (OpenCV reads
+      // it big-endian), so swap the bytes back as Open3D's NYU reader does; 2047 = no reading,
+      // and any value giving a non-positive depth is invalid.
+      const uint16_t d = static_cast<uint16_t>((raw >> 8) | (raw << 8));
+      const double meters = 351.3 / (1092.5 - d);
+      return meters > 0.0 ? static_cast<float>(meters) : 0.0f;
+    }
+    case DepthEncoding::Kind::kSunRotated: {
+      const uint16_t rotated = static_cast<uint16_t>((raw >> 3) | (raw << 13));
+      return static_cast<float>(rotated / 1000.0);
+    }
+  }
+  return 0.0f;
+}
+
+}  // namespace
+
+ImageRgb ReadColorImage(const fs::path& path, const CameraResponse& response) {
+  cv::Mat mat = ReadWithOpenCv(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_COLOR);
+  GS_CHECK_EQ(mat.channels(), 3);
+  ImageRgb image(mat.cols, mat.rows);
+  const int depth = mat.depth();
+  const bool is_float = depth == CV_32F || depth == CV_64F || depth == CV_16F;
+  if (depth != CV_8U && depth != CV_16U && !is_float) {
+    throw Error(Format(path.string(), ": unsupported pixel type (OpenCV depth ", depth, ")"));
+  }
+  cv::Mat as_float;
+  const double scale = depth == CV_8U ? 1.0 / 255.0 : depth == CV_16U ? 1.0 / 65535.0 : 1.0;
+  mat.convertTo(as_float, CV_32FC3, scale);
+  for (int v = 0; v < as_float.rows; ++v) {
+    const cv::Vec3f* row = as_float.ptr<cv::Vec3f>(v);
+    for (int u = 0; u < as_float.cols; ++u) {
+      const cv::Vec3f& bgr = row[u];
+      Eigen::Vector3f rgb(bgr[2], bgr[1], bgr[0]);
+      if (!is_float) {
+        for (int c = 0; c < 3; ++c) rgb[c] = response.ToLinear(rgb[c]);
+      }
+      image(u, v) = rgb;
+    }
+  }
+  return image;
+}
+
+void WriteExr(const fs::path& path, const ImageRgb& image) {
+  GS_CHECK(!image.empty());
+  cv::Mat mat(image.height(), image.width(), CV_32FC3);
+  for (int v = 0; v < image.height(); ++v) {
+    cv::Vec3f* row = mat.ptr<cv::Vec3f>(v);
+    for (int u = 0; u < image.width(); ++u) {
+      const Eigen::Vector3f& rgb = image(u, v);
+      row[u] = cv::Vec3f(rgb[2], rgb[1], rgb[0]);
+    }
+  }
+  WriteWithOpenCv(path, mat, {cv::IMWRITE_EXR_TYPE, cv::IMWRITE_EXR_TYPE_FLOAT});
+}
+
+void WritePng(const fs::path& path, const ImageRgb& image, const CameraResponse& response) {
+  GS_CHECK(!image.empty());
+  cv::Mat mat(image.height(), image.width(), CV_8UC3);
+  for (int v = 0; v < image.height(); ++v) {
+    cv::Vec3b* row = mat.ptr<cv::Vec3b>(v);
+    for (int u = 0; u < image.width(); ++u) {
+      const Eigen::Vector3f& rgb = image(u, v);
+      for (int c = 0; c < 3; ++c) {
+        const float encoded = response.FromLinear(std::isfinite(rgb[c]) ? rgb[c] : 0.0f);
+        row[u][2 - c] = static_cast<uint8_t>(std::lround(encoded * 255.0f));
+      }
+    }
+  }
+  WriteWithOpenCv(path, mat, {});
+}
+
+void CheckDepthValues(const ImageDepth& depth, const std::string& source) {
+  size_t bad = 0;
+  int first_u = -1, first_v = -1;
+  float first_value = 0.0f;
+  for (int v = 0; v < depth.height(); ++v) {
+    for (int u = 0; u < depth.width(); ++u) {
+      const float d = depth(u, v);
+      if (std::isfinite(d) && d >= 0.0f) continue;
+      if (bad++ == 0) first_u = u, first_v = v, first_value = d;
+    }
+  }
+  if (bad > 0) {
+    throw Error(Format(source, ": ", bad, " depth values are NaN, infinite or negative (first: ",
+                       first_value, " at pixel (", first_u, ", ", first_v, "))"));
+  }
+}
+
+ImageDepth ReadDepthImage(const fs::path& path, const DepthEncoding& encoding) {
+  if (encoding.kind == DepthEncoding::Kind::kScaled && !(encoding.scale > 0.0)) {
+    throw Error(Format(path.string(), ": depth scale ", encoding.scale, " must be positive"));
+  }
+  const cv::Mat mat = ReadWithOpenCv(path, cv::IMREAD_UNCHANGED);
+  if (mat.channels() != 1) {
+    throw Error(Format(path.string(), ": depth image has ", mat.channels(),
+                       " channels, expected 1 (16-bit PNG/PGM or float EXR)"));
+  }
+  ImageDepth depth(mat.cols, mat.rows);
+  if (mat.depth() == CV_16U) {
+    for (int v = 0; v < mat.rows; ++v) {
+      const uint16_t* row = mat.ptr<uint16_t>(v);
+      for (int u = 0; u < mat.cols; ++u) depth(u, v) = DecodeDepth(row[u], encoding);
+    }
+  } else if (mat.depth() == CV_32F) {
+    for (int v = 0; v < mat.rows; ++v) {
+      const float* row = mat.ptr<float>(v);
+      for (int u = 0; u < mat.cols; ++u) depth(u, v) = row[u];
+    }
+  } else {
+    throw Error(Format(path.string(), ": depth image must be 16-bit integer or 32-bit float, got ",
+                       mat.depth() == CV_8U ? "8-bit" : "another type",
+                       " (an 8-bit image is probably a colour or visualisation image)"));
+  }
+  CheckDepthValues(depth, path.string());
+  return depth;
+}
+
+void WriteDepthPng(const fs::path& path, const ImageDepth& depth, double scale) {
+  GS_CHECK(!depth.empty());
+  GS_CHECK_GT(scale, 0.0);
+  CheckDepthValues(depth, path.string());
+  cv::Mat mat(depth.height(), depth.width(), CV_16UC1);
+  for (int v = 0; v < depth.height(); ++v) {
+    uint16_t* row = mat.ptr<uint16_t>(v);
+    for (int u = 0; u < depth.width(); ++u) {
+      const double value = std::round(depth(u, v) * scale);
+      if (value > 65535.0) {
+        throw Error(Format(path.string(), ": depth ", depth(u, v), " m at pixel (", u, ", ", v,
+                           ") does not fit in 16 bits at scale ", scale));
+      }
+      row[u] = static_cast<uint16_t>(value);
+    }
+  }
+  WriteWithOpenCv(path, mat, {});
+}
+
+void WriteDepthExr(const fs::path& path, const ImageDepth& depth) {
+  GS_CHECK(!depth.empty());
+  cv::Mat mat(depth.height(), depth.width(), CV_32FC1, const_cast<float*>(depth.data()));
+  WriteWithOpenCv(path, mat, {cv::IMWRITE_EXR_TYPE, cv::IMWRITE_EXR_TYPE_FLOAT});
+}
+
+}  // namespace genscene

@@ -1,0 +1,255 @@
+#include "core/synthetic.h"
+
+#include <cmath>
+#include <map>
+
+#include "core/check.h"
+
+namespace genscene {
+
+namespace {
+
+// Slab test; returns entry/exit parameters and the axis/sign of the entry and exit faces.
+struct SlabHit {
+  double t_near, t_far;
+  int axis_near, axis_far;
+  double sign_near, sign_far;  // outward normal sign along the axis
+};
+
+std::optional<SlabHit> IntersectSlabs(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& o,
+                                      const Eigen::Vector3d& d) {
+  SlabHit h{-INFINITY, INFINITY, -1, -1, 0.0, 0.0};
+  for (int a = 0; a < 3; ++a) {
+    if (d[a] == 0.0) {
+      if (o[a] < box.min()[a] || o[a] > box.max()[a]) return std::nullopt;
+      continue;
+    }
+    double t0 = (box.min()[a] - o[a]) / d[a];
+    double t1 = (box.max()[a] - o[a]) / d[a];
+    double s0 = -1.0, s1 = 1.0;  // entering through min face has outward normal -axis
+    if (t0 > t1) std::swap(t0, t1), std::swap(s0, s1);
+    if (t0 > h.t_near) h.t_near = t0, h.axis_near = a, h.sign_near = s0;
+    if (t1 < h.t_far) h.t_far = t1, h.axis_far = a, h.sign_far = s1;
+  }
+  if (h.t_near > h.t_far) return std::nullopt;
+  return h;
+}
+
+void Consider(std::optional<SyntheticScene::Hit>& best, double t, const Eigen::Vector3d& n,
+              const Eigen::Vector3f& albedo, double t_min) {
+  if (t > t_min && (!best || t < best->t)) best = SyntheticScene::Hit{t, n, albedo};
+}
+
+}  // namespace
+
+std::optional<SyntheticScene::Hit> SyntheticScene::Intersect(const Eigen::Vector3d& o,
+                                                             const Eigen::Vector3d& d,
+                                                             double t_min) const {
+  std::optional<Hit> best;
+  if (room) {
+    if (auto h = IntersectSlabs(room->bounds, o, d); h && h->axis_far >= 0) {
+      // From inside, the exit face is the visible wall; its inward normal is -outward.
+      const int wall = 2 * h->axis_far + (h->sign_far > 0 ? 1 : 0);
+      if (!(room->open_front && wall == 2)) {
+        Eigen::Vector3d n = Eigen::Vector3d::Zero();
+        n[h->axis_far] = -h->sign_far;
+        Consider(best, h->t_far, n, room->albedo[wall], t_min);
+      }
+    }
+  }
+  for (const Box& box : boxes) {
+    if (auto h = IntersectSlabs(box.bounds, o, d); h && h->axis_near >= 0) {
+      Eigen::Vector3d n = Eigen::Vector3d::Zero();
+      n[h->axis_near] = h->sign_near;
+      Consider(best, h->t_near, n, box.albedo, t_min);
+    }
+  }
+  for (const Sphere& s : spheres) {
+    const Eigen::Vector3d oc = o - s.center;
+    const double a = d.squaredNorm();
+    const double b = oc.dot(d);
+    const double c = oc.squaredNorm() - s.radius * s.radius;
+    const double disc = b * b - a * c;
+    if (disc < 0.0) continue;
+    const double root = std::sqrt(disc);
+    for (double t : {(-b - root) / a, (-b + root) / a}) {
+      if (t > t_min) {
+        Consider(best, t, (o + t * d - s.center) / s.radius, s.albedo, t_min);
+        break;
+      }
+    }
+  }
+  return best;
+}
+
+namespace {
+
+void AddQuad(TriangleMesh& mesh, const std::array<Eigen::Vector3d, 4>& corners,
+             const Eigen::Vector3f& albedo) {
+  const int base = static_cast<int>(mesh.vertices.size());
+  for (const auto& c : corners) mesh.vertices.push_back(c.cast<float>());
+  mesh.faces.emplace_back(base, base + 1, base + 2);
+  mesh.faces.emplace_back(base, base + 2, base + 3);
+  mesh.face_colors.push_back(albedo);
+  mesh.face_colors.push_back(albedo);
+}
+
+// The face of `box` on `axis` at its min (side = 0) or max (side = 1), counter-clockwise seen
+// from direction `outward_sign` along the axis.
+std::array<Eigen::Vector3d, 4> BoxFace(const Eigen::AlignedBox3d& box, int axis, int side,
+                                       double outward_sign) {
+  const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+  const double w = side ? box.max()[axis] : box.min()[axis];
+  auto corner = [&](int iu, int iv) {
+    Eigen::Vector3d p;
+    p[axis] = w;
+    p[u] = iu ? box.max()[u] : box.min()[u];
+    p[v] = iv ? box.max()[v] : box.min()[v];
+    return p;
+  };
+  // (u, v, axis) is right-handed, so (0,0) (1,0) (1,1) (0,1) is CCW seen from +axis.
+  if (outward_sign > 0) return {corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)};
+  return {corner(0, 0), corner(0, 1), corner(1, 1), corner(1, 0)};
+}
+
+void AddIcosphere(TriangleMesh& mesh, const SyntheticScene::Sphere& s, int subdivisions) {
+  const double p = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Eigen::Vector3d> v = {{-1, p, 0}, {1, p, 0}, {-1, -p, 0}, {1, -p, 0},
+                                    {0, -1, p}, {0, 1, p}, {0, -1, -p}, {0, 1, -p},
+                                    {p, 0, -1}, {p, 0, 1}, {-p, 0, -1}, {-p, 0, 1}};
+  std::vector<Eigen::Vector3i> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                                    {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                                    {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                                    {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  for (auto& x : v) x.normalize();
+  for (int level = 0; level < subdivisions; ++level) {
+    std::map<std::pair<int, int>, int> midpoint;
+    auto mid = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      auto it = midpoint.find(key);
+      if (it != midpoint.end()) return it->second;
+      v.push_back((v[a] + v[b]).normalized());
+      return midpoint[key] = static_cast<int>(v.size()) - 1;
+    };
+    std::vector<Eigen::Vector3i> next;
+    for (const auto& t : f) {
+      const int a = mid(t[0], t[1]), b = mid(t[1], t[2]), c = mid(t[2], t[0]);
+      next.insert(next.end(), {{t[0], a, c}, {t[1], b, a}, {t[2], c, b}, {a, b, c}});
+    }
+    f.swap(next);
+  }
+  const int base = static_cast<int>(mesh.vertices.size());
+  for (const auto& x : v) mesh.vertices.push_back((s.center + s.radius * x).cast<float>());
+  for (const auto& t : f) {
+    mesh.faces.emplace_back(t[0] + base, t[1] + base, t[2] + base);
+    mesh.face_colors.push_back(s.albedo);
+  }
+}
+
+}  // namespace
+
+TriangleMesh SyntheticScene::ToMesh(int sphere_subdivisions) const {
+  TriangleMesh mesh;
+  if (room) {
+    for (int wall = 0; wall < 6; ++wall) {
+      if (room->open_front && wall == 2) continue;
+      const int axis = wall / 2, side = wall % 2;
+      // Seen from inside: the min wall faces +axis, the max wall faces -axis.
+      AddQuad(mesh, BoxFace(room->bounds, axis, side, side ? -1.0 : 1.0), room->albedo[wall]);
+    }
+  }
+  for (const Box& box : boxes) {
+    for (int face = 0; face < 6; ++face) {
+      const int axis = face / 2, side = face % 2;
+      AddQuad(mesh, BoxFace(box.bounds, axis, side, side ? 1.0 : -1.0), box.albedo);
+    }
+  }
+  for (const Sphere& s : spheres) AddIcosphere(mesh, s, sphere_subdivisions);
+  mesh.ComputeVertexNormals();
+  return mesh;
+}
+
+SyntheticScene MakeCornellScene() {
+  SyntheticScene scene;
+  const Eigen::Vector3f white(0.73f, 0.73f, 0.73f), red(0.63f, 0.065f, 0.05f), green(0.14f, 0.45f, 0.091f);
+  SyntheticScene::Room room;
+  room.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, 0), Eigen::Vector3d(1, 1, 2));
+  room.albedo = {red, green, white, white, white, white};
+  scene.room = room;
+  scene.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(0.1, 0.0, 0.0), Eigen::Vector3d(0.6, 0.5, 1.0)), white});
+  scene.spheres.push_back({Eigen::Vector3d(-0.4, -0.2, 0.35), 0.35, Eigen::Vector3f(0.8f, 0.75f, 0.3f)});
+  scene.light_position = Eigen::Vector3d(0.0, 0.0, 1.9);
+  return scene;
+}
+
+RgbdFrame RenderSyntheticFrame(const SyntheticScene& scene, const CameraIntrinsics& intrinsics,
+                               const Eigen::Isometry3d& world_from_camera, double timestamp) {
+  intrinsics.Validate("synthetic camera");
+  RgbdFrame frame;
+  frame.timestamp = timestamp;
+  frame.intrinsics = intrinsics;
+  frame.world_from_camera = world_from_camera;
+  frame.color = ImageRgb(intrinsics.width, intrinsics.height, Eigen::Vector3f::Zero());
+  frame.depth = ImageDepth(intrinsics.width, intrinsics.height, 0.0f);
+  const Eigen::Vector3d origin = world_from_camera.translation();
+  for (int v = 0; v < intrinsics.height; ++v) {
+    for (int u = 0; u < intrinsics.width; ++u) {
+      const Eigen::Vector3d dir_camera = intrinsics.RayDirection(u, v);  // z = 1
+      const Eigen::Vector3d dir = world_from_camera.linear() * dir_camera;
+      const auto hit = scene.Intersect(origin, dir);
+      if (!hit) continue;
+      frame.depth(u, v) = static_cast<float>(hit->t);  // t along a z = 1 direction is planar depth
+      const Eigen::Vector3d p = origin + hit->t * dir;
+      const double cosine = std::max(0.0, hit->normal.dot((scene.light_position - p).normalized()));
+      frame.color(u, v) = hit->albedo * static_cast<float>(scene.ambient + (1.0 - scene.ambient) * cosine);
+    }
+  }
+  return frame;
+}
+
+Eigen::Isometry3d LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
+  const Eigen::Vector3d z = (target - eye).normalized();
+  Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ());
+  if (x.norm() < 1e-9) x = Eigen::Vector3d::UnitX();  // looking straight up or down
+  x.normalize();
+  const Eigen::Vector3d y = z.cross(x);  // image down = world down-ish
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear().col(0) = x;
+  pose.linear().col(1) = y;
+  pose.linear().col(2) = z;
+  pose.translation() = eye;
+  return pose;
+}
+
+Trajectory MakeOrbitTrajectory(const Eigen::Vector3d& target, double radius, double height,
+                               double arc_degrees, int frames) {
+  GS_CHECK_GT(frames, 0);
+  Trajectory trajectory;
+  for (int i = 0; i < frames; ++i) {
+    const double s = frames == 1 ? 0.0 : static_cast<double>(i) / (frames - 1) - 0.5;
+    const double angle = -M_PI / 2.0 + s * arc_degrees * M_PI / 180.0;  // centred on -y
+    const Eigen::Vector3d eye = target + Eigen::Vector3d(radius * std::cos(angle),
+                                                         radius * std::sin(angle), height - target.z());
+    trajectory.Add(i / 30.0, LookAt(eye, target));
+  }
+  return trajectory;
+}
+
+}  // namespace genscene
+
+#include "core/parallel.h"
+#include "core/rng.h"
+
+namespace genscene {
+
+void AddKinectDepthNoise(ImageDepth& depth, uint64_t seed, uint64_t frame_index) {
+  ParallelFor(0, depth.size(), [&](size_t i) {
+    float& z = depth.pixels()[i];
+    if (z <= 0.0f) return;
+    CounterRng rng(seed, frame_index, i);
+    const double sigma = 0.0012 + 0.0019 * (z - 0.4) * (z - 0.4);
+    z = std::max(0.0f, static_cast<float>(z + sigma * rng.Normal()));
+  });
+}
+
+}  // namespace genscene

@@ -1,0 +1,50 @@
+// The workspace folder (DESIGN.md §2): every stage reads its inputs from and writes its outputs
+// to one folder, so that any stage can be re-run, inspected or fed by hand. Outputs are written
+// atomically (file_util.h), so an existing output is a complete one; a stage is skipped when all
+// its outputs exist and are newer than all its inputs.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace genscene {
+
+class Workspace {
+ public:
+  // Creates the folder when missing; throws Error when it exists as a file or cannot be made.
+  explicit Workspace(std::filesystem::path root);
+
+  const std::filesystem::path& root() const { return root_; }
+
+  // The files of the stage contracts.
+  std::filesystem::path Input() const { return root_ / "input"; }  // synthesised or converted sequence
+  std::filesystem::path Trajectory() const { return root_ / "trajectory.txt"; }
+  std::filesystem::path Tsdf() const { return root_ / "tsdf.gsv"; }
+  std::filesystem::path Keyframes() const { return root_ / "keyframes"; }
+  std::filesystem::path Mesh() const { return root_ / "mesh.ply"; }
+  std::filesystem::path Texture() const { return root_ / "texture.mcol"; }
+  std::filesystem::path TexturePly() const { return root_ / "texture.ply"; }
+  std::filesystem::path Albedo() const { return root_ / "albedo.mcol"; }
+  std::filesystem::path AlbedoPly() const { return root_ / "albedo.ply"; }
+  std::filesystem::path Lights() const { return root_ / "lights.json"; }
+  std::filesystem::path RefinedMesh() const { return root_ / "mesh_refined.ply"; }
+  std::filesystem::path Log() const { return root_ / "genscene.log"; }
+  std::filesystem::path Report() const { return root_ / "report"; }
+
+  // True when every output exists and none is older than the newest input (folders count by
+  // their newest file). False when an output or an input is missing.
+  static bool IsFresh(const std::vector<std::filesystem::path>& outputs,
+                      const std::vector<std::filesystem::path>& inputs);
+
+ private:
+  std::filesystem::path root_;
+};
+
+// Newest modification time of a file, or of any file below a folder; nullopt when missing.
+std::optional<std::filesystem::file_time_type> NewestTime(const std::filesystem::path& path);
+// Oldest modification time of a file, or of any file below a folder; nullopt when missing.
+std::optional<std::filesystem::file_time_type> OldestTime(const std::filesystem::path& path);
+
+}  // namespace genscene
