@@ -1,0 +1,30 @@
+// PLY mesh I/O through OpenMesh (kept out of this header), readable by MeshLab, Open3D and
+// Blender. Binary little-endian by default.
+//
+// Colour convention on disk: `red/green/blue` uchar properties are sRGB-encoded 8-bit (what
+// MeshLab and Open3D display) and are converted to/from linear on read/write; float face
+// properties `albedo_r/albedo_g/albedo_b` are linear (DESIGN.md §2) and are preferred on read.
+#pragma once
+
+#include <filesystem>
+
+#include "core/mesh.h"
+
+namespace genscene {
+
+struct PlyWriteOptions {
+  bool binary = true;  // false: ASCII
+};
+
+// Reads positions, faces (triangles; polygons are fan-triangulated), and when present vertex
+// normals, vertex colours and face colours/albedo. Before handing the file to OpenMesh the header
+// is checked against the file size, so a truncated file or a header claiming 10^9 vertices is an
+// Error naming the file, not an allocation. Throws Error naming the file on any problem.
+TriangleMesh ReadPly(const std::filesystem::path& path);
+
+// Writes the mesh atomically: positions, faces, and normals / vertex colours / face colours when
+// non-empty (face colours as float albedo_r/g/b and as uchar red/green/blue).
+void WritePly(const std::filesystem::path& path, const TriangleMesh& mesh,
+              const PlyWriteOptions& options = PlyWriteOptions());
+
+}  // namespace genscene
