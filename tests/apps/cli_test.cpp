@@ -1,0 +1,182 @@
+// The apps as a user meets them: exit codes, one-line errors naming the file or key, no output
+// left behind on failure, --help that documents the flags.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "core/image_io.h"
+#include "tests/test_util.h"
+
+namespace genscene {
+namespace {
+
+namespace fs = std::filesystem;
+using test::AppPath;
+using test::RunCommand;
+
+// The last non-empty line of the output (apps print their error last).
+std::string LastLine(const std::string& output) {
+  std::string text = output;
+  while (!text.empty() && text.back() == '\n') text.pop_back();
+  const auto nl = text.find_last_of('\n');
+  return nl == std::string::npos ? text : text.substr(nl + 1);
+}
+
+size_t FilesBelow(const fs::path& dir) {
+  size_t n = 0;
+  std::error_code ec;
+  for (const auto& e : fs::recursive_directory_iterator(dir, ec)) n += e.is_regular_file() ? 1 : 0;
+  return n;
+}
+
+class Apps : public ::testing::Test {
+ protected:
+  // A small valid TUM sequence made by genscene-synth.
+  void MakeSequence(const fs::path& dir) {
+    const auto r = RunCommand(AppPath("genscene-synth") + " --frames 3 --size 32x24 --out " + dir.string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  // Expects failure with a one-line "app: error: ..." message containing every needle, and no
+  // file in `out` (when given).
+  void ExpectFailure(const std::string& command, const std::vector<std::string>& needles,
+                     const fs::path& out = {}) {
+    const auto r = RunCommand(command);
+    EXPECT_NE(r.exit_code, 0) << command << "\n" << r.output;
+    const std::string line = LastLine(r.output);
+    EXPECT_NE(line.find(": error: "), std::string::npos) << r.output;
+    for (const auto& needle : needles) EXPECT_NE(line.find(needle), std::string::npos) << "'" << needle << "' not in: " << line;
+    if (!out.empty()) {
+      EXPECT_EQ(FilesBelow(out), 0u) << "output left in " << out;
+    }
+  }
+  test::TempDir dir_;
+};
+
+TEST_F(Apps, HelpDocumentsFlagsWithUnitsAndDefaults) {
+  const auto r = RunCommand(AppPath("genscene-synth") + " --help");
+  EXPECT_EQ(r.exit_code, 0);
+  for (const char* flag : {"--frames", "--size", "--noise", "--fov", "--seed", "--threads", "--config", "--out"}) {
+    EXPECT_NE(r.output.find(flag), std::string::npos) << flag << " missing from --help";
+  }
+  EXPECT_NE(r.output.find("[deg]"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("160x120"), std::string::npos) << "default of --size not shown";
+  const auto run = RunCommand(AppPath("genscene") + " run --help");
+  EXPECT_EQ(run.exit_code, 0);
+  for (const char* flag : {"--input", "--intrinsics", "--depth-scale", "--camera-response", "--associations"}) {
+    EXPECT_NE(run.output.find(flag), std::string::npos) << flag;
+  }
+  EXPECT_EQ(RunCommand(AppPath("genscene") + " --help").exit_code, 0);
+  EXPECT_NE(RunCommand(AppPath("genscene") + " frobnicate").exit_code, 0);
+}
+
+TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
+  const fs::path ws = dir_ / "ws";
+  const std::string demo = AppPath("genscene") + " demo --frames 3 --size 32x24 --out " + ws.string();
+  auto r = RunCommand(demo);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(fs::exists(ws / "input/rgb.txt"));
+  EXPECT_TRUE(fs::exists(ws / "input/groundtruth.txt"));
+  EXPECT_TRUE(fs::exists(ws / "input/mesh_gt.ply"));
+  EXPECT_TRUE(fs::exists(ws / "sequence.json"));
+  EXPECT_NE(r.output.find("3 frames 32x24"), std::string::npos) << r.output;
+  r = RunCommand(demo);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("up to date"), std::string::npos) << r.output;
+  EXPECT_EQ(test::CountFilesContaining(ws, ".tmp-"), 0);
+}
+
+TEST_F(Apps, MissingInput) {
+  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "nope").string() + " --out " + (dir_ / "ws").string(),
+                {"nope", "no such file or folder"}, dir_ / "ws");
+}
+
+TEST_F(Apps, EmptyList) {
+  MakeSequence(dir_ / "seq");
+  std::ofstream(dir_ / "seq/rgb.txt") << "# nothing\n";
+  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --out " + (dir_ / "ws").string(),
+                {"rgb.txt", "empty list"}, dir_ / "ws");
+}
+
+TEST_F(Apps, CorruptPng) {
+  MakeSequence(dir_ / "seq");
+  const fs::path victim = fs::directory_iterator(dir_ / "seq/depth")->path();
+  std::ofstream(victim, std::ios::binary | std::ios::trunc) << "\x89PNG\r\n\x1a\n garbage";
+  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --out " + (dir_ / "ws").string(),
+                {victim.filename().string(), "cannot decode"}, dir_ / "ws");
+}
+
+TEST_F(Apps, DepthIntrinsicsSizeMismatch) {
+  MakeSequence(dir_ / "seq");
+  std::ofstream(dir_ / "seq/k.txt") << "30 30 159.5 119.5 320 240\n";
+  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --intrinsics " +
+                    (dir_ / "seq/k.txt").string() + " --out " + (dir_ / "ws").string(),
+                {"depth 32x24 but intrinsics say 320x240"}, dir_ / "ws");
+}
+
+TEST_F(Apps, NanInfNegativeDepth) {
+  for (float bad : {std::nanf(""), INFINITY, -0.5f}) {
+    MakeSequence(dir_ / "seq");
+    ImageDepth depth(32, 24, 1.0f);
+    depth(5, 6) = bad;
+    WriteDepthExr(dir_ / "seq/depth/bad.exr", depth);
+    std::ifstream in(dir_ / "seq/depth.txt");
+    std::string header, first;
+    std::getline(in, header);
+    std::getline(in, first);
+    std::ofstream(dir_ / "seq/depth.txt") << first.substr(0, first.find(' ')) << " depth/bad.exr\n";
+    ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --out " + (dir_ / "ws").string(),
+                  {"bad.exr", "NaN, infinite or negative", "pixel (5, 6)"}, dir_ / "ws");
+    fs::remove_all(dir_ / "seq");
+  }
+}
+
+TEST_F(Apps, TruncatedPly) {
+  const fs::path ws = dir_ / "ws";
+  ASSERT_EQ(RunCommand(AppPath("genscene") + " demo --frames 2 --size 16x12 --out " + ws.string()).exit_code, 0);
+  std::ifstream in(ws / "input/mesh_gt.ply", std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  std::ofstream(dir_ / "cut.ply", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  ExpectFailure(AppPath("genscene") + " inspect " + (dir_ / "cut.ply").string(), {"cut.ply"});
+  const auto ok = RunCommand(AppPath("genscene") + " inspect " + (ws / "input/mesh_gt.ply").string());
+  EXPECT_EQ(ok.exit_code, 0) << ok.output;
+  EXPECT_NE(ok.output.find("triangles"), std::string::npos) << ok.output;
+}
+
+TEST_F(Apps, UnknownConfigKey) {
+  std::ofstream(dir_ / "c.json") << R"({"synth": {"frames": 2, "frame_count": 3}})";
+  ExpectFailure(AppPath("genscene-synth") + " --config " + (dir_ / "c.json").string() + " --out " + (dir_ / "out").string(),
+                {"c.json", "unknown key 'synth.frame_count'"});
+  EXPECT_FALSE(fs::exists(dir_ / "out"));
+}
+
+TEST_F(Apps, ConfigValuesAndFlagPrecedence) {
+  std::ofstream(dir_ / "c.json") << R"({"synth": {"frames": 2, "size": "16x12"}})";
+  // The flag overrides the config's frames; the config's size stays.
+  const auto r = RunCommand(AppPath("genscene-synth") + " --config " + (dir_ / "c.json").string() +
+                            " --frames 4 --out " + (dir_ / "out").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("wrote 4 frames of 16x12"), std::string::npos) << r.output;
+}
+
+TEST_F(Apps, OutOfRangeOptions) {
+  ExpectFailure(AppPath("genscene-synth") + " --frames 0 --out " + (dir_ / "out").string(), {"frames = 0"});
+  ExpectFailure(AppPath("genscene-synth") + " --size 4x4 --out " + (dir_ / "out").string(), {"size = '4x4'"});
+  ExpectFailure(AppPath("genscene-synth") + " --noise loud --out " + (dir_ / "out").string(), {"noise = 'loud'"});
+  ExpectFailure(AppPath("genscene-synth") + " --frames many --out " + (dir_ / "out").string(), {"--frames", "many"});
+  EXPECT_FALSE(fs::exists(dir_ / "out"));
+  MakeSequence(dir_ / "seq");
+  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --stride 0 --out " +
+                    (dir_ / "ws").string(),
+                {"stride = 0"}, dir_ / "ws");
+}
+
+TEST_F(Apps, SameSeedSameOutputWhateverTheThreadCount) {
+  const std::string base = AppPath("genscene-synth") + " --frames 2 --size 24x16 --noise kinect --seed 9 ";
+  ASSERT_EQ(RunCommand(base + "--threads 1 --out " + (dir_ / "a").string()).exit_code, 0);
+  ASSERT_EQ(RunCommand(base + "--threads 2 --out " + (dir_ / "b").string()).exit_code, 0);
+  const auto cmp = RunCommand("diff -r " + (dir_ / "a").string() + " " + (dir_ / "b").string());
+  EXPECT_EQ(cmp.exit_code, 0) << cmp.output;
+}
+
+}  // namespace
+}  // namespace genscene

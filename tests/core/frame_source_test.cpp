@@ -1,0 +1,246 @@
+#include "core/frame_source.h"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "core/check.h"
+#include "core/image_io.h"
+#include "core/sequence_writer.h"
+#include "core/synthetic.h"
+#include "tests/test_util.h"
+
+namespace genscene {
+namespace {
+
+struct DepthRange {
+  double lo = 1e9, hi = 0.0;
+  size_t valid = 0;
+};
+
+DepthRange RangeOf(const ImageDepth& d) {
+  DepthRange r;
+  for (float z : d.pixels()) {
+    if (z <= 0.0f) continue;
+    ++r.valid;
+    r.lo = std::min<double>(r.lo, z);
+    r.hi = std::max<double>(r.hi, z);
+  }
+  return r;
+}
+
+TEST(FrameSourceReal, TumFr1Desk9Frames) {
+  GS_REQUIRE_SHARED_DATA(data);
+  const auto folder = data / "real/tum-fr1desk-9f";
+  SourceOptions options;
+  options.associations = (folder / "associate_9frames.txt").string();
+  auto source = OpenFrameSource(folder.string(), options);
+  EXPECT_EQ(source->FrameCount(), 9u);
+  // Intrinsics guessed from the folder name: freiburg1.
+  EXPECT_DOUBLE_EQ(source->Intrinsics().fx, 517.3);
+  const auto frames = ReadAllFrames(*source);
+  ASSERT_EQ(frames.size(), 9u);
+  for (const RgbdFrame& f : frames) {
+    EXPECT_EQ(f.depth.width(), 640);
+    EXPECT_EQ(f.depth.height(), 480);
+    EXPECT_TRUE(f.color.SameSize(f.depth));
+    const DepthRange r = RangeOf(f.depth);
+    EXPECT_GT(r.valid, f.depth.size() / 2);
+    EXPECT_GT(r.lo, 0.3);  // Kinect v1 minimum range
+    EXPECT_LT(r.hi, 6.0);  // a desk scene
+    // Ground truth at 100 Hz: every frame has a pose within 10 ms.
+    const auto gt = source->KnownPoses().Nearest(f.timestamp, 0.010);
+    ASSERT_TRUE(gt.has_value()) << f.timestamp;
+    EXPECT_LE(std::abs(gt->timestamp - f.timestamp), 0.010);
+    ASSERT_TRUE(f.world_from_camera.has_value());
+    EXPECT_LT((f.world_from_camera->translation() - gt->world_from_camera.translation()).norm(), 0.02);
+  }
+  EXPECT_DOUBLE_EQ(frames.front().timestamp, 1305031453.359684);
+}
+
+TEST(FrameSourceReal, TumListNamingMissingFilesIsAnError) {
+  GS_REQUIRE_SHARED_DATA(data);
+  // rgb.txt of this excerpt lists all 613 frames of fr1/desk; only 9 images are present.
+  try {
+    OpenFrameSource((data / "real/tum-fr1desk-9f").string(), SourceOptions());
+    FAIL() << "opened a list of missing files";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("does not exist"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("rgb.txt"), std::string::npos) << e.what();
+  }
+}
+
+TEST(FrameSourceReal, Open3dRedwoodFolder) {
+  GS_REQUIRE_SHARED_DATA(data);
+  auto source = OpenFrameSource((data / "real/open3d-testdata-rgbd").string(), SourceOptions());
+  EXPECT_EQ(source->FrameCount(), 5u);
+  EXPECT_DOUBLE_EQ(source->Intrinsics().fx, 525.0);  // camera_primesense.json
+  const auto frames = ReadAllFrames(*source);
+  ASSERT_EQ(frames.size(), 5u);
+  for (const RgbdFrame& f : frames) {
+    EXPECT_EQ(f.depth.width(), 640);
+    EXPECT_EQ(f.depth.height(), 480);
+    const DepthRange r = RangeOf(f.depth);
+    EXPECT_GT(r.valid, f.depth.size() / 2);
+    EXPECT_GT(r.lo, 0.2);
+    EXPECT_LT(r.hi, 6.0);  // millimetres decoded: a living room
+    EXPECT_TRUE(f.world_from_camera.has_value());
+  }
+  // odometry.log: frame 0 at (2, 2, -0.3).
+  EXPECT_TRUE(frames[0].world_from_camera->translation().isApprox(Eigen::Vector3d(2, 2, -0.3)));
+}
+
+TEST(FrameSourceReal, SlambookJoinMapFolder) {
+  GS_REQUIRE_SHARED_DATA(data);
+  test::TempDir dir;
+  {
+    std::ofstream(dir / "k.txt") << "518.0 519.0 325.5 253.5 640 480\n";  // joinMap.cpp
+  }
+  SourceOptions options;
+  options.intrinsics = (dir / "k.txt").string();
+  auto source = OpenFrameSource((data / "real/slambook-joinmap-5f").string(), options);
+  const auto frames = ReadAllFrames(*source);
+  ASSERT_EQ(frames.size(), 5u);
+  for (const RgbdFrame& f : frames) {
+    EXPECT_EQ(f.depth.width(), 640);
+    EXPECT_EQ(f.depth.height(), 480);
+    const DepthRange r = RangeOf(f.depth);
+    EXPECT_GT(r.valid, f.depth.size() / 3);
+    EXPECT_GT(r.lo, 0.2);
+    EXPECT_LT(r.hi, 10.0);
+    EXPECT_TRUE(f.world_from_camera.has_value());
+  }
+  // pose.txt line 1: tx = -0.228993.
+  EXPECT_NEAR(frames[0].world_from_camera->translation().x(), -0.228993, 1e-9);
+  // Natural order: 1.png .. 5.png.
+  EXPECT_NE(frames[4].color_path.find("5.png"), std::string::npos);
+}
+
+TEST(FrameSourceReal, CornellViewSet) {
+  GS_REQUIRE_SHARED_DATA(data);
+  auto source = OpenFrameSource((data / "cbox-cycles/views/train").string(), SourceOptions());
+  const auto frames = ReadAllFrames(*source);
+  ASSERT_EQ(frames.size(), 3u);
+  EXPECT_EQ(frames[0].color.width(), 160);
+  EXPECT_EQ(frames[0].color.height(), 120);
+  ASSERT_TRUE(frames[0].world_from_camera.has_value());
+  EXPECT_NEAR(frames[0].world_from_camera->translation().y(), -2.1, 1e-9);
+  // Linear EXR radiance is taken as it is (no sRGB decode): some pixels are far above 1 (the light).
+  float brightest = 0.0f;
+  for (const auto& p : frames[0].color.pixels()) brightest = std::max(brightest, p.maxCoeff());
+  EXPECT_GT(brightest, 1.0f);
+}
+
+// A small synthetic sequence written and read back through the TUM reader.
+class SyntheticSequence : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    k_.width = 32, k_.height = 24, k_.fx = k_.fy = 30.0, k_.cx = 15.5, k_.cy = 11.5;
+    const SyntheticScene scene = MakeCornellScene();
+    const Trajectory orbit = MakeOrbitTrajectory({0, 0, 0.6}, 0.9, 1.0, 40.0, 4);
+    for (const auto& p : orbit.poses()) frames_.push_back(RenderSyntheticFrame(scene, k_, p.world_from_camera, p.timestamp));
+    WriteTumSequence(dir_ / "seq", frames_);
+  }
+  test::TempDir dir_;
+  CameraIntrinsics k_;
+  std::vector<RgbdFrame> frames_;
+};
+
+TEST_F(SyntheticSequence, RoundTripThroughTumFolder) {
+  auto source = OpenFrameSource((dir_ / "seq").string(), SourceOptions());
+  const auto back = ReadAllFrames(*source);
+  ASSERT_EQ(back.size(), frames_.size());
+  for (size_t i = 0; i < back.size(); ++i) {
+    EXPECT_NEAR(back[i].timestamp, frames_[i].timestamp, 1e-6);
+    for (size_t p = 0; p < back[i].depth.size(); ++p) {
+      EXPECT_NEAR(back[i].depth.pixels()[p], frames_[i].depth.pixels()[p], 0.5 / 5000 + 1e-6);
+    }
+    ASSERT_TRUE(back[i].world_from_camera.has_value());
+    EXPECT_LT((back[i].world_from_camera->matrix() - frames_[i].world_from_camera->matrix()).cwiseAbs().maxCoeff(), 1e-8);
+  }
+  EXPECT_EQ(test::CountFilesContaining(dir_.path(), ".tmp-"), 0);
+}
+
+TEST_F(SyntheticSequence, FrameSelection) {
+  SourceOptions options;
+  options.first_frame = 1;
+  options.stride = 2;
+  auto source = OpenFrameSource((dir_ / "seq").string(), options);
+  const auto back = ReadAllFrames(*source);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_NEAR(back[0].timestamp, frames_[1].timestamp, 1e-6);
+  EXPECT_NEAR(back[1].timestamp, frames_[3].timestamp, 1e-6);
+  options.first_frame = 10;
+  EXPECT_THROW(OpenFrameSource((dir_ / "seq").string(), options), Error);
+}
+
+void ExpectOpenOrReadFails(const std::string& folder, const std::string& needle) {
+  try {
+    auto source = OpenFrameSource(folder, SourceOptions());
+    ReadAllFrames(*source);
+    ADD_FAILURE() << "no error, expected '" << needle << "'";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+  }
+}
+
+TEST_F(SyntheticSequence, EmptyListIsAnError) {
+  std::ofstream(dir_ / "seq/rgb.txt") << "# timestamp filename\n";
+  ExpectOpenOrReadFails((dir_ / "seq").string(), "empty list");
+}
+
+TEST_F(SyntheticSequence, MissingImageIsAnError) {
+  std::filesystem::remove(dir_ / "seq/depth" / (std::filesystem::directory_iterator(dir_ / "seq/depth")->path().filename()));
+  ExpectOpenOrReadFails((dir_ / "seq").string(), "does not exist");
+}
+
+TEST_F(SyntheticSequence, DepthIntrinsicsSizeMismatchIsAnError) {
+  std::ofstream(dir_ / "seq/intrinsics.txt") << "30 30 7.5 5.5 16 12\n";
+  ExpectOpenOrReadFails((dir_ / "seq").string(), "but intrinsics say 16x12");
+}
+
+TEST_F(SyntheticSequence, NanDepthIsAnError) {
+  // Replace the depth list with a float EXR holding one NaN.
+  ImageDepth depth = frames_[0].depth;
+  depth(2, 3) = std::numeric_limits<float>::quiet_NaN();
+  WriteDepthExr(dir_ / "seq/depth/bad.exr", depth);
+  std::ofstream(dir_ / "seq/depth.txt") << std::fixed << frames_[0].timestamp << " depth/bad.exr\n";
+  ExpectOpenOrReadFails((dir_ / "seq").string(), "bad.exr");
+}
+
+TEST(FrameSource, UnknownSourcesAreErrors) {
+  test::TempDir dir;
+  ExpectOpenOrReadFails((dir / "nope").string(), "no such file or folder");
+  ExpectOpenOrReadFails(dir.path().string(), "not a recognised sequence");
+  ExpectOpenOrReadFails("openni2", "not supported yet");
+}
+
+TEST(FrameSource, AssociationFollowsTumRule) {
+  // rgb at 0.000, 0.030, 0.055; depth at 0.010, 0.040, 0.200 (max difference 0.02 s). Candidates by
+  // difference: (0.030, 0.040) 0.010, (0.000, 0.010) 0.010, (0.055, 0.040) 0.015, (0.030, 0.010) 0.020
+  // (not < 0.02). Greedy: 0.040 goes to 0.030, the closer one, so 0.055 stays unmatched.
+  test::TempDir dir;
+  ImageRgb color(4, 4, Eigen::Vector3f::Constant(0.5f));
+  ImageDepth depth(4, 4, 1.0f);
+  std::ofstream rgb(dir / "rgb.txt"), dep(dir / "depth.txt");
+  for (const char* t : {"0.000", "0.030", "0.055"}) {
+    WritePng(dir / (std::string("c") + t + ".png"), color);
+    rgb << t << " c" << t << ".png\n";
+  }
+  for (const char* t : {"0.010", "0.040", "0.200"}) {
+    WriteDepthPng(dir / (std::string("d") + t + ".png"), depth);
+    dep << t << " d" << t << ".png\n";
+  }
+  rgb.close();
+  dep.close();
+  std::ofstream(dir / "intrinsics.txt") << "4 4 1.5 1.5 4 4\n";
+  auto source = OpenFrameSource(dir.path().string(), SourceOptions());
+  const auto frames = ReadAllFrames(*source);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_NE(frames[0].depth_path.find("d0.010"), std::string::npos);
+  EXPECT_NE(frames[1].color_path.find("c0.030"), std::string::npos);
+  EXPECT_NE(frames[1].depth_path.find("d0.040"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace genscene
