@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Configures and builds genscene (Release, -j2, ccache when available).
+#   scripts/build.sh               -> build/
+#   scripts/build.sh --sanitize    -> build-sanitize/ (ASan + UBSan, RelWithDebInfo)
+# Extra arguments after the options are passed to `cmake --build` (e.g. --target genscene).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+BUILD_DIR=build
+CMAKE_ARGS=(-DCMAKE_BUILD_TYPE=Release)
+if [ "${1:-}" = "--sanitize" ]; then
+  shift
+  BUILD_DIR=build-sanitize
+  CMAKE_ARGS=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DGENSCENE_SANITIZE=ON -DGENSCENE_BUILD_BENCH=OFF)
+fi
+JOBS="${GENSCENE_JOBS:-2}"
+
+cmake -S . -B "$BUILD_DIR" "${CMAKE_ARGS[@]}" >/dev/null
+cmake --build "$BUILD_DIR" -j "$JOBS" "$@"

@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# README command 2: installs what is missing, builds, and runs the whole test suite twice:
+# the Release build, then the ASan + UBSan build. CI (.ci/run) calls exactly this.
+#   scripts/test.sh            everything (what CI runs)
+#   scripts/test.sh --fast     Release build, tests labelled "fast" only (for developers)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/install_deps.sh
+
+if [ "${CI:-}" = "true" ] && [ ! -d ../shared/data ] && [ -z "${GENSCENE_SHARED_DATA:-}" ]; then
+  echo "test: error: CI=true but ../shared/data is missing; the data tests must run in CI" >&2
+  exit 1
+fi
+
+scripts/build.sh
+if [ "${1:-}" = "--fast" ]; then
+  (cd build && ctest --output-on-failure -j 2 -L fast)
+  exit 0
+fi
+(cd build && ctest --output-on-failure -j 2 --timeout 600)
+
+echo "test: sanitizer build (ASan + UBSan)"
+scripts/build.sh --sanitize
+export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
+export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+(cd build-sanitize && ctest --output-on-failure -j 2 --timeout 900)
+echo "test: all passed (Release and ASan + UBSan)"
