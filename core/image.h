@@ -5,17 +5,30 @@
 
 #include <Eigen/Core>
 #include <cstddef>
+#include <type_traits>
 #include <vector>
 
 #include "core/check.h"
 
 namespace genscene {
 
+// Zero of a pixel type: 0 for numbers, T::Zero() for Eigen vectors (whose default constructor
+// leaves them uninitialised).
+template <typename T>
+T ZeroPixel() {
+  if constexpr (std::is_arithmetic_v<T>) {
+    return T(0);
+  } else {
+    return T::Zero();
+  }
+}
+
 template <typename T>
 class Image {
  public:
   Image() = default;
-  Image(int width, int height, const T& fill = T()) : width_(width), height_(height) {
+  // A width x height image with every pixel `fill` (zero by default).
+  Image(int width, int height, const T& fill = ZeroPixel<T>()) : width_(width), height_(height) {
     GS_CHECK_GE(width, 0);
     GS_CHECK_GE(height, 0);
     data_.assign(static_cast<size_t>(width) * static_cast<size_t>(height), fill);

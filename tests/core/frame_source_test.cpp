@@ -29,6 +29,20 @@ DepthRange RangeOf(const ImageDepth& d) {
   return r;
 }
 
+// Every frame: 640x480 depth, more than `min_valid` of it measured, within [lo, hi] meters, with a pose.
+void ExpectKinectFrames(const std::vector<RgbdFrame>& frames, double min_valid, double lo, double hi) {
+  for (const RgbdFrame& f : frames) {
+    EXPECT_EQ(f.depth.width(), 640) << f.depth_path;
+    EXPECT_EQ(f.depth.height(), 480) << f.depth_path;
+    EXPECT_TRUE(f.color.SameSize(f.depth)) << f.color_path;
+    const DepthRange r = RangeOf(f.depth);
+    EXPECT_GT(r.valid, min_valid * f.depth.size()) << f.depth_path;
+    EXPECT_GT(r.lo, lo) << f.depth_path;
+    EXPECT_LT(r.hi, hi) << f.depth_path;
+    EXPECT_TRUE(f.world_from_camera.has_value()) << f.depth_path;
+  }
+}
+
 TEST(FrameSourceReal, TumFr1Desk9Frames) {
   GS_REQUIRE_SHARED_DATA(data);
   const auto folder = data / "real/tum-fr1desk-9f";
@@ -40,14 +54,8 @@ TEST(FrameSourceReal, TumFr1Desk9Frames) {
   EXPECT_DOUBLE_EQ(source->Intrinsics().fx, 517.3);
   const auto frames = ReadAllFrames(*source);
   ASSERT_EQ(frames.size(), 9u);
+  ExpectKinectFrames(frames, 0.5, 0.3, 6.0);  // Kinect v1 minimum range; a desk scene
   for (const RgbdFrame& f : frames) {
-    EXPECT_EQ(f.depth.width(), 640);
-    EXPECT_EQ(f.depth.height(), 480);
-    EXPECT_TRUE(f.color.SameSize(f.depth));
-    const DepthRange r = RangeOf(f.depth);
-    EXPECT_GT(r.valid, f.depth.size() / 2);
-    EXPECT_GT(r.lo, 0.3);  // Kinect v1 minimum range
-    EXPECT_LT(r.hi, 6.0);  // a desk scene
     // Ground truth at 100 Hz: every frame has a pose within 10 ms.
     const auto gt = source->KnownPoses().Nearest(f.timestamp, 0.010);
     ASSERT_TRUE(gt.has_value()) << f.timestamp;
@@ -77,15 +85,7 @@ TEST(FrameSourceReal, Open3dRedwoodFolder) {
   EXPECT_DOUBLE_EQ(source->Intrinsics().fx, 525.0);  // camera_primesense.json
   const auto frames = ReadAllFrames(*source);
   ASSERT_EQ(frames.size(), 5u);
-  for (const RgbdFrame& f : frames) {
-    EXPECT_EQ(f.depth.width(), 640);
-    EXPECT_EQ(f.depth.height(), 480);
-    const DepthRange r = RangeOf(f.depth);
-    EXPECT_GT(r.valid, f.depth.size() / 2);
-    EXPECT_GT(r.lo, 0.2);
-    EXPECT_LT(r.hi, 6.0);  // millimetres decoded: a living room
-    EXPECT_TRUE(f.world_from_camera.has_value());
-  }
+  ExpectKinectFrames(frames, 0.5, 0.2, 6.0);  // millimetres decoded: a living room
   // odometry.log: frame 0 at (2, 2, -0.3).
   EXPECT_TRUE(frames[0].world_from_camera->translation().isApprox(Eigen::Vector3d(2, 2, -0.3)));
 }
@@ -101,15 +101,7 @@ TEST(FrameSourceReal, SlambookJoinMapFolder) {
   auto source = OpenFrameSource((data / "real/slambook-joinmap-5f").string(), options);
   const auto frames = ReadAllFrames(*source);
   ASSERT_EQ(frames.size(), 5u);
-  for (const RgbdFrame& f : frames) {
-    EXPECT_EQ(f.depth.width(), 640);
-    EXPECT_EQ(f.depth.height(), 480);
-    const DepthRange r = RangeOf(f.depth);
-    EXPECT_GT(r.valid, f.depth.size() / 3);
-    EXPECT_GT(r.lo, 0.2);
-    EXPECT_LT(r.hi, 10.0);
-    EXPECT_TRUE(f.world_from_camera.has_value());
-  }
+  ExpectKinectFrames(frames, 1.0 / 3.0, 0.2, 10.0);
   // pose.txt line 1: tx = -0.228993.
   EXPECT_NEAR(frames[0].world_from_camera->translation().x(), -0.228993, 1e-9);
   // Natural order: 1.png .. 5.png.
