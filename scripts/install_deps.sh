@@ -10,6 +10,8 @@ PACKAGES=(
   libeigen3-dev libtbb-dev libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev
   libopenmesh-dev
+  # inverse (path tracer, Mitsuba XML scenes)
+  libembree-dev libtinyxml2-dev
   # tests
   libgtest-dev
 )

@@ -1,0 +1,347 @@
+#include "inverse/path_tracer.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/check.h"
+#include "core/options.h"
+#include "core/parallel.h"
+
+namespace genscene::inverse {
+
+namespace {
+
+float Luminance(const Eigen::Vector3f& c) { return 0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z(); }
+
+// Offset of a ray origin along the geometric normal, scaled with the magnitude of the position
+// so that it stays above float round-off in large scenes (Mitsuba scenes in centimetres).
+float OffsetScale(const Eigen::Vector3f& p) { return 2e-5f * (1.0f + p.cwiseAbs().maxCoeff()); }
+
+// Power heuristic (beta = 2) of Veach's multiple importance sampling.
+float PowerHeuristic(float pdf_a, float pdf_b) {
+  const float a = pdf_a * pdf_a, b = pdf_b * pdf_b;
+  return a + b > 0.0f ? a / (a + b) : 0.0f;
+}
+
+// Cosine-weighted direction around unit n (pdf = cos / pi).
+Eigen::Vector3f SampleCosine(const Eigen::Vector3f& n, float u1, float u2) {
+  const float r = std::sqrt(u1), phi = 2.0f * static_cast<float>(M_PI) * u2;
+  const float x = r * std::cos(phi), y = r * std::sin(phi), z = std::sqrt(std::max(0.0f, 1.0f - u1));
+  // Orthonormal basis (Duff et al. 2017).
+  const float sign = std::copysign(1.0f, n.z());
+  const float a = -1.0f / (sign + n.z()), b = n.x() * n.y() * a;
+  const Eigen::Vector3f t(1.0f + sign * n.x() * n.x() * a, sign * b, -sign * n.x());
+  const Eigen::Vector3f s(b, sign + n.y() * n.y() * a, -n.y());
+  return (x * t + y * s + z * n).normalized();
+}
+
+}  // namespace
+
+void RenderOptions::Validate() const {
+  RequireRange("spp", spp, 1, 1 << 20);
+  if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
+  RequireRange("rr_depth", rr_depth, 1, 1 << 20);
+  RequireOneOf("filter", filter, {"box", "center"});
+}
+
+// A surface point as the path tracer uses it.
+struct PathTracer::SurfacePoint {
+  Eigen::Vector3f p;       // position
+  Eigen::Vector3f ng;      // unit geometric normal of the counter-clockwise face (not flipped)
+  Eigen::Vector3f ns;      // unit shading normal, on the same side as ng
+  float t = 0.0f;          // ray distance to it
+  int mesh = -1, face = -1;
+  float b1 = 0.0f, b2 = 0.0f;
+  float area = 0.0f;       // area of the face
+};
+
+// One light sample as seen from a surface point.
+struct PathTracer::LightSample {
+  Eigen::Vector3f wi;      // unit direction from the surface point to the light
+  float distance = 0.0f;   // to the sampled light point
+  Eigen::Vector3f value;   // area lights: emitted radiance; point/voxel lights: intensity / r^2
+  float pdf = 0.0f;        // area lights: solid angle pdf; point/voxel lights: selection probability
+  bool is_delta = false;   // point and voxel lights cannot be hit by BSDF sampling
+};
+
+// Chooses lights in proportion to their (estimated) power.
+class PathTracer::LightSampler {
+ public:
+  enum class Kind { kTriangle, kPoint, kVoxel };
+  struct Entry {
+    Kind kind;
+    int mesh = -1;  // triangle: mesh and face; point: light index; voxel: voxel index
+    int index = -1;
+    float area = 0.0f;
+  };
+
+  explicit LightSampler(const Scene& scene) {
+    first_triangle_.assign(scene.meshes.size(), -1);
+    std::vector<double> power;
+    for (size_t m = 0; m < scene.meshes.size(); ++m) {
+      const SceneMesh& mesh = scene.meshes[m];
+      if (!mesh.IsEmitter()) continue;
+      first_triangle_[m] = static_cast<int>(entries_.size());
+      for (size_t f = 0; f < mesh.mesh.faces.size(); ++f) {
+        const float area = 0.5f * mesh.mesh.FaceNormalScaled(f).norm();
+        entries_.push_back({Kind::kTriangle, static_cast<int>(m), static_cast<int>(f), area});
+        power.push_back(M_PI * area * Luminance(mesh.emission));
+      }
+    }
+    for (size_t i = 0; i < scene.point_lights.size(); ++i) {
+      entries_.push_back({Kind::kPoint, -1, static_cast<int>(i), 0.0f});
+      power.push_back(4.0 * M_PI * Luminance(scene.point_lights[i].intensity));
+    }
+    if (scene.voxel_lights) {
+      for (int v = 0; v < scene.voxel_lights->VoxelCount(); ++v) {
+        const double p = 4.0 * M_PI * scene.voxel_lights->MaxIntensityLuminance(v);
+        if (p <= 0.0) continue;
+        entries_.push_back({Kind::kVoxel, -1, v, 0.0f});
+        power.push_back(p);
+      }
+    }
+    double total = 0.0;
+    for (double p : power) total += p;
+    pmf_.resize(entries_.size());
+    cdf_.resize(entries_.size());
+    double running = 0.0;
+    for (size_t i = 0; i < entries_.size(); ++i) {
+      pmf_[i] = total > 0.0 ? static_cast<float>(power[i] / total) : 0.0f;
+      running += total > 0.0 ? power[i] / total : 0.0;
+      cdf_[i] = running;
+    }
+    if (!cdf_.empty()) cdf_.back() = 1.0;
+  }
+
+  bool empty() const { return entries_.empty() || cdf_.back() <= 0.0; }
+
+  // Index of the chosen entry for a uniform u in [0, 1).
+  size_t Choose(double u) const {
+    const auto it = std::upper_bound(cdf_.begin(), cdf_.end(), u);
+    size_t i = std::min(static_cast<size_t>(it - cdf_.begin()), entries_.size() - 1);
+    while (pmf_[i] <= 0.0f && i + 1 < entries_.size()) ++i;  // skip zero-power entries at u == cdf
+    return i;
+  }
+  const Entry& entry(size_t i) const { return entries_[i]; }
+  float pmf(size_t i) const { return pmf_[i]; }
+  // Selection probability of triangle `face` of emitting mesh `mesh`.
+  float TrianglePmf(int mesh, int face) const {
+    const int first = first_triangle_[mesh];
+    return first < 0 ? 0.0f : pmf_[first + face];
+  }
+
+ private:
+  std::vector<Entry> entries_;
+  std::vector<float> pmf_;
+  std::vector<double> cdf_;
+  std::vector<int> first_triangle_;  // per mesh: its first entry, -1 when it does not emit
+};
+
+PathTracer::PathTracer(const Scene& scene) : scene_(scene), tracer_(std::make_unique<RayTracer>()) {
+  scene_.Validate();
+  for (const SceneMesh& m : scene_.meshes) tracer_->AddMesh(m.mesh);
+  tracer_->Commit();
+  lights_ = std::make_unique<LightSampler>(scene_);
+}
+
+PathTracer::~PathTracer() = default;
+
+std::optional<PathTracer::SurfacePoint> PathTracer::Hit(const Eigen::Vector3f& origin,
+                                                        const Eigen::Vector3f& direction) const {
+  const auto hit = tracer_->Intersect(origin, direction);
+  if (!hit) return std::nullopt;
+  const SceneMesh& m = scene_.meshes[hit->mesh];
+  const Eigen::Vector3i& f = m.mesh.faces[hit->face];
+  SurfacePoint s;
+  s.t = hit->t;
+  s.mesh = hit->mesh;
+  s.face = hit->face;
+  s.b1 = hit->b1;
+  s.b2 = hit->b2;
+  const float b0 = 1.0f - hit->b1 - hit->b2;
+  const auto& v = m.mesh.vertices;
+  s.p = b0 * v[f[0]] + hit->b1 * v[f[1]] + hit->b2 * v[f[2]];
+  const Eigen::Vector3f n = m.mesh.FaceNormalScaled(hit->face);
+  s.area = 0.5f * n.norm();
+  // Zero-area triangles have no interior for Embree to hit and no power to sample; should round-off
+  // still report one, it faces the ray.
+  s.ng = s.area > 0.0f ? Eigen::Vector3f(n / (2.0f * s.area)) : Eigen::Vector3f(-direction.normalized());
+  s.ns = s.ng;
+  if (m.smooth_shading) {
+    const auto& vn = m.mesh.normals;
+    const Eigen::Vector3f interpolated = b0 * vn[f[0]] + hit->b1 * vn[f[1]] + hit->b2 * vn[f[2]];
+    if (interpolated.squaredNorm() > 0.0f) s.ns = interpolated.normalized();
+    if (s.ns.dot(s.ng) < 0.0f) s.ns = -s.ns;
+  }
+  return s;
+}
+
+std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoint& at, CounterRng& rng) const {
+  if (lights_->empty()) return std::nullopt;
+  const size_t i = lights_->Choose(rng.UniformDouble());
+  const float pmf = lights_->pmf(i);
+  const LightSampler::Entry& e = lights_->entry(i);
+  const float u1 = rng.Uniform(), u2 = rng.Uniform();
+  LightSample s;
+  switch (e.kind) {
+    case LightSampler::Kind::kTriangle: {
+      // Uniform point on the triangle: b = (1 - sqrt(u1), sqrt(u1)(1 - u2), sqrt(u1) u2).
+      const SceneMesh& m = scene_.meshes[e.mesh];
+      const Eigen::Vector3i& f = m.mesh.faces[e.index];
+      const float su = std::sqrt(u1);
+      const Eigen::Vector3f q = (1.0f - su) * m.mesh.vertices[f[0]] + su * (1.0f - u2) * m.mesh.vertices[f[1]] +
+                                su * u2 * m.mesh.vertices[f[2]];
+      const Eigen::Vector3f to_light = q - at.p;
+      const float d2 = to_light.squaredNorm();
+      if (d2 <= 0.0f) return std::nullopt;
+      s.distance = std::sqrt(d2);
+      s.wi = to_light / s.distance;
+      // One-sided: the light emits only towards the side its counter-clockwise normal points to.
+      const float cos_light = -m.mesh.FaceNormalScaled(e.index).normalized().dot(s.wi);
+      if (cos_light <= 0.0f) return std::nullopt;
+      s.value = m.emission;
+      s.pdf = pmf * d2 / (e.area * cos_light);
+      return s;
+    }
+    case LightSampler::Kind::kPoint: {
+      const PointLight& light = scene_.point_lights[e.index];
+      const Eigen::Vector3f to_light = light.position.cast<float>() - at.p;
+      const float d2 = to_light.squaredNorm();
+      if (d2 <= 0.0f) return std::nullopt;
+      s.distance = std::sqrt(d2);
+      s.wi = to_light / s.distance;
+      s.value = light.intensity / d2;
+      s.pdf = pmf;
+      s.is_delta = true;
+      return s;
+    }
+    case LightSampler::Kind::kVoxel: {
+      const VoxelLightGrid& grid = *scene_.voxel_lights;
+      const Eigen::Vector3f to_light = grid.VoxelCenter(e.index).cast<float>() - at.p;
+      const float d2 = to_light.squaredNorm();
+      if (d2 <= 0.0f) return std::nullopt;
+      s.distance = std::sqrt(d2);
+      s.wi = to_light / s.distance;
+      s.value = grid.Intensity(e.index, (-s.wi).cast<double>()) / d2;
+      s.pdf = pmf;
+      s.is_delta = true;
+      return s;
+    }
+  }
+  return std::nullopt;
+}
+
+float PathTracer::AreaLightPdf(const SurfacePoint& from, const SurfacePoint& on_light) const {
+  const float pmf = lights_->TrianglePmf(on_light.mesh, on_light.face);
+  if (pmf <= 0.0f) return 0.0f;
+  const Eigen::Vector3f d = on_light.p - from.p;
+  const float d2 = d.squaredNorm();
+  const float cos_light = std::abs(on_light.ng.dot(d)) / std::sqrt(d2);
+  return cos_light > 0.0f ? pmf * d2 / (on_light.area * cos_light) : 0.0f;
+}
+
+Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                                     const RenderOptions& options, CounterRng& rng) const {
+  Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
+  Eigen::Vector3f beta = Eigen::Vector3f::Ones();  // path throughput
+  Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
+  float bsdf_pdf = 0.0f;                            // solid-angle pdf of the last BSDF sample
+  std::optional<SurfacePoint> previous;
+  const auto allowed = [&](int segments) { return options.max_depth < 0 || segments <= options.max_depth; };
+
+  for (int depth = 1;; ++depth) {  // depth = segments of the path so far, ending at `hit`
+    const auto hit = Hit(ray_o, ray_d);
+    if (!hit) break;
+    const SceneMesh& mesh = scene_.meshes[hit->mesh];
+
+    // Emission seen along the ray: emitters are one-sided (front = counter-clockwise side).
+    if (mesh.IsEmitter() && hit->ng.dot(ray_d) < 0.0f) {
+      if (depth == 1) {
+        if (!options.hide_emitters) radiance += mesh.emission;
+      } else {
+        const float weight = PowerHeuristic(bsdf_pdf, AreaLightPdf(*previous, *hit));
+        radiance += beta.cwiseProduct(mesh.emission) * weight;
+      }
+    }
+    if (!allowed(depth + 1)) break;
+    const Eigen::Vector3f albedo = mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2);
+    if (albedo.maxCoeff() <= 0.0f) break;
+
+    // Lambertian surfaces reflect on both sides: orient the normals towards the incoming ray.
+    SurfacePoint at = *hit;
+    if (at.ng.dot(ray_d) > 0.0f) at.ng = -at.ng, at.ns = -at.ns;
+    const Eigen::Vector3f origin_offset = at.p + OffsetScale(at.p) * at.ng;
+
+    // Sample direct illumination from the light sources (next-event estimation).
+    if (auto light = SampleLight(at, rng)) {
+      const float cos_s = at.ns.dot(light->wi);
+      if (cos_s > 0.0f && at.ng.dot(light->wi) > 0.0f &&
+          !tracer_->Occluded(origin_offset, light->wi, 0.0f, light->distance * (1.0f - 1e-4f))) {
+        const float pdf_bsdf = cos_s / static_cast<float>(M_PI);
+        const float weight = light->is_delta ? 1.0f : PowerHeuristic(light->pdf, pdf_bsdf);
+        const Eigen::Vector3f f = albedo * (cos_s / static_cast<float>(M_PI));
+        radiance += beta.cwiseProduct(f).cwiseProduct(light->value) * (weight / light->pdf);
+      }
+    }
+
+    // Sample the BSDF for the next segment: f cos / pdf = albedo for cosine sampling.
+    const Eigen::Vector3f wi = SampleCosine(at.ns, rng.Uniform(), rng.Uniform());
+    if (at.ng.dot(wi) <= 0.0f) break;  // below the geometric surface (smooth shading): no light
+    bsdf_pdf = at.ns.dot(wi) / static_cast<float>(M_PI);
+    beta = beta.cwiseProduct(albedo);
+
+    // Russian roulette on the throughput.
+    if (depth >= options.rr_depth) {
+      const float q = std::min(0.95f, beta.maxCoeff());
+      if (rng.Uniform() >= q) break;
+      beta /= q;
+    }
+    previous = at;
+    ray_o = origin_offset;
+    ray_d = wi;
+  }
+  return radiance;
+}
+
+RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, uint64_t seed) const {
+  options.Validate();
+  const CameraIntrinsics& k = view.intrinsics;
+  k.Validate("render view");
+  RenderOutput out;
+  out.radiance = ImageRgb(k.width, k.height);
+  out.depth = ImageDepth(k.width, k.height);
+  out.normal = ImageRgb(k.width, k.height);
+  out.object = Image<int>(k.width, k.height, -1);
+  const Eigen::Matrix3f rotation = view.world_from_camera.rotation().cast<float>();
+  const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
+  const bool box = options.filter == "box";
+
+  ParallelFor(0, static_cast<size_t>(k.width) * k.height, [&](size_t pixel) {
+    const int u = static_cast<int>(pixel % k.width), v = static_cast<int>(pixel / k.width);
+    // Geometry buffers from the pixel-centre ray.
+    const Eigen::Vector3f centre_dir = k.RayDirection(u, v).cast<float>().normalized();
+    if (const auto hit = Hit(eye, rotation * centre_dir)) {
+      out.depth(u, v) = hit->t * centre_dir.z();
+      out.normal(u, v) = hit->ns.dot(rotation * centre_dir) > 0.0f ? -hit->ns : hit->ns;
+      out.object(u, v) = hit->mesh;
+    }
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int s = 0; s < options.spp; ++s) {
+      CounterRng rng(seed, pixel, static_cast<uint64_t>(s));
+      // Pixel (u, v) covers [u - 0.5, u + 0.5) x [v - 0.5, v + 0.5) (DESIGN.md §1).
+      const double x = box ? u - 0.5 + rng.UniformDouble() : u;
+      const double y = box ? v - 0.5 + rng.UniformDouble() : v;
+      const Eigen::Vector3f dir = rotation * k.RayDirection(x, y).cast<float>().normalized();
+      const Eigen::Vector3f l = Radiance(eye, dir, options, rng);
+      if (!l.allFinite()) {
+        throw Error(Format("rendering failed at pixel (", u, ", ", v, ") sample ", s, ": radiance (",
+                           l.transpose(), ") is not finite (seed ", seed, ")"));
+      }
+      sum += l.cast<double>();
+    }
+    out.radiance(u, v) = (sum / options.spp).cast<float>();
+  }, 16);
+  return out;
+}
+
+}  // namespace genscene::inverse

@@ -1,0 +1,83 @@
+// Forward path tracer on the Embree wrapper: Lambertian surfaces, one-sided area lights, point
+// lights and voxel lights; next-event estimation and cosine-weighted BSDF sampling combined by
+// multiple importance sampling (power heuristic), Russian roulette, a max-depth option and
+// deterministic per-(pixel, sample) random numbers.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/image.h"
+#include "core/rng.h"
+#include "inverse/ray_tracer.h"
+#include "inverse/scene.h"
+
+namespace genscene::inverse {
+
+struct RenderOptions {
+  static constexpr const char* kSection = "render";
+
+  int spp = 64;                // samples per pixel
+  // Longest path in segments, as Mitsuba's max_depth: 1 = emitters seen directly, 2 = direct
+  // illumination, -1 = unlimited (ended by Russian roulette). Cycles' "max bounces B" is B + 2.
+  int max_depth = -1;
+  int rr_depth = 5;            // Russian roulette starts at this path depth (segments)
+  std::string filter = "box";  // box: samples uniform over the pixel's square footprint;
+                               // center: every sample through the pixel centre
+  bool hide_emitters = false;  // camera rays that hit an emitter return black
+
+  template <typename V>
+  void Visit(V&& v) {
+    v("spp", spp, "", "samples per pixel");
+    v("max_depth", max_depth, "segments", "longest path (Mitsuba convention; -1 = unlimited)");
+    v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
+    v("filter", filter, "", "pixel filter: box (pixel footprint) or center (pixel-centre rays)");
+    v("hide_emitters", hide_emitters, "", "camera rays that hit an emitter return black");
+  }
+  void Validate() const;
+};
+
+// What a render produces; depth, normal and object come from the pixel-centre ray.
+struct RenderOutput {
+  ImageRgb radiance;     // linear RGB, mean over the samples
+  ImageDepth depth;      // planar z in meters, 0 where the ray escapes
+  ImageRgb normal;       // world-space shading normal facing the camera, 0 where the ray escapes
+  Image<int> object;     // mesh index, -1 where the ray escapes
+};
+
+class PathTracer {
+ public:
+  // Copies what it needs from the scene (validated) and builds the ray tracer.
+  explicit PathTracer(const Scene& scene);
+  ~PathTracer();
+
+  // Renders one view; `seed` keys every random number (same seed, same image, any thread count).
+  RenderOutput Render(const View& view, const RenderOptions& options, uint64_t seed) const;
+
+  // Radiance along one camera ray (one path sample), for tests and the inverse stages.
+  Eigen::Vector3f Radiance(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                           const RenderOptions& options, CounterRng& rng) const;
+
+  const Scene& scene() const { return scene_; }
+  const RayTracer& tracer() const { return *tracer_; }
+
+ private:
+  struct SurfacePoint;
+  struct LightSample;
+  class LightSampler;
+
+  std::optional<SurfacePoint> Hit(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction) const;
+  std::optional<LightSample> SampleLight(const SurfacePoint& at, CounterRng& rng) const;
+  // Solid-angle pdf with which SampleLight picks the point `p` of emitting face (mesh, face).
+  float AreaLightPdf(const SurfacePoint& from, const SurfacePoint& on_light) const;
+
+  Scene scene_;
+  std::unique_ptr<RayTracer> tracer_;
+  std::unique_ptr<LightSampler> lights_;
+};
+
+}  // namespace genscene::inverse

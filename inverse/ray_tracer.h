@@ -1,0 +1,52 @@
+// The one wrapper around Embree 3 (DESIGN.md §3): device, scene, error callback, triangle
+// meshes, vertex-buffer update + refit. Nothing outside ray_tracer.cpp sees an RTC* type.
+#pragma once
+
+#include <Eigen/Core>
+#include <cmath>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "core/mesh.h"
+
+namespace genscene::inverse {
+
+struct RayHit {
+  float t = 0.0f;       // distance along the (unit or not) ray direction
+  int mesh = -1;        // index of the mesh, in the order AddMesh was called
+  int face = -1;        // triangle index in that mesh
+  float b1 = 0.0f;      // barycentric weight of the face's second vertex
+  float b2 = 0.0f;      // barycentric weight of the third vertex (first: 1 - b1 - b2)
+};
+
+class RayTracer {
+ public:
+  RayTracer();
+  ~RayTracer();
+  RayTracer(const RayTracer&) = delete;
+  RayTracer& operator=(const RayTracer&) = delete;
+
+  // Adds a mesh (vertices and faces are copied into Embree's buffers); returns its index.
+  // Meshes added with `dynamic` can move later through UpdateVertices.
+  int AddMesh(const TriangleMesh& mesh, bool dynamic = false);
+  // Builds the acceleration structure; call after the last AddMesh and before tracing.
+  void Commit();
+  // Replaces the vertex positions of a dynamic mesh (same count) and refits the hierarchy.
+  void UpdateVertices(int mesh, const std::vector<Eigen::Vector3f>& vertices);
+
+  // Nearest hit with t in [t_min, t_max]. Thread-safe after Commit().
+  std::optional<RayHit> Intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                                  float t_min = 0.0f, float t_max = INFINITY) const;
+  // True when anything blocks the segment t in [t_min, t_max].
+  bool Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_min,
+                float t_max) const;
+
+  int MeshCount() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace genscene::inverse
