@@ -241,7 +241,8 @@ float PathTracer::AreaLightPdf(const SurfacePoint& from, const SurfacePoint& on_
 }
 
 Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
-                                     const RenderOptions& options, CounterRng& rng) const {
+                                     const RenderOptions& options, CounterRng& rng, RayCounts* counts) const {
+  RayCounts local;
   Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
   Eigen::Vector3f beta = Eigen::Vector3f::Ones();  // path throughput
   Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
@@ -250,6 +251,7 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin, const Eigen:
   const auto allowed = [&](int segments) { return options.max_depth < 0 || segments <= options.max_depth; };
 
   for (int depth = 1;; ++depth) {  // depth = segments of the path so far, ending at `hit`
+    ++local.intersect;
     const auto hit = Hit(ray_o, ray_d);
     if (!hit) break;
     const SceneMesh& mesh = scene_.meshes[hit->mesh];
@@ -273,10 +275,11 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin, const Eigen:
     const Eigen::Vector3f origin_offset = at.p + OffsetScale(at.p) * at.ng;
 
     // Sample direct illumination from the light sources (next-event estimation).
-    if (auto light = SampleLight(at, rng)) {
-      const float cos_s = at.ns.dot(light->wi);
-      if (cos_s > 0.0f && at.ng.dot(light->wi) > 0.0f &&
-          !tracer_->Occluded(origin_offset, light->wi, 0.0f, light->distance * (1.0f - 1e-4f))) {
+    const auto light = SampleLight(at, rng);
+    const float cos_s = light ? at.ns.dot(light->wi) : 0.0f;
+    if (light && cos_s > 0.0f && at.ng.dot(light->wi) > 0.0f) {
+      ++local.occluded;
+      if (!tracer_->Occluded(origin_offset, light->wi, 0.0f, light->distance * (1.0f - 1e-4f))) {
         const float pdf_bsdf = cos_s / static_cast<float>(M_PI);
         const float weight = light->is_delta ? 1.0f : PowerHeuristic(light->pdf, pdf_bsdf);
         const Eigen::Vector3f f = albedo * (cos_s / static_cast<float>(M_PI));
@@ -300,6 +303,10 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin, const Eigen:
     ray_o = origin_offset;
     ray_d = wi;
   }
+  if (counts) {
+    counts->intersect += local.intersect;
+    counts->occluded += local.occluded;
+  }
   return radiance;
 }
 
@@ -315,6 +322,7 @@ RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, 
   const Eigen::Matrix3f rotation = view.world_from_camera.rotation().cast<float>();
   const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
   const bool box = options.filter == "box";
+  std::vector<RayCounts> pixel_rays(static_cast<size_t>(k.width) * k.height);
 
   ParallelFor(0, static_cast<size_t>(k.width) * k.height, [&](size_t pixel) {
     const int u = static_cast<int>(pixel % k.width), v = static_cast<int>(pixel / k.width);
@@ -332,7 +340,7 @@ RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, 
       const double x = box ? u - 0.5 + rng.UniformDouble() : u;
       const double y = box ? v - 0.5 + rng.UniformDouble() : v;
       const Eigen::Vector3f dir = rotation * k.RayDirection(x, y).cast<float>().normalized();
-      const Eigen::Vector3f l = Radiance(eye, dir, options, rng);
+      const Eigen::Vector3f l = Radiance(eye, dir, options, rng, &pixel_rays[pixel]);
       if (!l.allFinite()) {
         throw Error(Format("rendering failed at pixel (", u, ", ", v, ") sample ", s, ": radiance (",
                            l.transpose(), ") is not finite (seed ", seed, ")"));
@@ -341,6 +349,10 @@ RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, 
     }
     out.radiance(u, v) = (sum / options.spp).cast<float>();
   }, 16);
+  for (const RayCounts& r : pixel_rays) {
+    out.rays.intersect += r.intersect;
+    out.rays.occluded += r.occluded;
+  }
   return out;
 }
 

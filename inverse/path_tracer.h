@@ -41,12 +41,20 @@ struct RenderOptions {
   void Validate() const;
 };
 
+// Rays traced, for speed reports.
+struct RayCounts {
+  uint64_t intersect = 0;  // nearest-hit rays (camera and BSDF-sampled)
+  uint64_t occluded = 0;   // shadow rays
+  uint64_t total() const { return intersect + occluded; }
+};
+
 // What a render produces; depth, normal and object come from the pixel-centre ray.
 struct RenderOutput {
   ImageRgb radiance;     // linear RGB, mean over the samples
   ImageDepth depth;      // planar z in meters, 0 where the ray escapes
   ImageRgb normal;       // world-space shading normal facing the camera, 0 where the ray escapes
   Image<int> object;     // mesh index, -1 where the ray escapes
+  RayCounts rays;        // traced for the radiance (not for the geometry buffers)
 };
 
 class PathTracer {
@@ -59,8 +67,9 @@ class PathTracer {
   RenderOutput Render(const View& view, const RenderOptions& options, uint64_t seed) const;
 
   // Radiance along one camera ray (one path sample), for tests and the inverse stages.
+  // Adds the rays it traces to `counts` when given.
   Eigen::Vector3f Radiance(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
-                           const RenderOptions& options, CounterRng& rng) const;
+                           const RenderOptions& options, CounterRng& rng, RayCounts* counts = nullptr) const;
 
   const Scene& scene() const { return scene_; }
   const RayTracer& tracer() const { return *tracer_; }
