@@ -35,13 +35,28 @@ Eigen::Vector3f SampleCosine(const Eigen::Vector3f& n, float u1, float u2) {
   return (x * t + y * s + z * n).normalized();
 }
 
+// Offset from the pixel centre drawn with density proportional to Mitsuba's Gaussian filter
+// w(x) = max(0, exp(-x^2 / (2 s^2)) - exp(-r^2 / (2 s^2))), r = 4 s: a normal sample truncated to
+// [-r, r], accepted with probability w(x) / exp(-x^2 / (2 s^2)). Drawing sample positions from the
+// filter gives each pixel the expected value of Mitsuba's weighted average sum w L / sum w.
+double SampleGaussianFilter(double stddev, CounterRng& rng) {
+  const double radius = 4.0 * stddev;
+  for (;;) {
+    const double x = stddev * rng.Normal();
+    if (std::abs(x) > radius) continue;
+    const double keep = 1.0 - std::exp((x * x - radius * radius) / (2.0 * stddev * stddev));
+    if (rng.UniformDouble() < keep) return x;
+  }
+}
+
 }  // namespace
 
 void RenderOptions::Validate() const {
   RequireRange("spp", spp, 1, 1 << 20);
   if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
   RequireRange("rr_depth", rr_depth, 1, 1 << 20);
-  RequireOneOf("filter", filter, {"box", "center"});
+  RequireOneOf("filter", filter, {"box", "center", "gaussian"});
+  RequireRange("filter_stddev", filter_stddev, 0.05, 10.0);
 }
 
 // A surface point as the path tracer uses it.
@@ -321,7 +336,7 @@ RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, 
   out.object = Image<int>(k.width, k.height, -1);
   const Eigen::Matrix3f rotation = view.world_from_camera.rotation().cast<float>();
   const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
-  const bool box = options.filter == "box";
+  const bool box = options.filter == "box", gaussian = options.filter == "gaussian";
   std::vector<RayCounts> pixel_rays(static_cast<size_t>(k.width) * k.height);
 
   ParallelFor(0, static_cast<size_t>(k.width) * k.height, [&](size_t pixel) {
@@ -337,8 +352,15 @@ RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, 
     for (int s = 0; s < options.spp; ++s) {
       CounterRng rng(seed, pixel, static_cast<uint64_t>(s));
       // Pixel (u, v) covers [u - 0.5, u + 0.5) x [v - 0.5, v + 0.5) (DESIGN.md §1).
-      const double x = box ? u - 0.5 + rng.UniformDouble() : u;
-      const double y = box ? v - 0.5 + rng.UniformDouble() : v;
+      double x = box ? u - 0.5 + rng.UniformDouble() : u;
+      double y = box ? v - 0.5 + rng.UniformDouble() : v;
+      if (gaussian) {
+        // Like Mitsuba without sample_border, only positions inside the image contribute.
+        do {
+          x = u + SampleGaussianFilter(options.filter_stddev, rng);
+          y = v + SampleGaussianFilter(options.filter_stddev, rng);
+        } while (x < -0.5 || y < -0.5 || x >= k.width - 0.5 || y >= k.height - 0.5);
+      }
       const Eigen::Vector3f dir = rotation * k.RayDirection(x, y).cast<float>().normalized();
       const Eigen::Vector3f l = Radiance(eye, dir, options, rng, &pixel_rays[pixel]);
       if (!l.allFinite()) {

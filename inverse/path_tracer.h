@@ -27,7 +27,9 @@ struct RenderOptions {
   int max_depth = -1;
   int rr_depth = 5;            // Russian roulette starts at this path depth (segments)
   std::string filter = "box";  // box: samples uniform over the pixel's square footprint;
-                               // center: every sample through the pixel centre
+                               // center: every sample through the pixel centre;
+                               // gaussian: Mitsuba's truncated Gaussian (radius 4 stddev)
+  double filter_stddev = 0.5;  // gaussian filter standard deviation, pixels
   bool hide_emitters = false;  // camera rays that hit an emitter return black
 
   template <typename V>
@@ -35,7 +37,8 @@ struct RenderOptions {
     v("spp", spp, "", "samples per pixel");
     v("max_depth", max_depth, "segments", "longest path (Mitsuba convention; -1 = unlimited)");
     v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
-    v("filter", filter, "", "pixel filter: box (pixel footprint) or center (pixel-centre rays)");
+    v("filter", filter, "", "pixel filter: box (pixel footprint), center (pixel-centre rays) or gaussian");
+    v("filter_stddev", filter_stddev, "px", "standard deviation of the gaussian filter");
     v("hide_emitters", hide_emitters, "", "camera rays that hit an emitter return black");
   }
   void Validate() const;

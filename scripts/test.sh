@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# README command 2: installs what is missing, builds, and runs the whole test suite twice:
-# the Release build, then the ASan + UBSan build. CI (.ci/run) calls exactly this.
+# README command 2: installs what is missing, builds, and runs the whole test suite on the
+# Release build, then again (all but the "slow" label) on the ASan + UBSan build. CI (.ci/run)
+# calls exactly this.
 #   scripts/test.sh            everything (what CI runs)
 #   scripts/test.sh --fast     Release build, tests labelled "fast" only (for developers)
 set -euo pipefail
@@ -19,9 +20,11 @@ if [ "${1:-}" = "--fast" ]; then
 fi
 (cd build && ctest --output-on-failure -j 2 --timeout 600)
 
+# The sanitizer pass runs every test except those labelled "slow" (long renders compared with
+# other renderers: they exercise the same code as the fast tests, at 3x the cost under ASan).
 echo "test: sanitizer build (ASan + UBSan)"
 scripts/build.sh --sanitize
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
-(cd build-sanitize && ctest --output-on-failure -j 2 --timeout 900)
+(cd build-sanitize && ctest --output-on-failure -j 2 --timeout 900 -LE slow)
 echo "test: all passed (Release and ASan + UBSan)"
