@@ -67,6 +67,12 @@ class CommandLine {
   // and the flags to every registered struct and validates them; throws Error on bad values.
   std::optional<int> Parse(int argc, char** argv);
 
+  // True when the flag of `key` (e.g. "max_depth") was given on the command line.
+  bool Given(const std::string& key) const {
+    const CLI::Option* opt = app_.get_option_no_throw(FlagName(key));
+    return opt && opt->count() > 0;
+  }
+
   int threads() const { return threads_; }
   unsigned long long seed() const { return seed_; }
   const std::string& config_path() const { return config_path_; }

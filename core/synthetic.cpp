@@ -4,6 +4,8 @@
 #include <map>
 
 #include "core/check.h"
+#include "core/parallel.h"
+#include "core/rng.h"
 
 namespace genscene {
 
@@ -235,20 +237,51 @@ Trajectory MakeOrbitTrajectory(const Eigen::Vector3d& target, double radius, dou
   return trajectory;
 }
 
-}  // namespace genscene
+Trajectory MakeHandheldTrajectory(const Eigen::Vector3d& target, double radius, double height,
+                                  double arc_degrees, int frames, uint64_t seed) {
+  const Trajectory orbit = MakeOrbitTrajectory(target, radius, height, arc_degrees, frames);
+  CounterRng rng(seed, 0x5A7E);  // phases of the sway
+  double phase[6];
+  for (double& p : phase) p = 2.0 * M_PI * rng.UniformDouble();
+  const double frequency[6] = {0.7, 1.3, 0.9, 1.1, 0.6, 1.7};  // cycles over the trajectory
+  Trajectory out;
+  for (int i = 0; i < frames; ++i) {
+    const double s = frames == 1 ? 0.0 : static_cast<double>(i) / (frames - 1);
+    auto wave = [&](int k) { return std::sin(2.0 * M_PI * frequency[k] * s + phase[k]); };
+    const StampedPose& p = orbit.poses()[i];
+    const Eigen::Vector3d eye = p.world_from_camera.translation() + 0.03 * radius * Eigen::Vector3d(wave(0), wave(1), 0.5 * wave(2));
+    const Eigen::Vector3d look = target + 0.05 * radius * Eigen::Vector3d(wave(3), wave(4), 0.5 * wave(5));
+    out.Add(p.timestamp, LookAt(eye, look));
+  }
+  return out;
+}
 
-#include "core/parallel.h"
-#include "core/rng.h"
-
-namespace genscene {
 
 void AddKinectDepthNoise(ImageDepth& depth, uint64_t seed, uint64_t frame_index) {
+  constexpr double kFocalTimesBaseline = 580.0 * 0.075;  // f b, pixel meters
+  const ImageDepth clean = depth;
+  const int w = depth.width(), h = depth.height();
   ParallelFor(0, depth.size(), [&](size_t i) {
-    float& z = depth.pixels()[i];
+    const float z = clean.pixels()[i];
     if (z <= 0.0f) return;
     CounterRng rng(seed, frame_index, i);
+    const int u = static_cast<int>(i % w), v = static_cast<int>(i / w);
+    bool edge = false;
+    for (const auto& [du, dv] : {std::pair{1, 0}, std::pair{-1, 0}, std::pair{0, 1}, std::pair{0, -1}}) {
+      const int x = u + du, y = v + dv;
+      if (x < 0 || y < 0 || x >= w || y >= h) continue;
+      const float n = clean(x, y);
+      edge |= n <= 0.0f || std::abs(n - z) > 0.05f * z;
+    }
+    const bool dropped = rng.Uniform() < (edge ? 0.5f : 0.0f);
     const double sigma = 0.0012 + 0.0019 * (z - 0.4) * (z - 0.4);
-    z = std::max(0.0f, static_cast<float>(z + sigma * rng.Normal()));
+    const double noisy = z + sigma * rng.Normal();
+    if (dropped || noisy <= 0.0) {
+      depth.pixels()[i] = 0.0f;
+      return;
+    }
+    const double disparity = std::round(8.0 * kFocalTimesBaseline / noisy) / 8.0;
+    depth.pixels()[i] = disparity > 0.0 ? static_cast<float>(kFocalTimesBaseline / disparity) : 0.0f;
   });
 }
 

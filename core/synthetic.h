@@ -64,6 +64,12 @@ RgbdFrame RenderSyntheticFrame(const SyntheticScene& scene, const CameraIntrinsi
 Trajectory MakeOrbitTrajectory(const Eigen::Vector3d& target, double radius, double height,
                                double arc_degrees, int frames);
 
+// Like MakeOrbitTrajectory with the slow sway of a hand-held camera: the eye and the point looked
+// at drift smoothly (a few low-frequency sines with phases drawn from `seed`) by up to 3 % and
+// 5 % of the radius.
+Trajectory MakeHandheldTrajectory(const Eigen::Vector3d& target, double radius, double height,
+                                  double arc_degrees, int frames, uint64_t seed);
+
 // Pose of a camera at `eye` looking at `target` with world up +z (OpenCV camera axes).
 Eigen::Isometry3d LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target);
 
@@ -71,9 +77,14 @@ Eigen::Isometry3d LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& targ
 
 namespace genscene {
 
-// Kinect-v1-like depth noise (Nguyen, Izadi, Lovell 2012, axial model):
-// sigma(z) = 0.0012 + 0.0019 (z - 0.4)^2 meters, Gaussian, seeded per (seed, frame, pixel) so the
-// same seed gives the same noise whatever the thread count; invalid pixels stay 0.
+// Kinect-v1-like depth degradation, in this order:
+//  1. dropouts at depth edges: a pixel whose 4-neighbour is invalid or more than 5 % nearer or
+//     farther is lost with probability 0.5 (the projector's shadow and mixed pixels);
+//  2. axial Gaussian noise sigma(z) = 0.0012 + 0.0019 (z - 0.4)^2 m (Nguyen, Izadi, Lovell 2012);
+//  3. disparity quantisation: the sensor measures disparity d = f b / z in 1/8 pixel steps
+//     (f = 580 px, baseline b = 0.075 m), so z is rounded to f b / (round(8 d) / 8).
+// Random numbers are keyed by (seed, frame, pixel): the same seed gives the same noise whatever
+// the thread count. Invalid pixels (0) stay 0.
 void AddKinectDepthNoise(ImageDepth& depth, uint64_t seed, uint64_t frame_index);
 
 }  // namespace genscene

@@ -74,10 +74,47 @@ TEST(Synthetic, KinectNoiseIsSeededAndThreadIndependent) {
   EXPECT_EQ(a.pixels(), b.pixels());
   EXPECT_NE(a.pixels(), c.pixels());
   EXPECT_EQ(a(0, 0), 0.0f);  // invalid stays invalid
+}
+
+TEST(Synthetic, KinectNoiseLevelAndQuantisation) {
+  // On a flat wall at 2 m: no edges inside, so only the border of the invalid pixel can drop.
+  ImageDepth depth(120, 100, 2.0f);
+  AddKinectDepthNoise(depth, 1, 0);
+  const double fb = 580.0 * 0.075, step = 2.0 * 2.0 / (8.0 * fb);  // dz = z^2 / (8 f b)
   double sum2 = 0.0;
-  for (size_t i = 1; i < a.size(); ++i) sum2 += std::pow(a.pixels()[i] - 2.0, 2);
+  size_t n = 0;
+  for (float z : depth.pixels()) {
+    ASSERT_GT(z, 0.0f);
+    // Every value is a quantisation level f b / (k / 8).
+    const double k = 8.0 * fb / z;
+    EXPECT_NEAR(k, std::round(k), 1e-3 * k);
+    sum2 += (z - 2.0) * (z - 2.0);
+    ++n;
+  }
   const double sigma = 0.0012 + 0.0019 * 1.6 * 1.6;
-  EXPECT_NEAR(std::sqrt(sum2 / (a.size() - 1)), sigma, 0.15 * sigma);
+  const double expected = std::sqrt(sigma * sigma + step * step / 12.0);
+  EXPECT_NEAR(std::sqrt(sum2 / n), expected, 0.1 * expected);
+}
+
+TEST(Synthetic, KinectDropoutsOnlyAtDepthEdges) {
+  ImageDepth depth(60, 40, 1.0f);
+  for (int v = 0; v < 40; ++v) {
+    for (int u = 30; u < 60; ++u) depth(u, v) = 2.0f;  // a step edge between columns 29 and 30
+  }
+  AddKinectDepthNoise(depth, 3, 0);
+  int dropped_at_edge = 0;
+  for (int v = 0; v < 40; ++v) {
+    for (int u = 0; u < 60; ++u) {
+      if (u == 29 || u == 30) {
+        dropped_at_edge += depth(u, v) == 0.0f;
+      } else {
+        EXPECT_GT(depth(u, v), 0.0f) << u << "," << v;
+      }
+    }
+  }
+  // 80 edge pixels, each lost with probability 0.5.
+  EXPECT_GT(dropped_at_edge, 20);
+  EXPECT_LT(dropped_at_edge, 60);
 }
 
 }  // namespace

@@ -1,0 +1,70 @@
+#include "inverse/procedural.h"
+
+#include "core/synthetic.h"
+
+namespace genscene::inverse {
+
+namespace {
+
+SceneMesh FromSynthetic(const std::string& name, const SyntheticScene& synthetic) {
+  SceneMesh m;
+  m.name = name;
+  m.mesh = synthetic.ToMesh(4);
+  m.albedo = SurfaceAlbedo::FromMesh(m.mesh, Eigen::Vector3f::Constant(0.5f));
+  return m;
+}
+
+// A horizontal square light of side `side` centred at `center`, facing down.
+SceneMesh CeilingLight(const std::string& name, const Eigen::Vector3f& center, float side, const Eigen::Vector3f& radiance) {
+  SceneMesh light;
+  light.name = name;
+  const float h = 0.5f * side;
+  for (const auto& [x, y] : {std::pair{-h, -h}, std::pair{h, -h}, std::pair{h, h}, std::pair{-h, h}}) {
+    light.mesh.vertices.push_back(center + Eigen::Vector3f(x, y, 0.0f));
+  }
+  light.mesh.faces = {{0, 2, 1}, {0, 3, 2}};  // clockwise seen from above: the front faces down
+  light.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Zero());
+  light.emission = radiance;
+  return light;
+}
+
+}  // namespace
+
+Scene MakeCornellBoxScene() {
+  Scene scene;
+  scene.meshes.push_back(FromSynthetic("cornell", MakeCornellScene()));
+  scene.meshes.push_back(CeilingLight("light", {0.0f, 0.0f, 1.99f}, 0.5f, {18.0f, 15.0f, 11.0f}));
+  return scene;
+}
+
+Scene MakeRoomScene() {
+  SyntheticScene room;
+  const Eigen::Vector3f wall(0.78f, 0.76f, 0.72f), floor(0.35f, 0.3f, 0.27f), wood(0.45f, 0.3f, 0.18f);
+  room.room = SyntheticScene::Room{};
+  room.room->bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-2.5, -2.0, 0.0), Eigen::Vector3d(2.5, 2.0, 2.6));
+  room.room->albedo = {wall, Eigen::Vector3f(0.55f, 0.65f, 0.75f), wall, wall, floor, Eigen::Vector3f::Constant(0.85f)};
+  // Table: top and four legs.
+  room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-0.6, -0.4, 0.72), Eigen::Vector3d(0.6, 0.4, 0.76)), wood});
+  for (double x : {-0.55, 0.5}) {
+    for (double y : {-0.35, 0.3}) {
+      room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(x, y, 0.0), Eigen::Vector3d(x + 0.05, y + 0.05, 0.72)), wood});
+    }
+  }
+  // Sofa against the +y wall, cabinet against the -x wall.
+  const Eigen::Vector3f fabric(0.2f, 0.3f, 0.55f);
+  room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-1.2, 1.2, 0.0), Eigen::Vector3d(1.2, 2.0, 0.45)), fabric});
+  room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-1.2, 1.7, 0.45), Eigen::Vector3d(1.2, 2.0, 0.9)), fabric});
+  room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-2.5, -1.0, 0.0), Eigen::Vector3d(-2.0, 0.2, 1.0)), wood});
+  room.spheres.push_back({Eigen::Vector3d(0.9, -1.0, 0.2), 0.2, Eigen::Vector3f(0.8f, 0.2f, 0.15f)});
+  Scene scene;
+  scene.meshes.push_back(FromSynthetic("room", room));
+  scene.meshes.push_back(CeilingLight("ceiling_panel", {0.0f, 0.0f, 2.58f}, 0.8f, {9.0f, 9.0f, 8.5f}));
+  scene.meshes.push_back(CeilingLight("lamp", {-2.25f, -0.4f, 1.3f}, 0.15f, {40.0f, 28.0f, 14.0f}));
+  // The lamp shade faces down onto the cabinet; a small upward panel lights the ceiling above it.
+  SceneMesh up = CeilingLight("lamp_up", {-2.25f, -0.4f, 1.31f}, 0.15f, {20.0f, 14.0f, 7.0f});
+  up.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
+  scene.meshes.push_back(up);
+  return scene;
+}
+
+}  // namespace genscene::inverse
