@@ -14,6 +14,7 @@
 #include "core/trajectory.h"
 #include "core/view_set.h"
 #include "inverse/path_tracer.h"
+#include "inverse/mitsuba_xml.h"
 #include "inverse/scene_io.h"
 
 namespace {
@@ -75,6 +76,9 @@ int main(int argc, char** argv) {
     app.add_option("--intrinsics", intrinsics, "intrinsics for --pose: file or tum1|tum2|tum3|primesense");
     app.add_option("out,--out", out, "output folder")->required();
     app.add_flag("--aovs", aovs, "also write <stamp>_depth.exr (planar z, m) and <stamp>_normal.exr (world)");
+    std::string export_xml, export_json;
+    app.add_option("--export-xml", export_xml, "also write the scene and views as Mitsuba 3 XML (meshes as PLY beside it)");
+    app.add_option("--export-json", export_json, "also write the scene and views in genscene's JSON format");
     if (auto code = cli.Parse(argc, argv)) return *code;
 
     const LoadedScene loaded = LoadScene(scene_path);
@@ -82,6 +86,12 @@ int main(int argc, char** argv) {
     ApplySceneSettings(loaded.settings, cli, &options);
     const std::vector<View> views = ChooseViews(views_dir, pose, intrinsics, loaded);
     const PathTracer tracer(loaded.scene);
+    if (!export_xml.empty()) {
+      for (const std::string& w : ExportMitsubaXml(export_xml, loaded.scene, views, loaded.settings)) {
+        std::cerr << "genscene-render: warning: " << w << "\n";
+      }
+    }
+    if (!export_json.empty()) SaveSceneJson(export_json, loaded.scene, views, loaded.settings);
 
     // Every image goes in under a temporary name; the lists last, so a complete rgb.txt means a
     // complete view set.

@@ -178,5 +178,51 @@ TEST_F(Apps, SameSeedSameOutputWhateverTheThreadCount) {
   EXPECT_EQ(cmp.exit_code, 0) << cmp.output;
 }
 
+TEST_F(Apps, RenderAViewSetFromASynthScene) {
+  MakeSequence(dir_ / "seq");
+  const fs::path out = dir_ / "render";
+  const auto r = RunCommand(AppPath("genscene-render") + " --scene " + (dir_ / "seq/scene.json").string() +
+                            " --views " + (dir_ / "seq").string() + " --spp 4 --aovs --export-xml " +
+                            (dir_ / "export/scene.xml").string() + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // The exported Mitsuba scene renders again, with the views it carries.
+  const auto again = RunCommand(AppPath("genscene-render") + " --scene " + (dir_ / "export/scene.xml").string() +
+                                " --spp 2 --out " + (dir_ / "render2").string());
+  ASSERT_EQ(again.exit_code, 0) << again.output;
+  EXPECT_EQ(test::CountFilesContaining(dir_ / "render2", ".exr"), 3);
+  EXPECT_NE(r.output.find("3 views, 4 spp"), std::string::npos) << r.output;
+  // The output is a view set: three EXR + PNG named by timestamp, in list order.
+  EXPECT_TRUE(fs::exists(out / "rgb.txt"));
+  EXPECT_TRUE(fs::exists(out / "groundtruth.txt"));
+  EXPECT_TRUE(fs::exists(out / "intrinsics.txt"));
+  EXPECT_EQ(test::CountFilesContaining(out, "_depth.exr"), 3);
+  EXPECT_EQ(test::CountFilesContaining(out, "_normal.exr"), 3);
+  EXPECT_EQ(test::CountFilesContaining(out, ".png"), 3);
+  EXPECT_TRUE(fs::exists(out / "0000000000.000000.exr"));
+  EXPECT_EQ(test::CountFilesContaining(out, ".tmp-"), 0);
+}
+
+TEST_F(Apps, RenderRejectsBadScenes) {
+  std::ofstream(dir_ / "broken.xml") << "<scene version=\"3.0.0\"><shape type=\"ply\">";
+  ExpectFailure(AppPath("genscene-render") + " --scene " + (dir_ / "broken.xml").string() + " --out " +
+                    (dir_ / "out").string(),
+                {"broken.xml"});
+  std::ofstream(dir_ / "missing.xml") << "<scene version=\"3.0.0\"><shape type=\"ply\">"
+                                         "<string name=\"filename\" value=\"nope.ply\"/></shape></scene>";
+  ExpectFailure(AppPath("genscene-render") + " --scene " + (dir_ / "missing.xml").string() + " --out " +
+                    (dir_ / "out").string(),
+                {"nope.ply"});
+  std::ofstream(dir_ / "negative.xml")
+      << "<scene version=\"3.0.0\"><shape type=\"rectangle\"><emitter type=\"area\">"
+         "<rgb name=\"radiance\" value=\"1, -1, 1\"/></emitter></shape></scene>";
+  ExpectFailure(AppPath("genscene-render") + " --scene " + (dir_ / "negative.xml").string() + " --out " +
+                    (dir_ / "out").string(),
+                {"negative.xml"});
+  ExpectFailure(AppPath("genscene-render") + " --scene " + (dir_ / "missing.xml").string() +
+                    " --pose \"0 0 0 0 0 0 1\" --out " + (dir_ / "out").string(),
+                {"nope.ply"});
+  EXPECT_FALSE(fs::exists(dir_ / "out"));
+}
+
 }  // namespace
 }  // namespace genscene
