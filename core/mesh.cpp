@@ -1,5 +1,8 @@
 #include "core/mesh.h"
 
+#include <cmath>
+#include <map>
+
 #include "core/check.h"
 
 namespace genscene {
@@ -53,6 +56,40 @@ void TriangleMesh::ComputeVertexNormals() {
     const float length = n.norm();
     if (length > 0.0f) n /= length;
   }
+}
+
+UnitIcosphere MakeUnitIcosphere(int level) {
+  GS_CHECK(level >= 0 && level <= 10);
+  const double g = (1.0 + std::sqrt(5.0)) / 2.0;
+  UnitIcosphere s;
+  auto& v = s.vertices;
+  v = {{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
+       {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
+  for (Eigen::Vector3d& p : v) p.normalize();
+  s.faces = {{0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+             {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
+             {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+  for (Eigen::Vector3i& f : s.faces) {  // fronts outward, whatever the list's winding
+    if ((v[f[1]] - v[f[0]]).cross(v[f[2]] - v[f[0]]).dot(v[f[0]]) < 0.0) std::swap(f[1], f[2]);
+  }
+  for (int l = 0; l < level; ++l) {
+    // Each edge's midpoint, pushed onto the sphere, is made once and shared by both faces.
+    std::map<std::pair<int, int>, int> midpoints;
+    const auto midpoint = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      auto it = midpoints.find(key);
+      if (it != midpoints.end()) return it->second;
+      v.push_back((v[a] + v[b]).normalized());
+      return midpoints[key] = static_cast<int>(v.size()) - 1;
+    };
+    std::vector<Eigen::Vector3i> next;
+    for (const Eigen::Vector3i& f : s.faces) {
+      const int ab = midpoint(f[0], f[1]), bc = midpoint(f[1], f[2]), ca = midpoint(f[2], f[0]);
+      next.insert(next.end(), {{f[0], ab, ca}, {ab, f[1], bc}, {ca, bc, f[2]}, {ab, bc, ca}});
+    }
+    s.faces = std::move(next);
+  }
+  return s;
 }
 
 }  // namespace genscene

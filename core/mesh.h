@@ -32,4 +32,13 @@ struct TriangleMesh {
   void ComputeVertexNormals();
 };
 
+// The unit sphere as a geodesic icosphere: the icosahedron subdivided `level` times (20 * 4^level
+// triangles), vertices on the sphere in double precision, faces counter-clockwise seen from
+// outside.
+struct UnitIcosphere {
+  std::vector<Eigen::Vector3d> vertices;
+  std::vector<Eigen::Vector3i> faces;
+};
+UnitIcosphere MakeUnitIcosphere(int level);
+
 }  // namespace genscene

@@ -1,7 +1,6 @@
 #include "core/synthetic.h"
 
 #include <cmath>
-#include <map>
 
 #include "core/check.h"
 #include "core/parallel.h"
@@ -115,35 +114,11 @@ std::array<Eigen::Vector3d, 4> BoxFace(const Eigen::AlignedBox3d& box, int axis,
 }
 
 void AddIcosphere(TriangleMesh& mesh, const SyntheticScene::Sphere& s, int subdivisions) {
-  const double p = (1.0 + std::sqrt(5.0)) / 2.0;
-  std::vector<Eigen::Vector3d> v = {{-1, p, 0}, {1, p, 0}, {-1, -p, 0}, {1, -p, 0},
-                                    {0, -1, p}, {0, 1, p}, {0, -1, -p}, {0, 1, -p},
-                                    {p, 0, -1}, {p, 0, 1}, {-p, 0, -1}, {-p, 0, 1}};
-  std::vector<Eigen::Vector3i> f = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
-                                    {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
-                                    {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
-                                    {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
-  for (auto& x : v) x.normalize();
-  for (int level = 0; level < subdivisions; ++level) {
-    std::map<std::pair<int, int>, int> midpoint;
-    auto mid = [&](int a, int b) {
-      const auto key = std::minmax(a, b);
-      auto it = midpoint.find(key);
-      if (it != midpoint.end()) return it->second;
-      v.push_back((v[a] + v[b]).normalized());
-      return midpoint[key] = static_cast<int>(v.size()) - 1;
-    };
-    std::vector<Eigen::Vector3i> next;
-    for (const auto& t : f) {
-      const int a = mid(t[0], t[1]), b = mid(t[1], t[2]), c = mid(t[2], t[0]);
-      next.insert(next.end(), {{t[0], a, c}, {t[1], b, a}, {t[2], c, b}, {a, b, c}});
-    }
-    f.swap(next);
-  }
+  const UnitIcosphere unit = MakeUnitIcosphere(subdivisions);
   const int base = static_cast<int>(mesh.vertices.size());
-  for (const auto& x : v) mesh.vertices.push_back((s.center + s.radius * x).cast<float>());
-  for (const auto& t : f) {
-    mesh.faces.emplace_back(t[0] + base, t[1] + base, t[2] + base);
+  for (const auto& x : unit.vertices) mesh.vertices.push_back((s.center + s.radius * x).cast<float>());
+  for (const auto& t : unit.faces) {
+    mesh.faces.push_back(t + Eigen::Vector3i::Constant(base));
     mesh.face_colors.push_back(s.albedo);
   }
 }

@@ -7,6 +7,8 @@
 #include <optional>
 #include <string>
 
+#include "core/check.h"
+
 namespace genscene::test {
 
 // A fresh folder under the system temp dir, removed when the object dies.
@@ -44,6 +46,19 @@ struct CommandResult {
 
 // Runs a shell command with a timeout in seconds (a hang fails instead of blocking the suite).
 CommandResult RunCommand(const std::string& command, int timeout_seconds = 120);
+
+// The message of the genscene::Error that `f` throws, or "<no error>" when it throws none.
+template <typename F>
+std::string ErrorOf(F&& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "<no error>";
+}
+
+#define EXPECT_CONTAINS(text, part) EXPECT_NE((text).find(part), std::string::npos) << (text)
 
 // Path of a built program (genscene, genscene-synth, ...).
 std::string AppPath(const std::string& name);

@@ -10,14 +10,7 @@
 namespace genscene {
 namespace {
 
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
+using test::ErrorOf;
 
 TEST(Options, ConfigFileSetsTypedValues) {
   test::TempDir dir;

@@ -18,6 +18,8 @@
 namespace genscene {
 namespace {
 
+using test::ErrorOf;
+
 namespace fs = std::filesystem;
 
 // A fresh folder per test, removed afterwards.
@@ -38,17 +40,6 @@ std::string ReadAll(const fs::path& path) {
   std::ostringstream text;
   text << in.rdbuf();
   return text.str();
-}
-
-// The message of the Error that `f` throws ("" when it throws none).
-template <typename F>
-std::string ErrorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
 }
 
 // Two tetrahedra sharing vertex 0 (non-manifold at a vertex), with normals, vertex colours and

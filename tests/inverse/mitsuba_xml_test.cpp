@@ -16,6 +16,8 @@
 namespace genscene::inverse {
 namespace {
 
+using test::ErrorOf;
+
 namespace fs = std::filesystem;
 using Eigen::Vector3d;
 using Eigen::Vector3f;
@@ -31,18 +33,6 @@ fs::path WriteScene(const test::TempDir& dir, const std::string& body,
   WriteFile(dir / name, "<scene version=\"3.0.0\">\n" + body + "\n</scene>\n");
   return dir / name;
 }
-
-template <typename F>
-std::string ErrorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "<no error>";
-}
-
-#define EXPECT_CONTAINS(text, part) EXPECT_NE((text).find(part), std::string::npos) << (text)
 
 // Pixel (OpenCV convention) where a world point appears in a view.
 Eigen::Vector2d Pixel(const View& view, const Vector3d& world) {

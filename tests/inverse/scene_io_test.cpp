@@ -14,6 +14,8 @@
 namespace genscene::inverse {
 namespace {
 
+using test::ErrorOf;
+
 namespace fs = std::filesystem;
 using Eigen::Vector3d;
 using Eigen::Vector3f;
@@ -22,18 +24,6 @@ void WriteFile(const fs::path& path, const std::string& text) {
   fs::create_directories(path.parent_path());
   std::ofstream(path) << text;
 }
-
-template <typename F>
-std::string ErrorOf(F&& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "<no error>";
-}
-
-#define EXPECT_CONTAINS(text, part) EXPECT_NE((text).find(part), std::string::npos) << (text)
 
 TriangleMesh Quad(float z) {
   TriangleMesh m;
