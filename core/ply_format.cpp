@@ -5,6 +5,7 @@
 #include <cctype>
 #include <cerrno>
 #include <charconv>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <optional>
@@ -479,10 +480,34 @@ int64_t DecodeLittleEndianInteger(const unsigned char* bytes, int size, bool is_
 
 }  // namespace
 
+
+// OpenMesh parses ASCII values with istream >>, which fails on "nan", "inf" or a stray letter and
+// then misreads the rest of the file (or loops); every value is checked here first: integer
+// properties need an integer, float properties a finite number.
+static void CheckAsciiNumber(const std::string& token, bool is_float, const std::string& name,
+                      const PlyElement& element, uint64_t record, const std::string& property) {
+  const char* end = token.data() + token.size();
+  bool ok = false;
+  if (is_float) {
+    double value = 0.0;
+    const auto [ptr, ec] = std::from_chars(token.data(), end, value);
+    ok = ec == std::errc() && ptr == end && std::isfinite(value);
+  } else {
+    int64_t value = 0;
+    const auto [ptr, ec] = std::from_chars(token.data(), end, value);
+    ok = ec == std::errc() && ptr == end;
+  }
+  if (!ok) {
+    throw Error(Format(name, ": ", element.name, " ", record, ": value '", token, "' of property ", property,
+                       " is not ", is_float ? "a finite number" : "an integer"));
+  }
+}
+
 void WalkData(const fs::path& path, const PlyHeader& header, const PlyLayout& layout,
               uint64_t file_size) {
   struct Field {
     bool list = false;
+    bool is_float = false;  // a float/double scalar, or list entries of that type
     int size = 0;  // binary: a scalar's size, or a list entry's size
     int count_size = 0;
     bool count_signed = false;
@@ -508,6 +533,7 @@ void WalkData(const fs::path& path, const PlyHeader& header, const PlyLayout& la
       Field field;
       field.list = prop.is_list();
       field.size = LookupType(prop.type)->size;
+      field.is_float = LookupType(prop.type)->is_float;
       if (field.list) {
         field.count_size = LookupType(prop.count_type)->size;
         field.count_signed = IsSignedType(prop.count_type);
@@ -528,8 +554,10 @@ void WalkData(const fs::path& path, const PlyHeader& header, const PlyLayout& la
       for (size_t p = 0; p < fields.size(); ++p) {
         const Field& field = fields[p];
         if (!field.list) {
-          if (ascii ? !cursor.NextToken(nullptr)
-                    : !cursor.Skip(static_cast<uint64_t>(field.size))) {
+          if (ascii) {
+            if (!cursor.NextToken(&token)) throw truncated(r);
+            CheckAsciiNumber(token, field.is_float, name, element, r, element.properties[p].name);
+          } else if (!cursor.Skip(static_cast<uint64_t>(field.size))) {
             throw truncated(r);
           }
           continue;
@@ -557,7 +585,8 @@ void WalkData(const fs::path& path, const PlyHeader& header, const PlyLayout& la
         }
         if (ascii) {
           for (int64_t k = 0; k < length; ++k) {
-            if (!cursor.NextToken(nullptr)) throw truncated(r);
+            if (!cursor.NextToken(&token)) throw truncated(r);
+            CheckAsciiNumber(token, field.is_float, name, element, r, element.properties[p].name);
           }
         } else if (!cursor.Skip(
                        SatMul(static_cast<uint64_t>(length), static_cast<uint64_t>(field.size)))) {

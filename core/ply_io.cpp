@@ -337,8 +337,9 @@ unsigned char LinearToSrgbByte(float linear) {
 }
 
 // Presents a TriangleMesh to OpenMesh's PLY writer as it is: vertices and triangles in order,
-// colours as sRGB bytes, and the exact linear face colours as persistent float face properties
-// albedo_r/g/b of a property kernel (written by OpenMesh as `property float albedo_r` ...).
+// colours as sRGB bytes (for viewers), and the exact linear vertex and face colours as persistent
+// float properties albedo_r/g/b of a property kernel (written by OpenMesh as
+// `property float albedo_r` ...).
 class TriangleMeshExporter final : public OpenMesh::IO::BaseExporter {
  public:
   explicit TriangleMeshExporter(const TriangleMesh& mesh) : mesh_(mesh) {
@@ -354,6 +355,16 @@ class TriangleMeshExporter final : public OpenMesh::IO::BaseExporter {
     }
     kernel_.SetVertexCount(mesh.vertices.size());
     kernel_.SetFaceCount(mesh.faces.size());
+    if (!mesh.vertex_colors.empty()) {
+      for (int c = 0; c < 3; ++c) {
+        OpenMesh::VPropHandleT<float> handle;
+        kernel_.add_property(handle, kAlbedo[static_cast<size_t>(c)]);
+        kernel_.property(handle).set_persistent(true);
+        for (size_t v = 0; v < mesh.vertices.size(); ++v) {
+          kernel_.property(handle, VertexHandle(static_cast<int>(v))) = mesh.vertex_colors[v][c];
+        }
+      }
+    }
     if (!mesh.face_colors.empty()) {
       for (int c = 0; c < 3; ++c) {
         OpenMesh::FPropHandleT<float> handle;
@@ -459,14 +470,12 @@ class TriangleMeshExporter final : public OpenMesh::IO::BaseExporter {
   PropertyKernel kernel_;
 };
 
-// Vertex colours are stored only as 8-bit sRGB, so they must be in [0, 1]; face colours are stored
-// exactly as float albedo_r/g/b (their 8-bit red/green/blue copy, for viewers, is clamped).
+// Vertex and face colours are stored exactly as float albedo_r/g/b (their 8-bit red/green/blue
+// copy, for viewers, is clamped to [0, 1]); they only have to be finite.
 void CheckColorsWritable(const TriangleMesh& mesh, const std::string& name) {
   for (size_t i = 0; i < mesh.vertex_colors.size(); ++i) {
-    const Eigen::Vector3f& c = mesh.vertex_colors[i];
-    if (!c.allFinite() || c.minCoeff() < 0.0f || c.maxCoeff() > 1.0f) {
-      throw Error(Format(name, ": vertex colour ", i, " is (", c[0], ", ", c[1], ", ", c[2],
-                         "), outside [0, 1]; PLY vertex colours are 8-bit"));
+    if (!mesh.vertex_colors[i].allFinite()) {
+      throw Error(Format(name, ": vertex colour ", i, " is not finite"));
     }
   }
   for (size_t f = 0; f < mesh.face_colors.size(); ++f) {

@@ -23,7 +23,8 @@ struct PlyWriteOptions {
 TriangleMesh ReadPly(const std::filesystem::path& path);
 
 // Writes the mesh atomically: positions, faces, and normals / vertex colours / face colours when
-// non-empty (face colours as float albedo_r/g/b and as uchar red/green/blue).
+// non-empty (vertex and face colours as exact float albedo_r/g/b, and as uchar red/green/blue
+// sRGB, clamped to [0, 1], for viewers).
 void WritePly(const std::filesystem::path& path, const TriangleMesh& mesh,
               const PlyWriteOptions& options = PlyWriteOptions());
 
