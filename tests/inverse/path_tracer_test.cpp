@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 
 #include "core/parallel.h"
 #include "core/synthetic.h"
@@ -150,6 +151,8 @@ TEST(PathTracer, SmallAreaLightMatchesFormFactor) {
   options.max_depth = 2;
   double mean = 0.0;
   RmsErrorOverPixels(tracer.Render(setup.view, options, 5), setup.expected, &mean);
+  std::printf("[ closed   ] area light: mean %.6f vs form factor %.6f (%.3f%%)\n", mean, setup.expected,
+              100.0 * (mean / setup.expected - 1.0));
   EXPECT_NEAR(mean, setup.expected, 0.01 * setup.expected);
 }
 
@@ -166,6 +169,7 @@ TEST(PathTracer, ErrorFallsAsOneOverSqrtSpp) {
   const double error_64 = RmsErrorOverPixels(tracer.Render(setup.view, options, 8), setup.expected, &mean);
   // 16x the samples: the error should fall 4x, within a factor of 1.5.
   const double ratio = error_4 / error_64;
+  std::printf("[ closed   ] RMS error 4 spp %.5f, 64 spp %.5f: ratio %.3f (1/sqrt(spp): 4)\n", error_4, error_64, ratio);
   EXPECT_GT(ratio, 4.0 / 1.5) << error_4 << " " << error_64;
   EXPECT_LT(ratio, 4.0 * 1.5) << error_4 << " " << error_64;
 }
@@ -193,6 +197,8 @@ TEST(PathTracer, WhiteFurnace) {
   for (const auto& p : out.radiance.pixels()) mean += p.cast<double>();
   mean /= out.radiance.size();
   const Eigen::Vector3d expected = walls.emission.cast<double>() / (1.0 - a);
+  std::printf("[ closed   ] furnace: mean %.5f %.5f %.5f vs Le/(1-a) %.5f %.5f %.5f\n", mean[0], mean[1], mean[2],
+              expected[0], expected[1], expected[2]);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c], expected[c], 0.01 * expected[c]);
 }
 
@@ -232,6 +238,8 @@ TEST(PathTracer, VoxelLightMatchesItsSixQuadExport) {
   for (int c = 0; c < 3; ++c) {
     const double standard_error = std::sqrt(var[c]) / n;
     // Noise (4 standard errors) plus 0.5 % for the cube's finite size (faces 5 mm off centre).
+    std::printf("[ closed   ] voxel light vs six quads, channel %d: %.6f vs %.6f (se %.6f)\n", c, mean_a[c], mean_b[c],
+                standard_error);
     EXPECT_LT(standard_error, 0.005 * mean_a[c]) << "too noisy to tell";
     EXPECT_NEAR(mean_b[c], mean_a[c], 4.0 * standard_error + 0.005 * mean_a[c]) << c << " se " << standard_error;
   }
