@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Configures and builds genscene (Release, -j2, ccache when available).
 #   scripts/build.sh               -> build/
-#   scripts/build.sh --sanitize    -> build-sanitize/ (ASan + UBSan, RelWithDebInfo)
+#   scripts/build.sh --sanitize    -> build-sanitize/ (ASan + UBSan, -O1 -g1: quick to compile,
+#                                     function and line names in the reports)
 # Extra arguments after the options are passed to `cmake --build` (e.g. --target genscene).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -11,7 +12,7 @@ CMAKE_ARGS=(-DCMAKE_BUILD_TYPE=Release)
 if [ "${1:-}" = "--sanitize" ]; then
   shift
   BUILD_DIR=build-sanitize
-  CMAKE_ARGS=(-DCMAKE_BUILD_TYPE=RelWithDebInfo -DGENSCENE_SANITIZE=ON -DGENSCENE_BUILD_BENCH=OFF)
+  CMAKE_ARGS=(-DCMAKE_BUILD_TYPE=None "-DCMAKE_CXX_FLAGS=-O1 -g1" -DGENSCENE_SANITIZE=ON -DGENSCENE_BUILD_BENCH=OFF)
 fi
 JOBS="${GENSCENE_JOBS:-2}"
 
