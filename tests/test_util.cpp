@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 
 namespace genscene::test {
 
@@ -61,6 +62,11 @@ CommandResult RunCommand(const std::string& command, int timeout_seconds) {
 
 std::string AppPath(const std::string& name) {
   return (fs::path(GENSCENE_BINARY_DIR) / "apps" / name).string();
+}
+
+void WriteFile(const fs::path& path, const std::string& text) {
+  fs::create_directories(path.parent_path());
+  std::ofstream(path, std::ios::binary) << text;
 }
 
 int CountFilesContaining(const fs::path& dir, const std::string& part) {

@@ -63,6 +63,9 @@ std::string ErrorOf(F&& f) {
 // Path of a built program (genscene, genscene-synth, ...).
 std::string AppPath(const std::string& name);
 
+// Writes `text` to `path`, creating the parent folders.
+void WriteFile(const std::filesystem::path& path, const std::string& text);
+
 // Number of files (recursively) below `dir` whose name contains `part`.
 int CountFilesContaining(const std::filesystem::path& dir, const std::string& part);
 

@@ -17,15 +17,11 @@ namespace genscene::inverse {
 namespace {
 
 using test::ErrorOf;
+using test::WriteFile;
 
 namespace fs = std::filesystem;
 using Eigen::Vector3d;
 using Eigen::Vector3f;
-
-void WriteFile(const fs::path& path, const std::string& text) {
-  fs::create_directories(path.parent_path());
-  std::ofstream(path) << text;
-}
 
 // A scene file with `body` inside <scene version="3.0.0">.
 fs::path WriteScene(const test::TempDir& dir, const std::string& body,

@@ -15,15 +15,11 @@ namespace genscene::inverse {
 namespace {
 
 using test::ErrorOf;
+using test::WriteFile;
 
 namespace fs = std::filesystem;
 using Eigen::Vector3d;
 using Eigen::Vector3f;
-
-void WriteFile(const fs::path& path, const std::string& text) {
-  fs::create_directories(path.parent_path());
-  std::ofstream(path) << text;
-}
 
 TriangleMesh Quad(float z) {
   TriangleMesh m;
