@@ -1,0 +1,160 @@
+#include "core/tsdf_volume.h"
+
+#include <fstream>
+
+#include "core/trajectory_metrics.h"
+#include "core/se3.h"
+#include "tests/test_util.h"
+
+namespace genscene {
+namespace {
+
+using test::TempDir;
+
+TsdfVolume MakeVolume() {
+  TsdfVolumeParams p;
+  p.voxel_size = 0.02;
+  p.truncation = 0.06;
+  p.origin = Eigen::Vector3d(1000.25, -3.5, 0.125);
+  TsdfVolume volume(p);
+  int n = 0;
+  for (const Eigen::Vector3i& key : {Eigen::Vector3i(0, 0, 0), Eigen::Vector3i(-1, 2, -3), Eigen::Vector3i(5, -7, 1)}) {
+    TsdfBlock& block = volume.block(volume.AllocateBlock(key));
+    for (TsdfVoxel& v : block.voxels) {
+      v.sdf = 0.001f * static_cast<float>(n % 97) - 0.03f;
+      v.weight = static_cast<float>(n % 5);
+      v.color = Eigen::Vector3f(0.1f, 0.2f, 0.3f) * static_cast<float>(n % 7);
+      ++n;
+    }
+  }
+  return volume;
+}
+
+std::string Bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+TEST(TsdfVolume, FileRoundTripIsBitExact) {
+  TempDir dir;
+  const TsdfVolume volume = MakeVolume();
+  WriteTsdfVolume(dir / "a.gsv", volume);
+  const TsdfVolume back = ReadTsdfVolume(dir / "a.gsv");
+  ASSERT_EQ(back.num_blocks(), volume.num_blocks());
+  EXPECT_EQ(back.origin(), volume.origin());
+  EXPECT_EQ(back.voxel_size(), volume.voxel_size());
+  for (size_t b = 0; b < volume.num_blocks(); ++b) {
+    EXPECT_EQ(back.block_key(b), volume.block_key(b));
+    EXPECT_EQ(0, std::memcmp(&back.block(b).voxels, &volume.block(b).voxels, sizeof(TsdfBlock)));
+  }
+  WriteTsdfVolume(dir / "b.gsv", back);
+  EXPECT_EQ(Bytes(dir / "a.gsv"), Bytes(dir / "b.gsv"));
+}
+
+TEST(TsdfVolume, FindsVoxelsAcrossNegativeBlocks) {
+  TsdfVolume volume = MakeVolume();
+  // Voxel (-1, 16, -24) is local (7, 0, 0) of block (-1, 2, -3).
+  const TsdfVoxel* v = volume.FindVoxel(Eigen::Vector3i(-1, 16, -24));
+  ASSERT_NE(v, nullptr);
+  const auto index = volume.FindBlock(Eigen::Vector3i(-1, 2, -3));
+  ASSERT_TRUE(index.has_value());
+  EXPECT_EQ(v, &volume.block(*index).voxels[TsdfBlock::Index(7, 0, 0)]);
+  EXPECT_EQ(volume.FindVoxel(Eigen::Vector3i(-9, 16, -24)), nullptr);
+  EXPECT_EQ(TsdfVolume::BlockOf(Eigen::Vector3i(-8, -9, 7)), Eigen::Vector3i(-1, -2, 0));
+  EXPECT_EQ(FloorToInt(-0.5f), -1);
+  EXPECT_EQ(FloorToInt(-1.0f), -1);
+  EXPECT_EQ(FloorToInt(2.75f), 2);
+}
+
+TEST(TsdfVolume, HashTableKeepsThousandsOfBlocks) {
+  TsdfVolumeParams p;
+  p.memory_cap_bytes = 0;
+  TsdfVolume volume(p);
+  for (int i = 0; i < 3000; ++i) volume.AllocateBlock(Eigen::Vector3i(i % 17 - 8, i / 17 - 90, (i * 7) % 13));
+  for (int i = 0; i < 3000; ++i) {
+    const auto found = volume.FindBlock(Eigen::Vector3i(i % 17 - 8, i / 17 - 90, (i * 7) % 13));
+    ASSERT_TRUE(found.has_value());
+    EXPECT_EQ(*found, i);
+  }
+  EXPECT_FALSE(volume.FindBlock(Eigen::Vector3i(100, 100, 100)).has_value());
+}
+
+TEST(TsdfVolume, TrilinearInterpolationIsExactForLinearFields) {
+  TsdfVolumeParams p;
+  TsdfVolume volume(p);
+  for (int i = 0; i < 8; ++i) volume.AllocateBlock(Eigen::Vector3i(i & 1, (i >> 1) & 1, (i >> 2) & 1));
+  for (size_t b = 0; b < volume.num_blocks(); ++b) {
+    for (int z = 0; z < 8; ++z)
+      for (int y = 0; y < 8; ++y)
+        for (int x = 0; x < 8; ++x) {
+          const Eigen::Vector3i v = 8 * volume.block_key(b) + Eigen::Vector3i(x, y, z);
+          TsdfVoxel& voxel = volume.block(b).voxels[TsdfBlock::Index(x, y, z)];
+          voxel.sdf = 0.5f * v.x() - 0.25f * v.y() + 0.125f * v.z();
+          voxel.weight = 1.0f;
+        }
+  }
+  const Eigen::Vector3f p0(7.3f, 8.6f, 3.9f);  // crosses block boundaries in x and y
+  const auto sdf = volume.InterpolateSdf(p0);
+  ASSERT_TRUE(sdf.has_value());
+  EXPECT_NEAR(*sdf, 0.5f * p0.x() - 0.25f * p0.y() + 0.125f * p0.z(), 1e-5);
+  const auto g = volume.SdfGradient(p0);
+  ASSERT_TRUE(g.has_value());
+  EXPECT_NEAR((*g - Eigen::Vector3f(0.5f, -0.25f, 0.125f)).norm(), 0.0f, 1e-5);
+  EXPECT_FALSE(volume.InterpolateSdf(Eigen::Vector3f(15.5f, 1.0f, 1.0f)).has_value());  // unallocated
+}
+
+TEST(TsdfVolume, MemoryCapIsAClearError) {
+  TsdfVolumeParams p;
+  p.memory_cap_bytes = 3.5 * sizeof(TsdfBlock);
+  TsdfVolume volume(p);
+  for (int i = 0; i < 3; ++i) volume.AllocateBlock(Eigen::Vector3i(i, 0, 0));
+  EXPECT_CONTAINS(test::ErrorOf([&] { volume.AllocateBlock(Eigen::Vector3i(9, 0, 0)); }), "memory cap");
+  EXPECT_EQ(volume.num_blocks(), 3u);
+}
+
+TEST(TsdfVolume, CorruptFilesAreClearErrors) {
+  TempDir dir;
+  WriteTsdfVolume(dir / "good.gsv", MakeVolume());
+  const std::string good = Bytes(dir / "good.gsv");
+  test::WriteFile(dir / "magic.gsv", "PLY nonsense");
+  EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "magic.gsv"); }), "magic.gsv: not a genscene TSDF volume");
+  test::WriteFile(dir / "short.gsv", good.substr(0, good.size() - 7));
+  EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "short.gsv"); }), "short.gsv");
+  // A header declaring 10^12 blocks must be refused before allocating anything.
+  std::string huge = good;
+  const uint64_t count = 1000000000000ull;
+  std::memcpy(&huge[8 + 8 + 8 + 4 + 24], &count, sizeof(count));
+  test::WriteFile(dir / "huge.gsv", huge);
+  EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "huge.gsv"); }), "declares 1000000000000 blocks");
+  std::string nan = good;
+  const float bad = std::numeric_limits<float>::quiet_NaN();
+  std::memcpy(&nan[nan.size() - 4], &bad, sizeof(bad));
+  test::WriteFile(dir / "nan.gsv", nan);
+  EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "nan.gsv"); }), "non-finite");
+  EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "missing.gsv"); }), "missing.gsv: cannot open");
+}
+
+TEST(TrajectoryMetrics, AteIsZeroForARigidlyMovedTrajectoryAndSeesNoise) {
+  Trajectory gt, moved, noisy;
+  const Eigen::Isometry3d offset = ExpSE3((Vector6d() << 3.0, -2.0, 1000.0, 0.3, -0.2, 1.1).finished());
+  for (int i = 0; i < 50; ++i) {
+    const Eigen::Isometry3d pose = ExpSE3((Vector6d() << 0.05 * i, std::sin(0.2 * i), 0.01 * i * i, 0.02 * i, 0.0, 0.1).finished());
+    gt.Add(i / 30.0, pose);
+    moved.Add(i / 30.0 + 0.004, offset * pose);  // within the 20 ms association window
+    Eigen::Isometry3d shifted = pose;
+    shifted.translation().x() += (i % 2 ? 0.01 : -0.01);
+    noisy.Add(i / 30.0, shifted);
+  }
+  const AteResult exact = ComputeAte(moved, gt);
+  EXPECT_EQ(exact.pairs, 50u);
+  EXPECT_LT(exact.rmse, 1e-6);
+  const AteResult n = ComputeAte(noisy, gt);
+  EXPECT_NEAR(n.rmse, 0.01, 1e-3);
+  std::cout << "ATE of a 1 km offset copy: " << exact.rmse << " m; of +-1 cm noise: " << n.rmse << " m\n";
+  Trajectory far;
+  far.Add(100.0, Eigen::Isometry3d::Identity());
+  EXPECT_CONTAINS(test::ErrorOf([&] { ComputeAte(far, gt); }), "only 0 of 1");
+}
+
+}  // namespace
+}  // namespace genscene
