@@ -1,0 +1,63 @@
+#include "apps/fuse.h"
+
+#include <iostream>
+#include <sstream>
+
+namespace genscene::apps {
+
+FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_options,
+                         const fusion::FusionOptions& options, const Workspace& workspace) {
+  auto source = OpenFrameSource(input, source_options);
+  FuseSummary summary;
+  summary.source = source->Describe();
+  fusion::KinectFusion fusion(options, source->Intrinsics());
+  const size_t total = source->FrameCount().value_or(0);
+  while (auto frame = source->Next()) {
+    const fusion::FrameReport r = fusion.ProcessFrame(*frame);
+    ++summary.frames;
+    summary.seconds += r.seconds();
+    switch (r.status) {
+      case fusion::FrameStatus::kLost: ++summary.lost; break;
+      case fusion::FrameStatus::kDegenerate: ++summary.degenerate; break;
+      case fusion::FrameStatus::kBlank: ++summary.blank; break;
+      default: break;
+    }
+    summary.fused += r.fused;
+    if (!r.reason.empty()) {
+      std::cerr << "\nframe " << r.index << " (t = " << std::fixed << r.timestamp << std::defaultfloat
+                << "): " << fusion::ToString(r.status) << ": " << r.reason << "\n";
+    }
+    std::cerr << "\rfusing: " << summary.frames;
+    if (total) std::cerr << "/" << total;
+    std::cerr << " frames, " << summary.frames / std::max(summary.seconds, 1e-9) << " fps, "
+              << fusion.volume().num_blocks() << " blocks   " << std::flush;
+  }
+  std::cerr << "\n";
+  if (summary.frames == 0) throw Error(Format(input, ": the sequence has no frames"));
+  fusion.Finish();
+  if (options.tracking == "icp" && source->KnownPoses().size() >= 3 && fusion.trajectory().size() >= 3) {
+    summary.ate = ComputeAte(fusion.trajectory(), source->KnownPoses());
+  }
+  fusion::SaveFusionOutputs(fusion, workspace, summary.ate);
+  summary.blocks = fusion.volume().num_blocks();
+  summary.megabytes = fusion.volume().allocated_bytes() / 1e6;
+  summary.keyframes = fusion.keyframes().size();
+  return summary;
+}
+
+std::string ToString(const FuseSummary& s) {
+  std::ostringstream out;
+  out << "source:     " << s.source << "\n"
+      << "frames:     " << s.frames << " (fused " << s.fused << ", lost " << s.lost << ", degenerate "
+      << s.degenerate << ", blank " << s.blank << ")\n"
+      << "speed:      " << s.frames / std::max(s.seconds, 1e-9) << " frames/s (" << s.seconds << " s)\n"
+      << "volume:     " << s.blocks << " blocks, " << s.megabytes << " MB\n"
+      << "keyframes:  " << s.keyframes << "\n";
+  if (s.ate) {
+    out << "ATE:        RMSE " << 100.0 * s.ate->rmse << " cm, max " << 100.0 * s.ate->max << " cm over "
+        << s.ate->pairs << " poses (against the source's known poses, Horn-aligned)\n";
+  }
+  return out.str();
+}
+
+}  // namespace genscene::apps

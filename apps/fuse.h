@@ -1,0 +1,32 @@
+// genscene-fuse as a function: read a source, run the fusion stage frame by frame with progress
+// on stderr, evaluate the trajectory against the source's known poses when it has them, and
+// write the stage's outputs into the workspace. Shared by genscene-fuse and `genscene run`.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "core/frame_source.h"
+#include "core/trajectory_metrics.h"
+#include "core/workspace.h"
+#include "fusion/kinect_fusion.h"
+
+namespace genscene::apps {
+
+struct FuseSummary {
+  std::string source;
+  size_t frames = 0, fused = 0, lost = 0, degenerate = 0, blank = 0;
+  size_t blocks = 0;
+  double megabytes = 0.0;
+  size_t keyframes = 0;
+  double seconds = 0.0;  // processing time of all frames (reading excluded)
+  std::optional<AteResult> ate;  // against the source's known poses (tracking = icp only)
+};
+
+FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_options,
+                         const fusion::FusionOptions& options, const Workspace& workspace);
+
+// One line per field for the console.
+std::string ToString(const FuseSummary& summary);
+
+}  // namespace genscene::apps

@@ -1,0 +1,158 @@
+#!/usr/bin/env python3
+"""Marching cubes: genscene against skimage and Open3D, counts and times side by side (issue 5).
+
+1. Dense grids: runs bench_marching_cubes --dump, which meshes gyroid volumes and writes each grid
+   as .npy, then times skimage.measure.marching_cubes (Lewiner) on the same grids at level 0.
+2. Fused scene (optional, --tum DIR --tsdf WS/tsdf.gsv): Open3D fuses the TUM-layout folder into a
+   ScalableTSDFVolume with the voxel size and truncation of our tsdf.gsv and times
+   extract_triangle_mesh; genscene-mesh meshes our tsdf.gsv (fused from the same folder by
+   genscene-fuse). The volumes are fused by different code, so counts agree only roughly.
+
+Each time is the best of --repeat runs. Run by hand, e.g.
+  python3 bench/compare_marching_cubes.py --build build --sizes 64 128
+  python3 bench/compare_marching_cubes.py --build build --tum ws/input --tsdf ws/tsdf.gsv
+"""
+import argparse
+import os
+import re
+import shutil
+import struct
+import subprocess
+import sys
+import tempfile
+import time
+
+
+def best_time(fn, repeat):
+    best, result = float("inf"), None
+    for _ in range(repeat):
+        start = time.perf_counter()
+        result = fn()
+        best = min(best, time.perf_counter() - start)
+    return best, result
+
+
+def dense_grids(args, workdir):
+    import numpy as np
+    from skimage import measure
+
+    bench = os.path.join(args.build, "bench", "bench_marching_cubes")
+    subprocess.run([bench, "--dump", workdir] + [str(n) for n in args.sizes], check=True,
+                   stdout=subprocess.DEVNULL)
+    ours = {}
+    with open(os.path.join(workdir, "genscene_mc.txt")) as f:
+        for line in f:
+            n, threads, verts, tris, seconds = line.split()
+            ours[(int(n), int(threads))] = (int(verts), int(tris), float(seconds))
+    sizes = sorted({n for n, _ in ours})
+    print("Dense gyroid grids, level 0 (genscene: best of 3 after a warm-up; skimage: best of %d)" % args.repeat)
+    print("%6s %12s | %10s %10s %9s %9s | %10s %10s %9s | %8s" % (
+        "N", "cells", "gs verts", "gs tris", "gs 1t ms", "gs Nt ms", "sk verts", "sk tris", "sk ms",
+        "speedup"))
+    for n in sizes:
+        grid = np.load(os.path.join(workdir, "gyroid_%d.npy" % n))
+        seconds, (verts, faces, _, _) = best_time(lambda: measure.marching_cubes(grid, level=0.0), args.repeat)
+        one = ours[(n, 1)]
+        many = max(((k, v) for k, v in ours.items() if k[0] == n), key=lambda kv: kv[0][1])
+        print("%6d %12d | %10d %10d %9.1f %9.1f | %10d %10d %9.1f | %7.1fx" % (
+            n, n ** 3, one[0], one[1], one[2] * 1e3, many[1][2] * 1e3, len(verts), len(faces), seconds * 1e3,
+            seconds / many[1][2]))
+    print("(gs Nt: all threads; speedup: skimage time / genscene all-threads time)")
+
+
+def read_gsv_header(path):
+    with open(path, "rb") as f:
+        head = f.read(8 + 8 + 8 + 4 + 24 + 8)
+    if head[:8] != b"GSTSDF01":
+        sys.exit("%s: not a genscene TSDF volume" % path)
+    voxel_size, truncation = struct.unpack_from("<dd", head, 8)
+    return voxel_size, truncation
+
+
+def read_list(path):
+    rows = []
+    with open(path) as f:
+        for line in f:
+            line = line.strip()
+            if line and not line.startswith("#"):
+                rows.append(line.split())
+    return rows
+
+
+def nearest(rows, stamp, max_dt=0.02):
+    best = min(rows, key=lambda r: abs(float(r[0]) - stamp))
+    return best if abs(float(best[0]) - stamp) <= max_dt else None
+
+
+def fused_scene(args, workdir):
+    import numpy as np
+    import open3d as o3d
+
+    voxel_size, truncation = read_gsv_header(args.tsdf)
+    fx, fy, cx, cy, width, height = [float(x) for x in read_list(os.path.join(args.tum, "intrinsics.txt"))[0][:6]]
+    intrinsic = o3d.camera.PinholeCameraIntrinsic(int(width), int(height), fx, fy, cx, cy)
+    depth_rows = read_list(os.path.join(args.tum, "depth.txt"))
+    rgb_rows = read_list(os.path.join(args.tum, "rgb.txt"))
+    pose_rows = read_list(os.path.join(args.tum, "groundtruth.txt"))
+    volume = o3d.pipelines.integration.ScalableTSDFVolume(
+        voxel_length=voxel_size, sdf_trunc=truncation, color_type=o3d.pipelines.integration.TSDFVolumeColorType.RGB8)
+    frames = 0
+    for stamp, depth_file in depth_rows:
+        rgb, pose = nearest(rgb_rows, float(stamp)), nearest(pose_rows, float(stamp))
+        if rgb is None or pose is None:
+            continue
+        color = o3d.io.read_image(os.path.join(args.tum, rgb[1]))
+        depth = o3d.io.read_image(os.path.join(args.tum, depth_file))
+        rgbd = o3d.geometry.RGBDImage.create_from_color_and_depth(
+            color, depth, depth_scale=args.depth_scale, depth_trunc=args.max_depth, convert_rgb_to_intensity=False)
+        tx, ty, tz, qx, qy, qz, qw = [float(x) for x in pose[1:8]]
+        world_from_camera = np.eye(4)
+        world_from_camera[:3, :3] = o3d.geometry.get_rotation_matrix_from_quaternion([qw, qx, qy, qz])
+        world_from_camera[:3, 3] = [tx, ty, tz]
+        volume.integrate(rgbd, intrinsic, np.linalg.inv(world_from_camera))
+        frames += 1
+    o3d_seconds, mesh = best_time(volume.extract_triangle_mesh, args.repeat)
+
+    ws = os.path.join(workdir, "ws")
+    os.makedirs(ws, exist_ok=True)
+    shutil.copy(args.tsdf, os.path.join(ws, "tsdf.gsv"))
+    app = os.path.join(args.build, "apps", "genscene-mesh")
+    gs_seconds, text = float("inf"), ""
+    for _ in range(args.repeat):
+        text = subprocess.run([app, ws], check=True, capture_output=True, text=True).stdout
+        gs_seconds = min(gs_seconds, float(re.search(r"genscene-mesh: ([0-9.]+) s", text).group(1)))
+    counts = re.search(r"-> (\d+) vertices, (\d+) triangles", text)
+    print("\nFused scene %s (%d frames, voxel %.4f m, truncation %.4f m); best of %d" % (
+        args.tum, frames, voxel_size, truncation, args.repeat))
+    print("%-40s %10s %10s %10s" % ("", "vertices", "triangles", "ms"))
+    print("%-40s %10d %10d %10.1f" % ("Open3D ScalableTSDFVolume.extract_triangle_mesh", len(mesh.vertices),
+                                      len(mesh.triangles), o3d_seconds * 1e3))
+    print("%-40s %10s %10s %10.1f" % ("genscene-mesh (ExtractMesh, all threads)", counts.group(1), counts.group(2),
+                                      gs_seconds * 1e3))
+    print("speedup: %.1fx" % (o3d_seconds / gs_seconds))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--build", default="build", help="build folder with bench/ and apps/")
+    parser.add_argument("--sizes", type=int, nargs="*", default=[64, 128, 192], help="dense grid sizes N (N^3)")
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--tum", help="TUM-layout folder (rgb.txt, depth.txt, groundtruth.txt, intrinsics.txt)")
+    parser.add_argument("--tsdf", help="our tsdf.gsv fused from the same folder")
+    parser.add_argument("--depth-scale", type=float, default=5000.0, help="depth PNG units per metre")
+    parser.add_argument("--max-depth", type=float, default=4.0, help="metres; deeper depth is ignored by Open3D")
+    args = parser.parse_args()
+    if bool(args.tum) != bool(args.tsdf):
+        parser.error("--tum and --tsdf go together")
+    workdir = tempfile.mkdtemp(prefix="genscene-mc-compare-")
+    try:
+        if args.sizes:
+            dense_grids(args, workdir)
+        if args.tum:
+            fused_scene(args, workdir)
+    finally:
+        shutil.rmtree(workdir, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,176 @@
+#include "fusion/icp.h"
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+
+#include "core/options.h"
+#include "core/parallel.h"
+#include "core/se3.h"
+
+namespace genscene::fusion {
+
+void IcpOptions::Validate() const {
+  RequireRange("icp_iterations_fine", iterations_fine, 0, 100);
+  RequireRange("icp_iterations_middle", iterations_middle, 0, 100);
+  RequireRange("icp_iterations_coarse", iterations_coarse, 0, 100);
+  RequireRange("icp_max_distance", max_distance, 1e-4, 10.0);
+  RequireRange("icp_max_angle", max_angle, 1.0, 90.0);
+  RequireRange("icp_huber_delta", huber_delta, 1e-5, 10.0);
+  RequireRange("degenerate_eigen_ratio", degenerate_eigen_ratio, 0.0, 0.5);
+  RequireRange("min_inlier_ratio", min_inlier_ratio, 0.0, 1.0);
+  RequireRange("max_rms_residual", max_rms_residual, 1e-5, 10.0);
+  RequireRange("max_translation", max_translation, 1e-3, 1e4);
+  RequireRange("max_rotation", max_rotation, 0.1, 180.0);
+}
+
+namespace {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+// Normal equations of the point-to-plane residuals of a set of rows.
+struct NormalEquations {
+  Matrix6d jtj = Matrix6d::Zero();
+  Vector6d jtr = Vector6d::Zero();
+  double squared_residuals = 0.0;  // unweighted
+  double squared_ranges = 0.0;     // |q|^2, for the rotation scale
+  size_t inliers = 0;
+  size_t valid = 0;  // live pixels with vertex and normal
+
+  NormalEquations& operator+=(const NormalEquations& o) {
+    jtj += o.jtj;
+    jtr += o.jtr;
+    squared_residuals += o.squared_residuals;
+    squared_ranges += o.squared_ranges;
+    inliers += o.inliers;
+    valid += o.valid;
+    return *this;
+  }
+};
+
+NormalEquations Accumulate(const PyramidLevel& live, const RaycastResult& model,
+                           const CameraIntrinsics& mk, const Eigen::Isometry3d& model_from_live,
+                           const IcpOptions& options) {
+  const Eigen::Matrix3f r = model_from_live.linear().cast<float>();
+  const Eigen::Vector3f t = model_from_live.translation().cast<float>();
+  const float fx = static_cast<float>(mk.fx), fy = static_cast<float>(mk.fy);
+  const float cx = static_cast<float>(mk.cx), cy = static_cast<float>(mk.cy);
+  const float max_distance = static_cast<float>(options.max_distance);
+  const float min_cos = static_cast<float>(std::cos(options.max_angle * M_PI / 180.0));
+  const double huber = options.huber_delta;
+  const int w = live.vertices.width();
+  const float mwf = static_cast<float>(mk.width), mhf = static_cast<float>(mk.height);
+  const size_t rows = static_cast<size_t>(live.vertices.height());
+  return DeterministicReduce(
+      rows, 4, NormalEquations(),
+      [&](size_t row_begin, size_t row_end) {
+        NormalEquations ne;
+        for (size_t row = row_begin; row < row_end; ++row) {
+          const int v = static_cast<int>(row);
+          for (int u = 0; u < w; ++u) {
+            const Eigen::Vector3f& p = live.vertices(u, v);
+            const Eigen::Vector3f& n = live.normals(u, v);
+            if (p.z() <= 0.0f || n.isZero()) continue;
+            ++ne.valid;
+            const Eigen::Vector3f q = r * p + t;
+            if (q.z() <= 0.0f) continue;
+            const float inv_z = 1.0f / q.z();
+            const float uf = fx * q.x() * inv_z + cx + 0.5f, vf = fy * q.y() * inv_z + cy + 0.5f;
+            if (!(uf >= 0.0f && vf >= 0.0f && uf < mwf && vf < mhf)) continue;
+            const int mu = static_cast<int>(uf), mv = static_cast<int>(vf);
+            const Eigen::Vector3f& m = model.points(mu, mv);
+            const Eigen::Vector3f& nm = model.normals(mu, mv);
+            if (m.z() <= 0.0f || nm.isZero()) continue;
+            const Eigen::Vector3f d = q - m;
+            if (d.squaredNorm() > max_distance * max_distance) continue;
+            if ((r * n).dot(nm) < min_cos) continue;
+            const double residual = nm.dot(d);
+            Vector6d j;
+            j.head<3>() = nm.cast<double>();
+            j.tail<3>() = q.cross(nm).cast<double>();
+            const double abs_r = std::abs(residual);
+            const double weight = abs_r <= huber ? 1.0 : huber / abs_r;
+            for (int a = 0; a < 6; ++a) {  // upper triangle only
+              for (int b = a; b < 6; ++b) ne.jtj(a, b) += weight * j[a] * j[b];
+            }
+            ne.jtr += weight * residual * j;
+            ne.squared_residuals += residual * residual;
+            ne.squared_ranges += q.squaredNorm();
+            ++ne.inliers;
+          }
+        }
+        return ne;
+      },
+      [](NormalEquations a, const NormalEquations& b) { return a += b; });
+}
+
+struct Step {
+  Vector6d xi = Vector6d::Zero();
+  double condition = 0.0;
+  int constrained = 0;
+};
+
+// Solves J^T J xi = -J^T r in the eigen-directions the data constrains (rotation scaled to metres
+// at the RMS range so that eigenvalues compare like with like).
+Step SolveConstrained(const NormalEquations& ne, double ratio) {
+  Step step;
+  const double range = std::sqrt(ne.squared_ranges / static_cast<double>(ne.inliers));
+  Vector6d scale;
+  scale << 1, 1, 1, 1 / range, 1 / range, 1 / range;
+  Matrix6d jtj = ne.jtj.selfadjointView<Eigen::Upper>();
+  jtj = scale.asDiagonal() * jtj * scale.asDiagonal();
+  const Vector6d jtr = scale.asDiagonal() * ne.jtr;
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> eig(jtj);
+  const Vector6d lambda = eig.eigenvalues();  // ascending
+  const double largest = lambda[5];
+  if (!(largest > 0.0)) return step;
+  step.condition = lambda[0] > 0.0 ? largest / lambda[0] : std::numeric_limits<double>::infinity();
+  Vector6d scaled_xi = Vector6d::Zero();
+  for (int i = 0; i < 6; ++i) {
+    if (lambda[i] < ratio * largest || lambda[i] <= 0.0) continue;
+    const Vector6d e = eig.eigenvectors().col(i);
+    scaled_xi -= (e.dot(jtr) / lambda[i]) * e;
+    ++step.constrained;
+  }
+  step.xi = scale.asDiagonal() * scaled_xi;
+  return step;
+}
+
+}  // namespace
+
+IcpReport TrackFrameToModel(const std::vector<PyramidLevel>& live, const RaycastResult& model,
+                            const CameraIntrinsics& model_intrinsics, const IcpOptions& options,
+                            Eigen::Isometry3d* model_from_live) {
+  GS_CHECK(!live.empty());
+  GS_CHECK(model.points.SameSize(model_intrinsics.width, model_intrinsics.height));
+  const int per_level[3] = {options.iterations_fine, options.iterations_middle, options.iterations_coarse};
+  IcpReport report;
+  Eigen::Isometry3d pose = *model_from_live;
+  for (int level = static_cast<int>(live.size()) - 1; level >= 0; --level) {
+    const int iterations = per_level[std::min(level, 2)];
+    for (int it = 0; it < iterations; ++it) {
+      const NormalEquations ne = Accumulate(live[static_cast<size_t>(level)], model, model_intrinsics, pose, options);
+      if (ne.inliers < 6) break;
+      const Step step = SolveConstrained(ne, options.degenerate_eigen_ratio);
+      if (step.constrained == 0) break;
+      pose = ExpSE3(step.xi) * pose;
+      ++report.iterations;
+      if (step.xi.norm() < 1e-7) break;
+    }
+  }
+  // Quality figures of the final pose at full resolution.
+  const NormalEquations ne = Accumulate(live[0], model, model_intrinsics, pose, options);
+  report.valid_pixels = ne.valid;
+  report.inliers = ne.inliers;
+  report.inlier_ratio = ne.valid > 0 ? static_cast<double>(ne.inliers) / static_cast<double>(ne.valid) : 0.0;
+  if (ne.inliers >= 6) {
+    report.rms_residual = std::sqrt(ne.squared_residuals / static_cast<double>(ne.inliers));
+    const Step step = SolveConstrained(ne, options.degenerate_eigen_ratio);
+    report.condition = step.condition;
+    report.constrained_directions = step.constrained;
+  }
+  report.degenerate = report.constrained_directions < 6;
+  *model_from_live = pose;
+  return report;
+}
+
+}  // namespace genscene::fusion

@@ -1,0 +1,138 @@
+#include "fusion/integrate.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/check.h"
+#include "core/parallel.h"
+
+namespace genscene::fusion {
+namespace {
+
+struct KeyLess {
+  bool operator()(const Eigen::Vector3i& a, const Eigen::Vector3i& b) const {
+    if (a.z() != b.z()) return a.z() < b.z();
+    if (a.y() != b.y()) return a.y() < b.y();
+    return a.x() < b.x();
+  }
+};
+
+}  // namespace
+
+std::vector<Eigen::Vector3i> BlocksInTruncationBand(const TsdfVolume& volume, const ImageDepth& depth,
+                                                    const CameraIntrinsics& k,
+                                                    const Eigen::Isometry3d& world_from_camera,
+                                                    int pixel_stride) {
+  GS_CHECK_GE(pixel_stride, 1);
+  const int w = depth.width(), h = depth.height();
+  const double vs = volume.voxel_size();
+  // Lattice coordinates of camera-frame points: L(p) = R' p + c, with R' = R / voxel_size and
+  // c = (t - origin) / voxel_size in double, then float for the per-pixel work (the origin sits
+  // near the cameras, so these numbers stay small even 1 km from the world origin).
+  const Eigen::Matrix3f rotation = (world_from_camera.linear() / vs).cast<float>();
+  const Eigen::Vector3f centre = volume.WorldToLattice(world_from_camera.translation()).cast<float>();
+  const float trunc = static_cast<float>(volume.truncation());
+  const float block_metres = static_cast<float>(kTsdfBlockSide * vs);
+  const float inv_side = 1.0f / kTsdfBlockSide;
+
+  const int rows = (h + pixel_stride - 1) / pixel_stride;
+  std::vector<std::vector<Eigen::Vector3i>> per_row(static_cast<size_t>(rows));
+  ParallelFor(0, static_cast<size_t>(rows), [&](size_t r) {
+    const int v = static_cast<int>(r) * pixel_stride;
+    std::vector<Eigen::Vector3i>& keys = per_row[r];
+    for (int u = 0; u < w; u += pixel_stride) {
+      const float d = depth(u, v);
+      if (d <= 0.0f) continue;
+      const Eigen::Vector3f ray(static_cast<float>((u - k.cx) / k.fx),
+                                static_cast<float>((v - k.cy) / k.fy), 1.0f);
+      // Samples half a block apart along the ray over planar depths [d - trunc, d + trunc].
+      const float step = 0.5f * block_metres / ray.norm();
+      const int samples = static_cast<int>(std::ceil(2.0f * trunc / step)) + 1;
+      for (int s = 0; s < samples; ++s) {
+        const float z = std::min(d + trunc, d - trunc + step * static_cast<float>(s));
+        if (z <= 0.0f) continue;
+        const Eigen::Vector3f lattice = rotation * (ray * z) + centre;
+        const Eigen::Vector3i key(FloorToInt(lattice.x() * inv_side), FloorToInt(lattice.y() * inv_side),
+                                  FloorToInt(lattice.z() * inv_side));
+        if (keys.empty() || keys.back() != key) keys.push_back(key);
+      }
+    }
+    std::sort(keys.begin(), keys.end(), KeyLess());
+    keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+  }, 4);
+  std::vector<Eigen::Vector3i> all;
+  for (const auto& keys : per_row) all.insert(all.end(), keys.begin(), keys.end());
+  std::sort(all.begin(), all.end(), KeyLess());
+  all.erase(std::unique(all.begin(), all.end()), all.end());
+  return all;
+}
+
+IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, const ImageRgb& color,
+                                const CameraIntrinsics& k,
+                                const Eigen::Isometry3d& world_from_camera) {
+  if (!depth.SameSize(k.width, k.height)) {
+    throw Error(Format("IntegrateFrame: depth ", depth.width(), "x", depth.height(),
+                       " but intrinsics say ", k.width, "x", k.height));
+  }
+  const bool with_color = !color.empty();
+  if (with_color && !color.SameSize(depth)) {
+    throw Error(Format("IntegrateFrame: colour ", color.width(), "x", color.height(), " but depth ",
+                       depth.width(), "x", depth.height()));
+  }
+  IntegrationStats stats;
+  const std::vector<Eigen::Vector3i> keys = BlocksInTruncationBand(volume, depth, k, world_from_camera);
+  stats.blocks_touched = keys.size();
+  size_t missing = 0;
+  for (const auto& key : keys) missing += !volume.FindBlock(key).has_value();
+  const double cap = volume.params().memory_cap_bytes;
+  if (cap > 0 && volume.allocated_bytes() + static_cast<double>(missing) * sizeof(TsdfBlock) > cap) {
+    throw Error(Format("TSDF volume: memory cap of ", cap / 1e6, " MB exceeded: this frame needs ",
+                       missing, " more blocks on top of ", volume.num_blocks(), " (",
+                       sizeof(TsdfBlock), " bytes each) at voxel size ", volume.voxel_size(),
+                       " m; use a larger voxel size or raise the memory cap"));
+  }
+  std::vector<int32_t> indices(keys.size());
+  for (size_t i = 0; i < keys.size(); ++i) indices[i] = volume.AllocateBlock(keys[i]);
+  stats.blocks_allocated = missing;
+
+  // Camera-frame point of lattice point v: R^T (origin + vs v - t) = A v + b.
+  const Eigen::Isometry3d camera_from_world = world_from_camera.inverse();
+  const Eigen::Matrix3d a = camera_from_world.linear() * volume.voxel_size();
+  const Eigen::Vector3d b = camera_from_world * volume.origin();
+  const Eigen::Matrix3f a_f = a.cast<float>();
+  const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy);
+  const float cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
+  const float trunc = static_cast<float>(volume.truncation());
+  const float max_weight = volume.params().max_weight;
+  const float wf = static_cast<float>(depth.width()), hf = static_cast<float>(depth.height());
+
+  std::vector<size_t> updated(keys.size(), 0);
+  ParallelFor(0, keys.size(), [&](size_t i) {
+    TsdfBlock& block = volume.block(static_cast<size_t>(indices[i]));
+    const Eigen::Vector3f base = (a * (kTsdfBlockSide * keys[i]).cast<double>() + b).cast<float>();
+    size_t count = 0;
+    for (int z = 0; z < kTsdfBlockSide; ++z) {
+      for (int y = 0; y < kTsdfBlockSide; ++y) {
+        for (int x = 0; x < kTsdfBlockSide; ++x) {
+          const Eigen::Vector3f p = base + a_f * Eigen::Vector3f(x, y, z);
+          if (p.z() <= 0.0f) continue;
+          // Nearest pixel: footprints are [u - 0.5, u + 0.5); the range test comes before the
+          // integer conversion (which truncates, equal to floor for non-negative values).
+          const float inv_z = 1.0f / p.z();
+          const float uf = fx * p.x() * inv_z + cx + 0.5f, vf = fy * p.y() * inv_z + cy + 0.5f;
+          if (!(uf >= 0.0f && vf >= 0.0f && uf < wf && vf < hf)) continue;
+          const int u = static_cast<int>(uf), v = static_cast<int>(vf);
+          const float d = depth(u, v);
+          if (d <= 0.0f) continue;
+          TsdfVoxel& voxel = block.voxels[TsdfBlock::Index(x, y, z)];
+          count += UpdateVoxel(voxel, d - p.z(), trunc, max_weight, with_color ? &color(u, v) : nullptr);
+        }
+      }
+    }
+    updated[i] = count;
+  }, 8);
+  for (size_t c : updated) stats.voxels_updated += c;
+  return stats;
+}
+
+}  // namespace genscene::fusion

@@ -1,0 +1,59 @@
+// TSDF integration (Curless & Levoy 1996 as in KinectFusion) into the sparse volume of
+// core/tsdf_volume.h: blocks are allocated along the truncation band of every valid depth pixel
+// (voxel-block hashing, Niessner et al. 2013), then every voxel of those blocks is projected into
+// the depth map and updated with a weighted running average of distance and colour.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/image.h"
+#include "core/tsdf_volume.h"
+
+namespace genscene::fusion {
+
+struct IntegrationStats {
+  size_t blocks_touched = 0;    // blocks in this frame's truncation band
+  size_t blocks_allocated = 0;  // of which newly allocated
+  size_t voxels_updated = 0;
+};
+
+// Kernel: the new (sdf, weight) of one voxel after one observation.
+//   eta = measured depth - the voxel's depth along the optical axis (planar z, so that the
+//   distance is measured along the viewing direction consistently over the image);
+//   eta < -truncation: the voxel is hidden behind the surface, no update;
+//   otherwise sdf_obs = min(eta, truncation), and the running average
+//   sdf' = (w sdf + w_obs sdf_obs) / (w + w_obs), w' = min(w + w_obs, max_weight).
+// Returns false when the voxel is not updated.
+inline bool UpdateVoxel(TsdfVoxel& voxel, float eta, float truncation, float max_weight,
+                        const Eigen::Vector3f* color) {
+  if (eta < -truncation) return false;
+  const float sdf_obs = eta < truncation ? eta : truncation;
+  constexpr float kObservationWeight = 1.0f;
+  const float w = voxel.weight;
+  const float w_new = w + kObservationWeight;
+  voxel.sdf = (w * voxel.sdf + kObservationWeight * sdf_obs) / w_new;
+  // Colour only inside the band: the colour of free space in front of a surface is not its colour.
+  if (color != nullptr && eta < truncation) {
+    voxel.color = (w * voxel.color + kObservationWeight * *color) / w_new;
+  }
+  voxel.weight = w_new < max_weight ? w_new : max_weight;
+  return true;
+}
+
+// Keys of the blocks the truncation band of `depth` passes through, sorted and unique (so the
+// allocation order does not depend on the thread count). Pixels are sampled every `pixel_stride`.
+std::vector<Eigen::Vector3i> BlocksInTruncationBand(const TsdfVolume& volume, const ImageDepth& depth,
+                                                    const CameraIntrinsics& intrinsics,
+                                                    const Eigen::Isometry3d& world_from_camera,
+                                                    int pixel_stride = 1);
+
+// Allocates the band's blocks and integrates `depth` (masked: 0 = invalid) and, when not empty,
+// `color` (linear RGB, same size) observed from `world_from_camera`. Throws Error (volume
+// unchanged) when the allocation would exceed the volume's memory cap.
+IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, const ImageRgb& color,
+                                const CameraIntrinsics& intrinsics,
+                                const Eigen::Isometry3d& world_from_camera);
+
+}  // namespace genscene::fusion

@@ -1,0 +1,235 @@
+#include "fusion/kinect_fusion.h"
+
+#include <chrono>
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "core/file_util.h"
+#include "core/options.h"
+#include "core/se3.h"
+#include "core/sequence_writer.h"
+
+namespace genscene::fusion {
+namespace {
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// The lattice origin: the first camera position snapped to the block grid of the world, so that
+// volumes of the same scene line up, and voxel arithmetic stays near the cameras.
+Eigen::Vector3d SnappedOrigin(const Eigen::Vector3d& position, double voxel_size) {
+  const double block = kTsdfBlockSide * voxel_size;
+  return (position / block).array().round().matrix() * block;
+}
+
+}  // namespace
+
+void FusionOptions::Validate() const {
+  RequireRange("voxel_size", voxel_size, 1e-3, 1.0);
+  RequireRange("truncation", truncation, 2.0 * voxel_size, 50.0 * voxel_size);
+  RequireRange("max_weight", max_weight, 1.0, 1e6);
+  RequireRange("memory_cap", memory_cap, 1.0, 1e7);
+  RequireOneOf("tracking", tracking, {"icp", "known"});
+  RequireRange("min_valid_fraction", min_valid_fraction, 0.0, 1.0);
+  preprocess.Validate();
+  icp.Validate();
+  keyframes.Validate();
+}
+
+TsdfVolumeParams FusionOptions::VolumeParams(const Eigen::Vector3d& origin) const {
+  TsdfVolumeParams p;
+  p.voxel_size = voxel_size;
+  p.truncation = truncation;
+  p.max_weight = static_cast<float>(max_weight);
+  p.origin = origin;
+  p.memory_cap_bytes = memory_cap * 1e6;
+  return p;
+}
+
+const char* ToString(FrameStatus status) {
+  switch (status) {
+    case FrameStatus::kInitial: return "initial";
+    case FrameStatus::kTracked: return "tracked";
+    case FrameStatus::kKnownPose: return "known_pose";
+    case FrameStatus::kDegenerate: return "degenerate";
+    case FrameStatus::kLost: return "lost";
+    case FrameStatus::kBlank: return "blank";
+  }
+  return "?";
+}
+
+KinectFusion::KinectFusion(const FusionOptions& options, const CameraIntrinsics& intrinsics)
+    : options_(options),
+      intrinsics_(intrinsics),
+      volume_(options.VolumeParams(Eigen::Vector3d::Zero())),
+      keyframe_selector_(options.keyframes) {
+  options_.Validate();
+  intrinsics_.Validate();
+}
+
+FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
+  FrameReport report;
+  report.index = reports_.size();
+  report.timestamp = frame.timestamp;
+  const CameraIntrinsics& k = intrinsics_;
+  if (!frame.depth.SameSize(k.width, k.height)) {
+    throw Error(Format(frame.depth_path.empty() ? "frame" : frame.depth_path, ": depth ",
+                       frame.depth.width(), "x", frame.depth.height(), " but intrinsics say ",
+                       k.width, "x", k.height));
+  }
+  if (!frame.color.empty() && !frame.color.SameSize(frame.depth)) {
+    throw Error(Format(frame.color_path.empty() ? "frame" : frame.color_path, ": colour ",
+                       frame.color.width(), "x", frame.color.height(), " but depth ",
+                       frame.depth.width(), "x", frame.depth.height()));
+  }
+  auto start = std::chrono::steady_clock::now();
+  const ImageDepth depth = MaskInvalidDepth(frame.depth, options_.preprocess.min_depth,
+                                            options_.preprocess.max_depth, &report.mask);
+  const double valid_fraction = static_cast<double>(report.mask.valid) / static_cast<double>(depth.size());
+  auto finish = [&](FrameReport r) {
+    reports_.push_back(r);
+    return r;
+  };
+  if (valid_fraction < options_.min_valid_fraction) {
+    report.status = FrameStatus::kBlank;
+    report.reason = Format(report.mask.valid, " valid depth pixels (", 100.0 * valid_fraction,
+                           " %) < ", 100.0 * options_.min_valid_fraction, " %");
+    report.seconds_preprocess = SecondsSince(start);
+    return finish(report);
+  }
+
+  Eigen::Isometry3d pose;
+  if (options_.tracking == "known") {
+    if (!frame.world_from_camera) {
+      throw Error(Format("frame ", report.index, " (t = ", frame.timestamp,
+                         "): tracking = known but the source has no pose for it"));
+    }
+    pose = *frame.world_from_camera;
+    report.status = FrameStatus::kKnownPose;
+    report.seconds_preprocess = SecondsSince(start);
+  } else if (!started_) {
+    // The first frame defines the world: its known pose when the source has one (so that the
+    // model lines up with the ground truth), else the identity.
+    pose = frame.world_from_camera.value_or(Eigen::Isometry3d::Identity());
+    report.status = FrameStatus::kInitial;
+    report.seconds_preprocess = SecondsSince(start);
+  } else {
+    const std::vector<PyramidLevel> pyramid = BuildPyramid(depth, k, options_.preprocess);
+    report.seconds_preprocess = SecondsSince(start);
+    start = std::chrono::steady_clock::now();
+    Eigen::Isometry3d model_from_live = Eigen::Isometry3d::Identity();  // predict: no motion
+    report.icp = TrackFrameToModel(pyramid, model_, k, options_.icp, &model_from_live);
+    report.seconds_track = SecondsSince(start);
+    const double moved = model_from_live.translation().norm();
+    const double turned = RotationAngle(model_from_live) * 180.0 / M_PI;
+    const IcpReport& icp = report.icp;
+    if (icp.inlier_ratio < options_.icp.min_inlier_ratio) {
+      report.reason = Format("inlier ratio ", icp.inlier_ratio, " < ", options_.icp.min_inlier_ratio);
+    } else if (icp.rms_residual > options_.icp.max_rms_residual) {
+      report.reason = Format("RMS residual ", icp.rms_residual, " m > ", options_.icp.max_rms_residual, " m");
+    } else if (moved > options_.icp.max_translation || turned > options_.icp.max_rotation) {
+      report.reason = Format("jump of ", moved, " m and ", turned, " deg from the last good pose");
+    }
+    if (!report.reason.empty()) {
+      report.status = FrameStatus::kLost;
+      return finish(report);
+    }
+    pose = last_good_ * model_from_live;
+    if (icp.degenerate) {
+      // The pose is kept along the unconstrained directions; fusing would smear the model along
+      // them if the camera did move that way, so the frame is not fused.
+      report.status = FrameStatus::kDegenerate;
+      report.reason = Format("only ", icp.constrained_directions, " of 6 pose directions constrained (condition ",
+                             icp.condition, ")");
+      report.world_from_camera = pose;
+      last_good_ = pose;
+      trajectory_.Add(frame.timestamp, pose);
+      return finish(report);
+    }
+    report.status = FrameStatus::kTracked;
+  }
+  if (!started_) {
+    volume_ = TsdfVolume(options_.VolumeParams(SnappedOrigin(pose.translation(), options_.voxel_size)));
+    started_ = true;
+  }
+  start = std::chrono::steady_clock::now();
+  report.integration = IntegrateFrame(volume_, depth, frame.color, k, pose);
+  report.fused = true;
+  report.seconds_integrate = SecondsSince(start);
+  start = std::chrono::steady_clock::now();
+  model_ = RaycastVolume(volume_, k, pose, options_.preprocess.min_depth, options_.preprocess.max_depth,
+                         /*with_color=*/false);
+  report.seconds_raycast = SecondsSince(start);
+  last_good_ = pose;
+  report.world_from_camera = pose;
+  trajectory_.Add(frame.timestamp, pose);
+  RgbdFrame posed = frame;
+  posed.depth = depth;
+  posed.world_from_camera = pose;
+  keyframe_selector_.Offer(posed);
+  return finish(report);
+}
+
+void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
+                       const std::optional<AteResult>& ate) {
+  if (fusion.trajectory().empty()) {
+    throw Error("fusion: no frame was fused (all blank or lost); nothing to write");
+  }
+  using nlohmann::json;
+  json frames = json::array();
+  std::map<std::string, int> counts;
+  double total_seconds = 0.0;
+  for (const FrameReport& r : fusion.reports()) {
+    ++counts[ToString(r.status)];
+    total_seconds += r.seconds();
+    json j = {{"index", r.index},
+              {"timestamp", r.timestamp},
+              {"status", ToString(r.status)},
+              {"fused", r.fused},
+              {"valid_pixels", r.mask.valid},
+              {"nan_or_inf_pixels", r.mask.non_finite},
+              {"out_of_range_pixels", r.mask.out_of_range},
+              {"icp_iterations", r.icp.iterations},
+              {"inlier_ratio", r.icp.inlier_ratio},
+              {"rms_residual_m", r.icp.rms_residual},
+              {"condition", std::isfinite(r.icp.condition) ? json(r.icp.condition) : json("inf")},
+              {"constrained_directions", r.icp.constrained_directions},
+              {"blocks_touched", r.integration.blocks_touched},
+              {"blocks_allocated", r.integration.blocks_allocated},
+              {"ms_preprocess", 1e3 * r.seconds_preprocess},
+              {"ms_track", 1e3 * r.seconds_track},
+              {"ms_integrate", 1e3 * r.seconds_integrate},
+              {"ms_raycast", 1e3 * r.seconds_raycast}};
+    if (!r.reason.empty()) j["reason"] = r.reason;
+    frames.push_back(j);
+  }
+  const TsdfVolume& volume = fusion.volume();
+  json summary = {{"frames", fusion.reports().size()},
+                        {"status_counts", counts},
+                        {"seconds", total_seconds},
+                        {"voxel_size_m", volume.voxel_size()},
+                        {"truncation_m", volume.truncation()},
+                        {"blocks", volume.num_blocks()},
+                        {"megabytes", volume.allocated_bytes() / 1e6},
+                        {"keyframes", fusion.keyframes().size()}};
+  if (ate) {
+    summary["ate"] = {{"pairs", ate->pairs}, {"rmse_m", ate->rmse}, {"mean_m", ate->mean},
+                      {"median_m", ate->median}, {"max_m", ate->max}};
+  }
+  json options = json::object();
+  FusionOptions copy = fusion.options();
+  copy.Visit([&](const char* key, const auto& value, const char*, const char*) { options[key] = value; });
+
+  WriteTumTrajectory(workspace.Trajectory(), fusion.trajectory());
+  WriteTsdfVolume(workspace.Tsdf(), volume);
+  if (!fusion.keyframes().empty()) {
+    TumWriteOptions write;
+    write.linear_exr = true;
+    WriteTumSequence(workspace.Keyframes(), fusion.keyframes(), write);
+  }
+  WriteTextFileAtomically(workspace.root() / "fusion.json",
+                          json({{"summary", summary}, {"options", options}, {"frames", frames}}).dump(1) + "\n");
+}
+
+}  // namespace genscene::fusion

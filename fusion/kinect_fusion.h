@@ -1,0 +1,138 @@
+// The fusion stage (DESIGN.md §2): RGB-D frames in, camera trajectory, sparse TSDF volume and
+// keyframes out. Per frame (KinectFusion, Newcombe et al. 2011):
+//   1. mask invalid depth (0, NaN, inf, out of range) and build the filtered pyramid;
+//   2. track frame-to-model: ICP against the model raycast at the last good pose;
+//   3. judge the result: a blank frame, a lost frame (few inliers, large residual or an
+//      implausible jump) or a degenerate one (the scene leaves directions unconstrained) is
+//      reported and NOT fused, so the model is never corrupted; tracking resumes from the last
+//      good pose, i.e. recovers when the camera comes back;
+//   4. fuse the masked raw depth and colour into the TSDF and raycast the model for the next frame;
+//   5. offer the frame to the keyframe selector.
+#pragma once
+
+#include <Eigen/Geometry>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/rgbd_frame.h"
+#include "core/trajectory.h"
+#include "core/trajectory_metrics.h"
+#include "core/tsdf_volume.h"
+#include "core/workspace.h"
+#include "fusion/icp.h"
+#include "fusion/integrate.h"
+#include "fusion/keyframes.h"
+#include "fusion/preprocess.h"
+#include "fusion/raycast.h"
+
+namespace genscene::fusion {
+
+struct FusionOptions {
+  static constexpr const char* kSection = "fusion";
+
+  double voxel_size = 0.01;       // m between TSDF lattice points
+  double truncation = 0.04;       // m; TSDF truncation band (>= 2 voxels; KinectFusion-like 4)
+  double max_weight = 128.0;      // running-average weight limit
+  double memory_cap = 4000.0;     // MB the TSDF may allocate; exceeding it is an error
+  std::string tracking = "icp";   // icp (estimate the poses) or known (fuse with the source's poses)
+  double min_valid_fraction = 0.05;  // frames with fewer valid depth pixels are blank (skipped)
+  PreprocessOptions preprocess;
+  IcpOptions icp;
+  KeyframeOptions keyframes;
+
+  template <typename V>
+  void Visit(V&& v) {
+    v("voxel_size", voxel_size, "m", "distance between TSDF voxels");
+    v("truncation", truncation, "m", "TSDF truncation distance");
+    v("max_weight", max_weight, "", "limit of the per-voxel running-average weight");
+    v("memory_cap", memory_cap, "MB", "memory the TSDF may allocate (error beyond)");
+    v("tracking", tracking, "", "icp (estimate poses) or known (use the source's poses)");
+    v("min_valid_fraction", min_valid_fraction, "", "frames with fewer valid depth pixels are skipped as blank");
+    v("min_depth", preprocess.min_depth, "m", "nearer depth is invalid");
+    v("max_depth", preprocess.max_depth, "m", "farther depth is invalid");
+    v("bilateral_radius", preprocess.bilateral_radius, "px", "bilateral filter half-width for tracking (0 = off)");
+    v("bilateral_sigma_space", preprocess.bilateral_sigma_space, "px", "bilateral spatial sigma");
+    v("bilateral_sigma_depth", preprocess.bilateral_sigma_depth, "m", "bilateral range sigma");
+    v("icp_iterations_fine", icp.iterations_fine, "", "ICP iterations at full resolution");
+    v("icp_iterations_middle", icp.iterations_middle, "", "ICP iterations at half resolution");
+    v("icp_iterations_coarse", icp.iterations_coarse, "", "ICP iterations at quarter resolution");
+    v("icp_max_distance", icp.max_distance, "m", "largest point distance of a correspondence");
+    v("icp_max_angle", icp.max_angle, "deg", "largest normal angle of a correspondence");
+    v("icp_huber_delta", icp.huber_delta, "m", "Huber threshold of the point-to-plane residual");
+    v("degenerate_eigen_ratio", icp.degenerate_eigen_ratio, "", "eigenvalue ratio below which a pose direction counts as unconstrained");
+    v("min_inlier_ratio", icp.min_inlier_ratio, "", "tracking is lost below this inlier fraction");
+    v("max_rms_residual", icp.max_rms_residual, "m", "tracking is lost above this RMS residual");
+    v("max_translation", icp.max_translation, "m", "tracking is lost when a frame moves farther");
+    v("max_rotation", icp.max_rotation, "deg", "tracking is lost when a frame turns more");
+    v("keyframe_translation", keyframes.translation, "m", "camera motion that makes a new keyframe due");
+    v("keyframe_rotation", keyframes.rotation, "deg", "camera rotation that makes a new keyframe due");
+    v("keyframe_window", keyframes.window, "frames", "the sharpest of this many frames becomes the keyframe");
+    v("max_keyframes", keyframes.max_keyframes, "", "keyframe limit");
+  }
+  void Validate() const;
+  TsdfVolumeParams VolumeParams(const Eigen::Vector3d& origin) const;
+};
+
+enum class FrameStatus {
+  kInitial,     // first frame: defines the world (or its known pose does)
+  kTracked,     // ICP converged, fused
+  kKnownPose,   // tracking = known: fused at the source's pose
+  kDegenerate,  // ICP left directions unconstrained: pose kept along them, not fused
+  kLost,        // ICP failed: not fused, pose not updated
+  kBlank,       // too few valid depth pixels: skipped
+};
+const char* ToString(FrameStatus status);
+
+struct FrameReport {
+  size_t index = 0;
+  double timestamp = 0.0;
+  FrameStatus status = FrameStatus::kInitial;
+  bool fused = false;
+  std::string reason;  // why a frame was lost, blank or degenerate
+  MaskStats mask;
+  IcpReport icp;
+  IntegrationStats integration;
+  std::optional<Eigen::Isometry3d> world_from_camera;  // the estimate (none when lost/blank)
+  double seconds_preprocess = 0.0, seconds_track = 0.0, seconds_integrate = 0.0, seconds_raycast = 0.0;
+  double seconds() const { return seconds_preprocess + seconds_track + seconds_integrate + seconds_raycast; }
+};
+
+class KinectFusion {
+ public:
+  KinectFusion(const FusionOptions& options, const CameraIntrinsics& intrinsics);
+
+  // Processes one frame. Throws Error on frames that do not match the intrinsics, a missing pose
+  // with tracking = known, or a TSDF memory cap that is exceeded.
+  FrameReport ProcessFrame(const RgbdFrame& frame);
+  // Closes the keyframe selection (call after the last frame).
+  void Finish() { keyframe_selector_.Finish(); }
+
+  const TsdfVolume& volume() const { return volume_; }
+  const Trajectory& trajectory() const { return trajectory_; }  // fused/tracked frames only
+  const std::vector<FrameReport>& reports() const { return reports_; }
+  const std::vector<RgbdFrame>& keyframes() const { return keyframe_selector_.keyframes(); }
+  const CameraIntrinsics& intrinsics() const { return intrinsics_; }
+  const FusionOptions& options() const { return options_; }
+  // The model as seen from the last good pose (for previews); empty before the first frame.
+  const RaycastResult& model() const { return model_; }
+
+ private:
+  FusionOptions options_;
+  CameraIntrinsics intrinsics_;
+  TsdfVolume volume_;
+  bool started_ = false;
+  Eigen::Isometry3d last_good_ = Eigen::Isometry3d::Identity();  // pose the model was raycast at
+  RaycastResult model_;
+  Trajectory trajectory_;
+  std::vector<FrameReport> reports_;
+  KeyframeSelector keyframe_selector_;
+};
+
+// Writes the stage's outputs into the workspace, each atomically: trajectory.txt (TUM),
+// tsdf.gsv, keyframes/ (a TUM-layout view set with linear EXR colour) and fusion.json (options,
+// per-frame reports and totals, with the trajectory error when the caller computed one).
+void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
+                       const std::optional<AteResult>& ate = std::nullopt);
+
+}  // namespace genscene::fusion

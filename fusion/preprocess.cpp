@@ -1,0 +1,176 @@
+#include "fusion/preprocess.h"
+
+#include <cmath>
+#include <vector>
+
+#include "core/options.h"
+#include "core/parallel.h"
+
+namespace genscene::fusion {
+
+void PreprocessOptions::Validate() const {
+  RequireRange("min_depth", min_depth, 0.0, 100.0);
+  RequireRange("max_depth", max_depth, min_depth, 1000.0);
+  RequireRange("bilateral_radius", bilateral_radius, 0, 10);
+  RequireRange("bilateral_sigma_space", bilateral_sigma_space, 0.1, 20.0);
+  RequireRange("bilateral_sigma_depth", bilateral_sigma_depth, 1e-4, 1.0);
+  RequireRange("levels", levels, 1, 5);
+}
+
+ImageDepth MaskInvalidDepth(const ImageDepth& depth, double min_depth, double max_depth,
+                            MaskStats* stats) {
+  ImageDepth out(depth.width(), depth.height());
+  MaskStats s;
+  for (size_t i = 0; i < depth.size(); ++i) {
+    const float z = depth.pixels()[i];
+    if (z == 0.0f) {
+      ++s.zero;
+    } else if (!std::isfinite(z)) {
+      ++s.non_finite;
+    } else if (z < min_depth || z > max_depth) {
+      ++s.out_of_range;
+    } else {
+      out.pixels()[i] = z;
+      ++s.valid;
+    }
+  }
+  if (stats) *stats = s;
+  return out;
+}
+
+ImageDepth BilateralFilterDepth(const ImageDepth& depth, int radius, double sigma_space,
+                                double sigma_depth) {
+  if (radius <= 0) return depth;
+  const int w = depth.width(), h = depth.height();
+  ImageDepth out(w, h);
+  // Spatial weights per offset, and the range weight tabulated over |diff| in [0, 3 sigma]
+  // (neighbours beyond 3 sigma do not contribute), 1/256 of 3 sigma apart.
+  const int side = 2 * radius + 1;
+  std::vector<float> spatial(static_cast<size_t>(side * side));
+  for (int dv = -radius; dv <= radius; ++dv) {
+    for (int du = -radius; du <= radius; ++du) {
+      spatial[static_cast<size_t>((dv + radius) * side + du + radius)] =
+          static_cast<float>(std::exp(-0.5 * (du * du + dv * dv) / (sigma_space * sigma_space)));
+    }
+  }
+  constexpr int kRangeSteps = 256;
+  const float max_diff = static_cast<float>(3.0 * sigma_depth);
+  const float range_scale = kRangeSteps / max_diff;
+  std::vector<float> range(kRangeSteps + 1);
+  for (int i = 0; i <= kRangeSteps; ++i) {
+    const double d = static_cast<double>(i) / range_scale;
+    range[static_cast<size_t>(i)] = static_cast<float>(std::exp(-0.5 * d * d / (sigma_depth * sigma_depth)));
+  }
+  ParallelFor(0, static_cast<size_t>(h), [&](size_t row) {
+    const int v = static_cast<int>(row);
+    for (int u = 0; u < w; ++u) {
+      const float z0 = depth(u, v);
+      if (z0 <= 0.0f) continue;
+      float sum = 0.0f, weight_sum = 0.0f;
+      for (int dv = -radius; dv <= radius; ++dv) {
+        const int vv = v + dv;
+        if (vv < 0 || vv >= h) continue;
+        const float* spatial_row = &spatial[static_cast<size_t>((dv + radius) * side + radius)];
+        for (int du = -radius; du <= radius; ++du) {
+          const int uu = u + du;
+          if (uu < 0 || uu >= w) continue;
+          const float z = depth(uu, vv);
+          const float diff = std::abs(z - z0);
+          if (z <= 0.0f || diff > max_diff) continue;
+          const float wgt = spatial_row[du] * range[static_cast<size_t>(diff * range_scale + 0.5f)];
+          sum += wgt * z;
+          weight_sum += wgt;
+        }
+      }
+      out(u, v) = sum / weight_sum;  // the centre itself has weight 1
+    }
+  }, 8);
+  return out;
+}
+
+ImageDepth DownsampleDepth(const ImageDepth& depth, double sigma_depth) {
+  const int w = depth.width() / 2, h = depth.height() / 2;
+  ImageDepth out(w, h);
+  const float max_diff = static_cast<float>(3.0 * sigma_depth);
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      float reference = 0.0f, sum = 0.0f;
+      int count = 0;
+      for (int k = 0; k < 4; ++k) {
+        const float z = depth(2 * u + (k & 1), 2 * v + (k >> 1));
+        if (z <= 0.0f) continue;
+        if (reference == 0.0f) reference = z;
+        if (std::abs(z - reference) > max_diff) continue;
+        sum += z;
+        ++count;
+      }
+      if (count > 0) out(u, v) = sum / static_cast<float>(count);
+    }
+  }
+  return out;
+}
+
+PointImage ComputeVertexMap(const ImageDepth& depth, const CameraIntrinsics& k) {
+  PointImage out(depth.width(), depth.height());
+  const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy);
+  const float cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
+  for (int v = 0; v < depth.height(); ++v) {
+    for (int u = 0; u < depth.width(); ++u) {
+      const float z = depth(u, v);
+      if (z > 0.0f) out(u, v) = Eigen::Vector3f((u - cx) / fx * z, (v - cy) / fy * z, z);
+    }
+  }
+  return out;
+}
+
+PointImage ComputeNormalMap(const PointImage& vertices, double max_jump, int step) {
+  const int w = vertices.width(), h = vertices.height();
+  PointImage out(w, h);
+  const float jump = static_cast<float>(max_jump);
+  const int s = step;
+  for (int v = s; v + s < h; ++v) {
+    for (int u = s; u + s < w; ++u) {
+      const Eigen::Vector3f& c = vertices(u, v);
+      if (c.z() <= 0.0f) continue;
+      const Eigen::Vector3f& l = vertices(u - s, v);
+      const Eigen::Vector3f& r = vertices(u + s, v);
+      const Eigen::Vector3f& t = vertices(u, v - s);
+      const Eigen::Vector3f& b = vertices(u, v + s);
+      if (l.z() <= 0.0f || r.z() <= 0.0f || t.z() <= 0.0f || b.z() <= 0.0f) continue;
+      // A jump larger than max_jump per metre of depth marks a discontinuity, not a surface.
+      const float limit = jump * c.z() * static_cast<float>(s);
+      if (std::abs(l.z() - c.z()) > limit || std::abs(r.z() - c.z()) > limit ||
+          std::abs(t.z() - c.z()) > limit || std::abs(b.z() - c.z()) > limit) {
+        continue;
+      }
+      Eigen::Vector3f n = (r - l).cross(b - t);
+      const float norm = n.norm();
+      if (!(norm > 0.0f)) continue;
+      n /= norm;
+      if (n.dot(c) > 0.0f) n = -n;  // face the camera
+      out(u, v) = n;
+    }
+  }
+  return out;
+}
+
+std::vector<PyramidLevel> BuildPyramid(const ImageDepth& masked_depth,
+                                       const CameraIntrinsics& intrinsics,
+                                       const PreprocessOptions& options) {
+  std::vector<PyramidLevel> levels(static_cast<size_t>(options.levels));
+  levels[0].intrinsics = intrinsics;
+  levels[0].depth = BilateralFilterDepth(masked_depth, options.bilateral_radius,
+                                         options.bilateral_sigma_space,
+                                         options.bilateral_sigma_depth);
+  for (size_t l = 1; l < levels.size(); ++l) {
+    levels[l].intrinsics = levels[l - 1].intrinsics.Scaled(0.5);
+    levels[l].depth = DownsampleDepth(levels[l - 1].depth, options.bilateral_sigma_depth);
+  }
+  for (PyramidLevel& level : levels) {
+    level.vertices = ComputeVertexMap(level.depth, level.intrinsics);
+    level.normals = ComputeNormalMap(level.vertices);
+  }
+  return levels;
+}
+
+}  // namespace genscene::fusion

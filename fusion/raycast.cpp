@@ -1,0 +1,205 @@
+#include "fusion/raycast.h"
+
+#include <algorithm>
+#include <climits>
+#include <cmath>
+#include <limits>
+
+#include "core/parallel.h"
+
+namespace genscene::fusion {
+namespace {
+
+constexpr int kTile = 8;  // pixels per side of a depth-range tile
+
+// Voxel lookups along one ray: consecutive samples mostly fall in the same block, so the block
+// found last is remembered and the hash table is consulted only when the ray changes block.
+class CachedVoxelAccess {
+ public:
+  explicit CachedVoxelAccess(const TsdfVolume& volume) : volume_(volume) {}
+
+  const TsdfBlock* Block(const Eigen::Vector3i& key) {
+    if (key != key_) {
+      key_ = key;
+      const auto index = volume_.FindBlock(key);
+      block_ = index ? &volume_.block(static_cast<size_t>(*index)) : nullptr;
+    }
+    return block_;
+  }
+  const TsdfVoxel* Voxel(int x, int y, int z) {
+    const TsdfBlock* block = Block(Eigen::Vector3i(x >> 3, y >> 3, z >> 3));
+    if (block == nullptr) return nullptr;
+    return &block->voxels[TsdfBlock::Index(x & 7, y & 7, z & 7)];
+  }
+  // Trilinear sdf at continuous lattice coordinates; false when a corner is unobserved.
+  bool Sdf(const Eigen::Vector3f& p, float* sdf) {
+    const int x = FloorToInt(p.x()), y = FloorToInt(p.y()), z = FloorToInt(p.z());
+    const float fx = p.x() - x, fy = p.y() - y, fz = p.z() - z;
+    float c[8];
+    for (int i = 0; i < 8; ++i) {
+      const TsdfVoxel* v = Voxel(x + (i & 1), y + ((i >> 1) & 1), z + ((i >> 2) & 1));
+      if (v == nullptr || v->weight <= 0.0f) return false;
+      c[i] = v->sdf;
+    }
+    const float c00 = c[0] + fx * (c[1] - c[0]), c10 = c[2] + fx * (c[3] - c[2]);
+    const float c01 = c[4] + fx * (c[5] - c[4]), c11 = c[6] + fx * (c[7] - c[6]);
+    const float c0 = c00 + fy * (c10 - c00), c1 = c01 + fy * (c11 - c01);
+    *sdf = c0 + fz * (c1 - c0);
+    return true;
+  }
+
+ private:
+  const TsdfVolume& volume_;
+  Eigen::Vector3i key_{INT_MIN, INT_MIN, INT_MIN};
+  const TsdfBlock* block_ = nullptr;
+};
+
+static_assert(kTsdfBlockSide == 8, "CachedVoxelAccess assumes 8^3 blocks (shift by 3)");
+
+struct TileRanges {
+  int tiles_x = 0, tiles_y = 0;
+  std::vector<float> near, far;  // planar z range of allocated blocks over each tile
+};
+
+// Projects the corners of every allocated block and widens the depth range of the tiles its
+// bounding box covers. A ray can only meet the surface inside an allocated block, and every
+// block it passes is counted in its pixel's tile, so the march may start at the tile's nearest.
+TileRanges ComputeTileRanges(const TsdfVolume& volume, const CameraIntrinsics& k,
+                             const Eigen::Isometry3d& camera_from_world, float min_depth,
+                             float max_depth) {
+  TileRanges t;
+  t.tiles_x = (k.width + kTile - 1) / kTile;
+  t.tiles_y = (k.height + kTile - 1) / kTile;
+  t.near.assign(static_cast<size_t>(t.tiles_x * t.tiles_y), std::numeric_limits<float>::infinity());
+  t.far.assign(t.near.size(), 0.0f);
+  const double vs = volume.voxel_size();
+  const Eigen::Matrix3d a = camera_from_world.linear() * vs;
+  const Eigen::Vector3d b = camera_from_world * volume.origin();
+  const Eigen::Matrix3f a_f = a.cast<float>();
+  const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy);
+  const float cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
+  for (size_t i = 0; i < volume.num_blocks(); ++i) {
+    const Eigen::Vector3f corner0 = (a * (kTsdfBlockSide * volume.block_key(i)).cast<double>() + b).cast<float>();
+    // Bounding box of the projected corners of the block, and its depth range.
+    float z_near = std::numeric_limits<float>::infinity(), z_far = 0.0f;
+    float u0 = z_near, v0 = z_near, u1 = -z_near, v1 = -z_near;
+    bool straddles = false;
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3f p = corner0 + a_f * (kTsdfBlockSide * Eigen::Vector3f(c & 1, (c >> 1) & 1, (c >> 2) & 1));
+      z_near = std::min(z_near, p.z());
+      z_far = std::max(z_far, p.z());
+      if (p.z() < min_depth) {
+        straddles = true;
+        continue;
+      }
+      const float u = fx * p.x() / p.z() + cx, v = fy * p.y() / p.z() + cy;
+      u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
+    }
+    if (z_far < min_depth || z_near > max_depth) continue;
+    // A block cut by the near plane may cover any part of the image.
+    if (straddles) u0 = v0 = 0.0f, u1 = static_cast<float>(k.width), v1 = static_cast<float>(k.height);
+    z_near = std::max(z_near, min_depth);
+    if (u1 < -0.5f || v1 < -0.5f || u0 > k.width - 0.5f || v0 > k.height - 0.5f) continue;
+    const int tx0 = std::max(0, static_cast<int>(std::floor((u0 + 0.5f) / kTile)));
+    const int tx1 = std::min(t.tiles_x - 1, static_cast<int>(std::floor((u1 + 0.5f) / kTile)));
+    const int ty0 = std::max(0, static_cast<int>(std::floor((v0 + 0.5f) / kTile)));
+    const int ty1 = std::min(t.tiles_y - 1, static_cast<int>(std::floor((v1 + 0.5f) / kTile)));
+    for (int ty = ty0; ty <= ty1; ++ty) {
+      for (int tx = tx0; tx <= tx1; ++tx) {
+        const size_t tile = static_cast<size_t>(ty * t.tiles_x + tx);
+        t.near[tile] = std::min(t.near[tile], z_near);
+        t.far[tile] = std::max(t.far[tile], std::min(z_far, max_depth));
+      }
+    }
+  }
+  return t;
+}
+
+}  // namespace
+
+RaycastResult RaycastVolume(const TsdfVolume& volume, const CameraIntrinsics& k,
+                            const Eigen::Isometry3d& world_from_camera, double min_depth,
+                            double max_depth, bool with_color) {
+  const int w = k.width, h = k.height;
+  RaycastResult out;
+  out.depth = ImageDepth(w, h);
+  out.points = PointImage(w, h);
+  out.color = ImageRgb(w, h);
+  const Eigen::Isometry3d camera_from_world = world_from_camera.inverse();
+  const TileRanges tiles = ComputeTileRanges(volume, k, camera_from_world,
+                                             static_cast<float>(min_depth), static_cast<float>(max_depth));
+  const double vs = volume.voxel_size();
+  // Lattice position along the ray of pixel (u, v) at planar depth z: o + z D(u, v).
+  const Eigen::Vector3f o = volume.WorldToLattice(world_from_camera.translation()).cast<float>();
+  const Eigen::Matrix3f rotation = (world_from_camera.linear() / vs).cast<float>();
+  const float inv_vs = static_cast<float>(1.0 / vs);
+  const float trunc_voxels = static_cast<float>(volume.truncation() / vs);
+
+  ParallelFor(0, static_cast<size_t>(h), [&](size_t row) {
+    const int v = static_cast<int>(row);
+    CachedVoxelAccess access(volume);
+    for (int u = 0; u < w; ++u) {
+      const size_t tile = static_cast<size_t>((v / kTile) * tiles.tiles_x + u / kTile);
+      const float z_begin = tiles.near[tile], z_end = tiles.far[tile];
+      if (!(z_begin < z_end)) continue;
+      const Eigen::Vector3f ray(static_cast<float>((u - k.cx) / k.fx),
+                                static_cast<float>((v - k.cy) / k.fy), 1.0f);
+      const Eigen::Vector3f dir = rotation * ray;  // lattice units per metre of planar depth
+      const float voxel_step = 1.0f / dir.norm();  // planar depth of one voxel along the ray
+      const float unobserved_step = std::max(1.0f, 0.5f * trunc_voxels) * voxel_step;
+      float z = z_begin, prev_z = 0.0f, prev_sdf = 0.0f;
+      bool prev_valid = false;
+      float hit = 0.0f;
+      while (z < z_end) {
+        const Eigen::Vector3f p = o + z * dir;
+        const Eigen::Vector3i key(FloorToInt(p.x()) >> 3, FloorToInt(p.y()) >> 3, FloorToInt(p.z()) >> 3);
+        if (access.Block(key) == nullptr) {
+          // Skip to where the ray leaves this empty block.
+          float exit = std::numeric_limits<float>::infinity();
+          for (int i = 0; i < 3; ++i) {
+            if (dir[i] > 0.0f) exit = std::min(exit, (8.0f * (key[i] + 1) - p[i]) / dir[i]);
+            if (dir[i] < 0.0f) exit = std::min(exit, (8.0f * key[i] - p[i]) / dir[i]);
+          }
+          z += std::max(exit, 0.0f) + 0.01f * voxel_step;
+          prev_valid = false;
+          continue;
+        }
+        float sdf;
+        if (!access.Sdf(p, &sdf)) {
+          // Unobserved voxels lie behind surfaces (or were never in view): the positive side of a
+          // band is a truncation wide, so half of it can be skipped without missing a crossing.
+          z += unobserved_step;
+          prev_valid = false;
+          continue;
+        }
+        if (prev_valid && prev_sdf > 0.0f && sdf <= 0.0f) {
+          hit = prev_z + (z - prev_z) * prev_sdf / (prev_sdf - sdf);
+          break;
+        }
+        prev_valid = true;
+        prev_sdf = sdf;
+        prev_z = z;
+        // Step by the distance to the surface (the TSDF under-estimates it), at least one voxel.
+        z += std::max(1.0f, 0.8f * sdf * inv_vs) * voxel_step;
+      }
+      if (hit <= 0.0f) continue;
+      out.depth(u, v) = hit;
+      out.points(u, v) = ray * hit;
+    }
+  }, 4);
+  // Normals over a +-2 pixel baseline: the raycast points carry the TSDF's small interpolation
+  // errors, which a 1-pixel baseline turns into normal noise (and false constraints in ICP).
+  out.normals = ComputeNormalMap(out.points, 0.1, 2);
+  if (!with_color) return out;
+  ParallelFor(0, static_cast<size_t>(h), [&](size_t row) {
+    const int v = static_cast<int>(row);
+    for (int u = 0; u < w; ++u) {
+      if (out.depth(u, v) <= 0.0f) continue;
+      const Eigen::Vector3f p = o + rotation * out.points(u, v);
+      if (auto c = volume.InterpolateColor(p)) out.color(u, v) = *c;
+    }
+  }, 8);
+  return out;
+}
+
+}  // namespace genscene::fusion

@@ -1,0 +1,61 @@
+// genscene-fuse as a user meets it: a sequence folder in, a workspace out; bad input gives one
+// error line naming the problem, a non-zero exit and no outputs.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "core/file_util.h"
+#include "core/trajectory.h"
+#include "core/tsdf_volume.h"
+#include "tests/test_util.h"
+
+namespace genscene {
+namespace {
+
+namespace fs = std::filesystem;
+using test::AppPath;
+using test::RunCommand;
+
+nlohmann::json FusionReport(const fs::path& ws) { return nlohmann::json::parse(ReadTextFile(ws / "fusion.json")); }
+
+TEST(GensceneFuse, FusesASynthSequenceIntoAWorkspace) {
+  test::TempDir dir;
+  auto r = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 12 --size 96x72 --spp 1 --out " +
+                      (dir / "seq").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
+                 " --voxel-size 0.02 --truncation 0.08");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_CONTAINS(r.output, "ATE:");
+  EXPECT_EQ(ReadTumTrajectory(dir / "ws" / "trajectory.txt").size(), 12u);
+  const TsdfVolume volume = ReadTsdfVolume(dir / "ws" / "tsdf.gsv");
+  EXPECT_GT(volume.num_blocks(), 10u);
+  EXPECT_TRUE(fs::exists(dir / "ws" / "keyframes" / "rgb.txt"));
+  EXPECT_TRUE(fs::exists(dir / "ws" / "keyframes" / "groundtruth.txt"));
+  const auto report = FusionReport(dir / "ws");
+  EXPECT_EQ(report["summary"]["frames"], 12);
+  EXPECT_LT(report["summary"]["ate"]["rmse_m"].get<double>(), 0.01);
+}
+
+TEST(GensceneFuse, BadInputIsOneClearLineAndNoOutput) {
+  test::TempDir dir;
+  auto r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "nothing").string() + " " + (dir / "ws").string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_CONTAINS(r.output, "nothing");
+  EXPECT_FALSE(fs::exists(dir / "ws" / "tsdf.gsv"));
+  r = RunCommand(AppPath("genscene-synth") + " --frames 3 --size 32x24 --spp 1 --out " + (dir / "seq").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
+                 " --voxel-size 0.0005");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_CONTAINS(r.output, "voxel_size = 0.0005 is not in");
+  r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
+                 " --voxel-size 0.002 --truncation 0.006 --memory-cap 5");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_CONTAINS(r.output, "memory cap of 5 MB exceeded");
+  EXPECT_FALSE(fs::exists(dir / "ws" / "tsdf.gsv"));
+  EXPECT_FALSE(fs::exists(dir / "ws" / "trajectory.txt"));
+}
+
+}  // namespace
+}  // namespace genscene

@@ -1,0 +1,301 @@
+// Fusion on analytic scenes (core/synthetic.h): exact depth, known poses, closed-form surfaces.
+#include <cmath>
+#include <fstream>
+#include <limits>
+
+#include "core/parallel.h"
+#include "core/se3.h"
+#include "core/synthetic.h"
+#include "core/trajectory_metrics.h"
+#include "fusion/kinect_fusion.h"
+#include "tests/test_util.h"
+
+namespace genscene::fusion {
+namespace {
+
+CameraIntrinsics Camera(int width, int height) {
+  CameraIntrinsics k;
+  k.width = width;
+  k.height = height;
+  k.fx = k.fy = 0.9 * width;
+  k.cx = (width - 1) / 2.0;
+  k.cy = (height - 1) / 2.0;
+  return k;
+}
+
+// The Cornell-like room of core/synthetic.h, translated by `offset`.
+SyntheticScene Room(const Eigen::Vector3d& offset = Eigen::Vector3d::Zero()) {
+  SyntheticScene scene = MakeCornellScene();
+  scene.room->bounds.translate(offset);
+  for (auto& box : scene.boxes) box.bounds.translate(offset);
+  for (auto& sphere : scene.spheres) sphere.center += offset;
+  scene.light_position += offset;
+  return scene;
+}
+
+Trajectory Orbit(int frames, const Eigen::Vector3d& offset = Eigen::Vector3d::Zero()) {
+  const Trajectory t = MakeHandheldTrajectory(Eigen::Vector3d(0.0, 0.0, 0.6) + offset, 0.9,
+                                              1.0 + offset.z(), 40.0, frames, 7);
+  return t;
+}
+
+std::vector<RgbdFrame> Render(const SyntheticScene& scene, const Trajectory& trajectory,
+                              const CameraIntrinsics& k) {
+  std::vector<RgbdFrame> frames;
+  for (const StampedPose& p : trajectory.poses()) {
+    frames.push_back(RenderSyntheticFrame(scene, k, p.world_from_camera, p.timestamp));
+  }
+  return frames;
+}
+
+FusionOptions DefaultOptions() {
+  FusionOptions o;
+  o.voxel_size = 0.02;
+  o.truncation = 0.08;
+  return o;
+}
+
+struct FusionRun {
+  std::unique_ptr<KinectFusion> fusion;
+  std::map<FrameStatus, int> counts;
+};
+
+FusionRun Fuse(const std::vector<RgbdFrame>& frames, const FusionOptions& options) {
+  FusionRun run;
+  run.fusion = std::make_unique<KinectFusion>(options, frames.front().intrinsics);
+  for (const RgbdFrame& f : frames) ++run.counts[run.fusion->ProcessFrame(f).status];
+  run.fusion->Finish();
+  return run;
+}
+
+Trajectory GroundTruth(const std::vector<RgbdFrame>& frames) {
+  Trajectory t;
+  for (const RgbdFrame& f : frames) t.Add(f.timestamp, *f.world_from_camera);
+  return t;
+}
+
+TEST(Preprocess, MasksInvalidDepthAndKeepsEdgesSharp) {
+  ImageDepth depth(8, 4, 1.0f);
+  depth(0, 0) = std::numeric_limits<float>::quiet_NaN();
+  depth(1, 0) = std::numeric_limits<float>::infinity();
+  depth(2, 0) = -1.0f;
+  depth(3, 0) = 50.0f;
+  depth(4, 0) = 0.0f;
+  for (int v = 0; v < 4; ++v) depth(7, v) = 2.0f;  // a step of 1 m
+  MaskStats stats;
+  const ImageDepth masked = MaskInvalidDepth(depth, 0.1, 6.0, &stats);
+  EXPECT_EQ(stats.non_finite, 2u);
+  EXPECT_EQ(stats.out_of_range, 2u);
+  EXPECT_EQ(stats.zero, 1u);
+  EXPECT_EQ(stats.valid, 27u);
+  for (int u = 0; u < 5; ++u) EXPECT_EQ(masked(u, 0), 0.0f);
+  const ImageDepth filtered = BilateralFilterDepth(masked, 2, 1.5, 0.03);
+  EXPECT_FLOAT_EQ(filtered(6, 2), 1.0f);  // no blur across the 1 m step
+  EXPECT_FLOAT_EQ(filtered(7, 2), 2.0f);
+  EXPECT_EQ(filtered(0, 0), 0.0f);  // invalid stays invalid
+}
+
+TEST(Preprocess, NormalsOfAPlaneFaceTheCamera) {
+  const CameraIntrinsics k = Camera(80, 60);
+  ImageDepth depth(80, 60);
+  // Plane z = 1 + 0.5 x seen by the camera: planar depth solves z = 1 + 0.5 z (u - cx) / fx.
+  for (int v = 0; v < 60; ++v)
+    for (int u = 0; u < 80; ++u) depth(u, v) = static_cast<float>(1.0 / (1.0 - 0.5 * (u - k.cx) / k.fx));
+  const auto pyramid = BuildPyramid(depth, k, PreprocessOptions());
+  ASSERT_EQ(pyramid.size(), 3u);
+  EXPECT_EQ(pyramid[2].depth.width(), 20);
+  const Eigen::Vector3f expected = Eigen::Vector3f(0.5f, 0.0f, -1.0f).normalized();
+  for (const auto& level : pyramid) {
+    const Eigen::Vector3f n = level.normals(level.normals.width() / 2, level.normals.height() / 2);
+    EXPECT_GT(n.dot(expected), 0.9999f) << n.transpose();
+  }
+}
+
+// Acceptance 3: a TSDF fused from exact depth maps of an analytic sphere and box; the raycast
+// surface lies within 0.5 voxel of the truth. Within a truncation distance of the box's edges the
+// projective TSDF bulges (a known limit of projective distances, KinectFusion's too): those pixels
+// are counted and bounded separately.
+TEST(Fusion, RaycastOfSphereAndBoxIsWithinHalfAVoxel) {
+  SyntheticScene scene;
+  scene.spheres.push_back({Eigen::Vector3d(0.0, 0.0, 0.5), 0.3, Eigen::Vector3f(0.8f, 0.2f, 0.2f)});
+  scene.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(0.4, -0.3, 0.0), Eigen::Vector3d(0.8, 0.1, 0.35)),
+                         Eigen::Vector3f(0.2f, 0.8f, 0.2f)});
+  const CameraIntrinsics k = Camera(160, 120);
+  const Trajectory trajectory = MakeOrbitTrajectory(Eigen::Vector3d(0.2, 0.0, 0.3), 1.4, 1.0, 300.0, 24);
+  FusionOptions options = DefaultOptions();
+  options.voxel_size = 0.01;
+  options.truncation = 0.04;
+  options.tracking = "known";
+  const FusionRun run = Fuse(Render(scene, trajectory, k), options);
+  EXPECT_EQ(run.counts.at(FrameStatus::kKnownPose), 24);
+  double worst = 0.0, worst_near_edges = 0.0;
+  size_t hits = 0, near_edges = 0;
+  const Eigen::AlignedBox3d& box = scene.boxes[0].bounds;
+  for (const StampedPose& pose : {trajectory.poses()[3], trajectory.poses()[15]}) {
+    const RaycastResult r = RaycastVolume(run.fusion->volume(), k, pose.world_from_camera);
+    for (int v = 0; v < k.height; ++v) {
+      for (int u = 0; u < k.width; ++u) {
+        if (r.depth(u, v) <= 0.0f) continue;
+        const Eigen::Vector3d p = pose.world_from_camera * r.points(u, v).cast<double>();
+        const double d_sphere = std::abs((p - scene.spheres[0].center).norm() - 0.3);
+        const Eigen::Vector3d q = (p - box.center()).cwiseAbs() - 0.5 * box.sizes();
+        const double d_box = std::abs(q.cwiseMax(0.0).norm() + std::min(q.maxCoeff(), 0.0));
+        const double error = std::min(d_sphere, d_box);
+        // Near an edge: within a truncation of two of the box's face planes.
+        const int close_faces = (q.array().abs() < options.truncation).count();
+        if (d_box < d_sphere && close_faces >= 2) {
+          worst_near_edges = std::max(worst_near_edges, error);
+          ++near_edges;
+        } else {
+          worst = std::max(worst, error);
+        }
+        ++hits;
+      }
+    }
+  }
+  std::cout << "raycast: " << hits << " surface pixels, worst distance to the true surface "
+            << worst / options.voxel_size << " voxel; " << near_edges << " pixels near box edges, worst "
+            << worst_near_edges / options.voxel_size << " voxel\n";
+  EXPECT_GT(hits, 5000u);
+  EXPECT_LT(near_edges, hits / 5);
+  EXPECT_LT(worst, 0.5 * options.voxel_size);
+  EXPECT_LT(worst_near_edges, options.truncation);
+}
+
+TEST(Fusion, TracksTheRoomWithExactDepth) {
+  const std::vector<RgbdFrame> frames = Render(Room(), Orbit(40), Camera(160, 120));
+  const FusionRun run = Fuse(frames, DefaultOptions());
+  EXPECT_EQ(run.counts.at(FrameStatus::kTracked), 39);
+  const AteResult ate = ComputeAte(run.fusion->trajectory(), GroundTruth(frames));
+  std::cout << "room, 40 frames 160x120, exact depth: ATE " << 100 * ate.rmse << " cm\n";
+  EXPECT_LT(ate.rmse, 0.01);
+  EXPECT_GE(run.fusion->keyframes().size(), 2u);
+  // Memory follows the surface: the room's walls, not its 2 x 2 x 2 m bounding volume.
+  const double bounding_blocks = std::pow(2.0 / (8 * 0.02), 3);
+  std::cout << "allocated " << run.fusion->volume().num_blocks() << " blocks; the bounding volume holds "
+            << bounding_blocks << "\n";
+  EXPECT_LT(run.fusion->volume().num_blocks(), bounding_blocks);
+}
+
+// Hard case: a pure plane leaves three pose directions unconstrained.
+TEST(FusionHardCases, PurePlaneIsDetectedAsDegenerateNotAWildPose) {
+  SyntheticScene scene;
+  scene.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-20, -20, -1), Eigen::Vector3d(20, 20, 0)),
+                         Eigen::Vector3f::Constant(0.5f)});
+  Trajectory trajectory;
+  for (int i = 0; i < 10; ++i) {  // sliding sideways 1 cm per frame, 1.2 m above the plane
+    const Eigen::Vector3d eye(0.01 * i, 0.0, 1.2);
+    trajectory.Add(i / 30.0, LookAt(eye, eye + Eigen::Vector3d(0.3, 0.2, -1.0)));
+  }
+  const std::vector<RgbdFrame> frames = Render(scene, trajectory, Camera(160, 120));
+  const FusionRun run = Fuse(frames, DefaultOptions());
+  EXPECT_EQ(run.counts.at(FrameStatus::kDegenerate), 9);
+  for (const FrameReport& r : run.fusion->reports()) {
+    if (r.status != FrameStatus::kDegenerate) continue;
+    EXPECT_EQ(r.icp.constrained_directions, 3) << r.reason;
+    EXPECT_FALSE(r.fused);
+    // Along the plane the estimate stays put (no wild slide); off the plane it is exact.
+    const Eigen::Isometry3d& truth = *frames[r.index].world_from_camera;
+    const Eigen::Vector3d error = r.world_from_camera->translation() - truth.translation();
+    EXPECT_LT(error.head<2>().norm(), 0.1 + 1e-9);
+    EXPECT_LT(std::abs(error.z()), 1e-3);
+  }
+}
+
+TEST(FusionHardCases, AllInvalidFrameIsSkippedAndTrackingGoesOn) {
+  std::vector<RgbdFrame> frames = Render(Room(), Orbit(12), Camera(160, 120));
+  frames[5].depth = ImageDepth(160, 120);
+  const FusionRun run = Fuse(frames, DefaultOptions());
+  EXPECT_EQ(run.fusion->reports()[5].status, FrameStatus::kBlank);
+  EXPECT_EQ(run.counts.at(FrameStatus::kTracked), 10);
+  EXPECT_LT(ComputeAte(run.fusion->trajectory(), GroundTruth(frames)).rmse, 0.01);
+}
+
+TEST(FusionHardCases, FarAwayFrameIsLostAndTrackingRecovers) {
+  std::vector<RgbdFrame> frames = Render(Room(), Orbit(16), Camera(160, 120));
+  // Frame 8 is seen from the opposite corner, looking elsewhere: a jump no ICP can follow.
+  frames[8] = RenderSyntheticFrame(Room(), Camera(160, 120), LookAt({0.7, 0.7, 1.5}, {-0.8, 0.5, 0.2}),
+                                   frames[8].timestamp);
+  FusionOptions options = DefaultOptions();
+  const FusionRun run = Fuse(frames, options);
+  EXPECT_EQ(run.fusion->reports()[8].status, FrameStatus::kLost) << run.fusion->reports()[8].reason;
+  EXPECT_FALSE(run.fusion->reports()[8].fused);
+  for (size_t i = 9; i < frames.size(); ++i) {
+    EXPECT_EQ(run.fusion->reports()[i].status, FrameStatus::kTracked) << "frame " << i;
+  }
+  std::vector<RgbdFrame> good = frames;
+  good.erase(good.begin() + 8);
+  const AteResult ate = ComputeAte(run.fusion->trajectory(), GroundTruth(good));
+  EXPECT_EQ(ate.pairs, 15u);
+  EXPECT_LT(ate.rmse, 0.01);
+}
+
+TEST(FusionHardCases, NanAndInfDepthAreMasked) {
+  std::vector<RgbdFrame> frames = Render(Room(), Orbit(12), Camera(160, 120));
+  for (RgbdFrame& f : frames) {
+    for (int i = 0; i < 400; ++i) {
+      f.depth.pixels()[(i * 7919) % f.depth.size()] =
+          i % 2 ? std::numeric_limits<float>::quiet_NaN() : -std::numeric_limits<float>::infinity();
+    }
+  }
+  const FusionRun run = Fuse(frames, DefaultOptions());
+  EXPECT_EQ(run.counts.at(FrameStatus::kTracked), 11);
+  EXPECT_GE(run.fusion->reports()[3].mask.non_finite, 390u);
+  EXPECT_LT(ComputeAte(run.fusion->trajectory(), GroundTruth(frames)).rmse, 0.01);
+  for (size_t b = 0; b < run.fusion->volume().num_blocks(); ++b) {
+    for (const TsdfVoxel& v : run.fusion->volume().block(b).voxels) {
+      ASSERT_TRUE(std::isfinite(v.sdf) && std::isfinite(v.weight) && v.color.allFinite());
+    }
+  }
+}
+
+TEST(FusionHardCases, CameraOneKilometreFromTheOriginKeepsItsPrecision) {
+  const Eigen::Vector3d offset(1000.0, -1000.0, 300.0);
+  const std::vector<RgbdFrame> frames = Render(Room(offset), Orbit(20, offset), Camera(160, 120));
+  const std::vector<RgbdFrame> near_frames = Render(Room(), Orbit(20), Camera(160, 120));
+  const FusionRun far = Fuse(frames, DefaultOptions());
+  const FusionRun near = Fuse(near_frames, DefaultOptions());
+  EXPECT_EQ(far.counts.at(FrameStatus::kTracked), 19);
+  const double far_ate = ComputeAte(far.fusion->trajectory(), GroundTruth(frames)).rmse;
+  const double near_ate = ComputeAte(near.fusion->trajectory(), GroundTruth(near_frames)).rmse;
+  std::cout << "ATE 1 km away " << far_ate << " m, at the origin " << near_ate << " m\n";
+  EXPECT_LT(far_ate, 0.01);
+  EXPECT_LT(std::abs(far_ate - near_ate), 1e-3);
+  // The model sits where the scene is: 1 km away (the first frame's known pose defines the world).
+  EXPECT_LT((far.fusion->volume().origin() - offset).norm(), 3.0);
+}
+
+TEST(FusionHardCases, VoxelSizeBeyondTheMemoryCapIsAClearError) {
+  const std::vector<RgbdFrame> frames = Render(Room(), Orbit(2), Camera(160, 120));
+  FusionOptions options = DefaultOptions();
+  options.voxel_size = 0.002;
+  options.truncation = 0.008;
+  options.memory_cap = 20.0;  // MB
+  KinectFusion fusion(options, frames[0].intrinsics);
+  const std::string error = test::ErrorOf([&] { fusion.ProcessFrame(frames[0]); });
+  EXPECT_CONTAINS(error, "memory cap of 20 MB exceeded");
+  EXPECT_CONTAINS(error, "voxel size 0.002 m");
+  EXPECT_EQ(fusion.volume().num_blocks(), 0u);  // nothing half-allocated
+}
+
+TEST(Fusion, SameOutputWithOneAndTwoThreads) {
+  const std::vector<RgbdFrame> frames = Render(Room(), Orbit(8), Camera(160, 120));
+  test::TempDir dir;
+  std::string bytes[2], trajectories[2];
+  for (int threads : {1, 2}) {
+    SetThreadCount(threads);
+    const FusionRun run = Fuse(frames, DefaultOptions());
+    const Workspace ws(dir / ("ws" + std::to_string(threads)));
+    SaveFusionOutputs(*run.fusion, ws);
+    std::ifstream tsdf(ws.Tsdf(), std::ios::binary), traj(ws.Trajectory());
+    bytes[threads - 1] = std::string((std::istreambuf_iterator<char>(tsdf)), std::istreambuf_iterator<char>());
+    trajectories[threads - 1] = std::string((std::istreambuf_iterator<char>(traj)), std::istreambuf_iterator<char>());
+  }
+  SetThreadCount(0);
+  EXPECT_GT(bytes[0].size(), 1000u);
+  EXPECT_TRUE(bytes[0] == bytes[1]) << "tsdf.gsv differs between 1 and 2 threads";
+  EXPECT_EQ(trajectories[0], trajectories[1]);
+}
+
+}  // namespace
+}  // namespace genscene::fusion
