@@ -2,16 +2,19 @@
 //   genscene demo [--out WS]            synthesise a Cornell-box sequence and run the chain on it
 //   genscene run --input SRC --out WS   run the chain on a recording
 //   genscene inspect --input SRC        read and check a recording, print what it holds
-// Stages land one by one (fusion, meshing, texturing, lights, refinement); today the chain reads
-// and checks the input (the "ingest" stage) and writes its summary into the workspace.
+// Stages land one by one (texturing, lights, refinement to come); today the chain reads and
+// checks the input (ingest, sequence.json), fuses it (fusion) and extracts the mesh (meshing).
 #include <chrono>
 #include <cstdio>
 #include <iostream>
 
+#include "apps/fuse.h"
 #include "apps/ingest.h"
 #include "apps/synth.h"
 #include "core/cli.h"
 #include "core/ply_io.h"
+#include "core/tsdf_volume.h"
+#include "meshing/marching_cubes.h"
 #include "core/workspace.h"
 
 namespace {
@@ -43,17 +46,56 @@ std::string Describe(const IngestSummary& s) {
                           s.frames_with_pose, " with pose");
 }
 
-// Runs the stages that exist on `input` into workspace `ws`, appending to `rows`.
-void RunChain(const std::string& input, const genscene::SourceOptions& source,
-              const genscene::Workspace& ws, bool redo, std::vector<StageRow>& rows) {
-  const auto summary_path = ws.root() / "sequence.json";
-  if (!redo && genscene::Workspace::IsFresh({summary_path}, {input})) {
-    rows.push_back({"ingest", 0.0, "up to date (" + summary_path.string() + "), skipped"});
-    return;
+// The stages' options, as flags and config sections of `genscene run` and `genscene demo`.
+struct ChainOptions {
+  genscene::fusion::FusionOptions fusion;
+  genscene::meshing::MeshingOptions meshing;
+  void AddTo(genscene::CommandLine& cli) {
+    cli.Add(fusion, "Fusion");
+    cli.Add(meshing, "Meshing");
   }
+};
+
+// Runs the stages that exist on `input` into workspace `ws`, appending to `rows`. A stage whose
+// outputs are newer than its inputs is skipped unless `redo`.
+void RunChain(const std::string& input, const genscene::SourceOptions& source, const ChainOptions& options,
+              const genscene::Workspace& ws, bool redo, std::vector<StageRow>& rows) {
+  using genscene::Format;
+  using genscene::Workspace;
+  const auto summary_path = ws.root() / "sequence.json";
   double seconds = 0.0;
-  const auto s = Timed(&seconds, [&] { return genscene::apps::IngestSequence(input, source, summary_path); });
-  rows.push_back({"ingest", seconds, Describe(s)});
+  if (!redo && Workspace::IsFresh({summary_path}, {input})) {
+    rows.push_back({"ingest", 0.0, "up to date (" + summary_path.string() + "), skipped"});
+  } else {
+    const auto s = Timed(&seconds, [&] { return genscene::apps::IngestSequence(input, source, summary_path); });
+    rows.push_back({"ingest", seconds, Describe(s)});
+  }
+
+  const std::vector<std::filesystem::path> fused = {ws.Trajectory(), ws.Tsdf(), ws.root() / "fusion.json"};
+  if (!redo && Workspace::IsFresh(fused, {input})) {
+    rows.push_back({"fusion", 0.0, "up to date (" + ws.Tsdf().string() + "), skipped"});
+  } else {
+    const auto s = Timed(&seconds, [&] { return genscene::apps::FuseSequence(input, source, options.fusion, ws); });
+    std::string result = Format(s.fused, "/", s.frames, " frames fused (", s.lost, " lost, ", s.degenerate,
+                                " degenerate, ", s.blank, " blank), ", s.blocks, " blocks (", s.megabytes,
+                                " MB), ", s.keyframes, " keyframes");
+    if (s.ate) result += Format(", ATE ", 100.0 * s.ate->rmse, " cm");
+    rows.push_back({"fusion", seconds, result});
+  }
+
+  if (!redo && Workspace::IsFresh({ws.Mesh()}, {ws.Tsdf()})) {
+    rows.push_back({"meshing", 0.0, "up to date (" + ws.Mesh().string() + "), skipped"});
+  } else {
+    const auto result = Timed(&seconds, [&] {
+      const genscene::TsdfVolume volume = genscene::ReadTsdfVolume(ws.Tsdf());
+      auto r = genscene::meshing::ExtractMesh(volume, options.meshing);
+      if (r.mesh.empty()) throw genscene::Error(Format(ws.Tsdf().string(), ": the volume holds no surface; no mesh written"));
+      genscene::WritePly(ws.Mesh(), r.mesh);
+      return r;
+    });
+    rows.push_back({"meshing", seconds, Format(result.stats.vertices, " vertices, ", result.stats.triangles,
+                                               " triangles (", ws.Mesh().string(), ")")});
+  }
 }
 
 int Demo(int argc, char** argv) {
@@ -63,6 +105,8 @@ int Demo(int argc, char** argv) {
   genscene::apps::SynthOptions synth;
   synth.frames = 20;
   cli.Add(synth, "Synthetic scene");
+  ChainOptions chain;
+  chain.AddTo(cli);
   std::string out = "genscene-demo";
   bool redo = false;
   app.add_option("out,--out", out, "workspace folder")->capture_default_str();
@@ -79,7 +123,7 @@ int Demo(int argc, char** argv) {
     rows.push_back({"synth", seconds, genscene::Format(s.frames, " frames ", s.width, "x", s.height,
                                                        ", ground-truth mesh ", s.mesh_faces, " triangles")});
   }
-  RunChain(ws.Input().string(), genscene::SourceOptions(), ws, redo, rows);
+  RunChain(ws.Input().string(), genscene::SourceOptions(), chain, ws, redo, rows);
   PrintSummary(rows);
   std::cout << "\nworkspace: " << ws.root().string() << "\n";
   return 0;
@@ -90,6 +134,8 @@ int Run(int argc, char** argv) {
   genscene::CommandLine cli(app);
   genscene::SourceOptions source;
   cli.Add(source, "Input");
+  ChainOptions chain;
+  chain.AddTo(cli);
   std::string input, out;
   bool redo = false;
   app.add_option("--input", input, "TUM folder, view set or Redwood folder")->required();
@@ -99,7 +145,7 @@ int Run(int argc, char** argv) {
 
   const genscene::Workspace ws(out);
   std::vector<StageRow> rows;
-  RunChain(input, source, ws, redo, rows);
+  RunChain(input, source, chain, ws, redo, rows);
   PrintSummary(rows);
   return 0;
 }

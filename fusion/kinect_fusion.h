@@ -49,8 +49,8 @@ struct FusionOptions {
     v("memory_cap", memory_cap, "MB", "memory the TSDF may allocate (error beyond)");
     v("tracking", tracking, "", "icp (estimate poses) or known (use the source's poses)");
     v("min_valid_fraction", min_valid_fraction, "", "frames with fewer valid depth pixels are skipped as blank");
-    v("min_depth", preprocess.min_depth, "m", "nearer depth is invalid");
-    v("max_depth", preprocess.max_depth, "m", "farther depth is invalid");
+    v("depth_min", preprocess.min_depth, "m", "nearer depth is invalid");
+    v("depth_max", preprocess.max_depth, "m", "farther depth is invalid");
     v("bilateral_radius", preprocess.bilateral_radius, "px", "bilateral filter half-width for tracking (0 = off)");
     v("bilateral_sigma_space", preprocess.bilateral_sigma_space, "px", "bilateral spatial sigma");
     v("bilateral_sigma_depth", preprocess.bilateral_sigma_depth, "m", "bilateral range sigma");

@@ -78,7 +78,11 @@ TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
   EXPECT_TRUE(fs::exists(ws / "input/groundtruth.txt"));
   EXPECT_TRUE(fs::exists(ws / "input/mesh_gt.ply"));
   EXPECT_TRUE(fs::exists(ws / "sequence.json"));
+  EXPECT_TRUE(fs::exists(ws / "trajectory.txt"));
+  EXPECT_TRUE(fs::exists(ws / "tsdf.gsv"));
+  EXPECT_TRUE(fs::exists(ws / "mesh.ply"));
   EXPECT_NE(r.output.find("3 frames 32x24"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("frames fused"), std::string::npos) << r.output;
   r = RunCommand(demo);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("up to date"), std::string::npos) << r.output;
