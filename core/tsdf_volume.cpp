@@ -4,6 +4,7 @@
 #include <cstring>
 #include <fstream>
 
+#include "core/binary_io.h"
 #include "core/check.h"
 #include "core/file_util.h"
 #include "core/options.h"
@@ -190,35 +191,6 @@ constexpr char kMagic[8] = {'G', 'S', 'T', 'S', 'D', 'F', '0', '1'};
 constexpr size_t kVoxelBytes = 5 * sizeof(float);
 constexpr size_t kBlockBytes = 3 * sizeof(int32_t) + kTsdfBlockVoxels * kVoxelBytes;
 
-template <typename T>
-void Put(std::string& out, const T& value) {
-  char bytes[sizeof(T)];
-  std::memcpy(bytes, &value, sizeof(T));  // little-endian hosts only (x86-64, aarch64)
-  out.append(bytes, sizeof(T));
-}
-
-class Reader {
- public:
-  Reader(const std::string& data, const std::filesystem::path& path) : data_(data), path_(path) {}
-  template <typename T>
-  T Get(const char* what) {
-    if (pos_ + sizeof(T) > data_.size()) {
-      throw Error(Format(path_.string(), ": truncated TSDF volume file (", data_.size(),
-                         " bytes) while reading ", what));
-    }
-    T value;
-    std::memcpy(&value, data_.data() + pos_, sizeof(T));
-    pos_ += sizeof(T);
-    return value;
-  }
-  size_t remaining() const { return data_.size() - pos_; }
-
- private:
-  const std::string& data_;
-  const std::filesystem::path& path_;
-  size_t pos_ = 0;
-};
-
 }  // namespace
 
 void WriteTsdfVolume(const std::filesystem::path& path, const TsdfVolume& volume) {
@@ -226,18 +198,18 @@ void WriteTsdfVolume(const std::filesystem::path& path, const TsdfVolume& volume
   out.reserve(64 + volume.num_blocks() * kBlockBytes);
   out.append(kMagic, sizeof(kMagic));
   const TsdfVolumeParams& p = volume.params();
-  Put(out, p.voxel_size);
-  Put(out, p.truncation);
-  Put(out, p.max_weight);
-  for (int i = 0; i < 3; ++i) Put(out, p.origin[i]);
-  Put(out, static_cast<uint64_t>(volume.num_blocks()));
+  PutBinary(out, p.voxel_size);
+  PutBinary(out, p.truncation);
+  PutBinary(out, p.max_weight);
+  for (int i = 0; i < 3; ++i) PutBinary(out, p.origin[i]);
+  PutBinary(out, static_cast<uint64_t>(volume.num_blocks()));
   for (size_t b = 0; b < volume.num_blocks(); ++b) {
     const Eigen::Vector3i& key = volume.block_key(b);
-    for (int i = 0; i < 3; ++i) Put(out, static_cast<int32_t>(key[i]));
+    for (int i = 0; i < 3; ++i) PutBinary(out, static_cast<int32_t>(key[i]));
     for (const TsdfVoxel& v : volume.block(b).voxels) {
-      Put(out, v.sdf);
-      Put(out, v.weight);
-      for (int c = 0; c < 3; ++c) Put(out, v.color[c]);
+      PutBinary(out, v.sdf);
+      PutBinary(out, v.weight);
+      for (int c = 0; c < 3; ++c) PutBinary(out, v.color[c]);
     }
   }
   WriteFileAtomically(path, [&](const std::filesystem::path& tmp) {
@@ -257,7 +229,7 @@ TsdfVolume ReadTsdfVolume(const std::filesystem::path& path, double memory_cap_b
     throw Error(Format(where, ": not a genscene TSDF volume (expected magic GSTSDF01)"));
   }
   const std::string body = data.substr(sizeof(kMagic));
-  Reader reader(body, path);
+  BinaryReader reader(body, path, "TSDF volume");
   TsdfVolumeParams params;
   params.voxel_size = reader.Get<double>("voxel_size");
   params.truncation = reader.Get<double>("truncation");
