@@ -73,4 +73,22 @@ float CameraResponse::FromLinear(float linear) const {
   return clamped;
 }
 
+double Sharpness(const ImageRgb& color) {
+  const int w = color.width(), h = color.height();
+  if (w < 3 || h < 3) return 0.0;
+  auto luma = [&](int u, int v) { return static_cast<double>(Luminance(color(u, v))); };
+  double sum = 0.0, sum_sq = 0.0;
+  size_t n = 0;
+  for (int v = 1; v + 1 < h; ++v) {
+    for (int u = 1; u + 1 < w; ++u) {
+      const double lap = luma(u - 1, v) + luma(u + 1, v) + luma(u, v - 1) + luma(u, v + 1) - 4.0 * luma(u, v);
+      sum += lap;
+      sum_sq += lap * lap;
+      ++n;
+    }
+  }
+  const double mean = sum / static_cast<double>(n);
+  return sum_sq / static_cast<double>(n) - mean * mean;
+}
+
 }  // namespace genscene

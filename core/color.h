@@ -2,7 +2,10 @@
 // input (DESIGN.md §1). 8-bit images are sRGB-encoded unless told otherwise; float EXR is linear.
 #pragma once
 
+#include <Eigen/Core>
 #include <string>
+
+#include "core/image.h"
 
 namespace genscene {
 
@@ -24,5 +27,14 @@ struct CameraResponse {
   // Linear -> encoded value in [0, 1] (clamped).
   float FromLinear(float linear) const;
 };
+
+// Luminance of linear RGB (Rec. 709 / sRGB primaries).
+inline float Luminance(const Eigen::Vector3f& rgb) {
+  return 0.2126f * rgb.x() + 0.7152f * rgb.y() + 0.0722f * rgb.z();
+}
+
+// Sharpness of a linear colour image: variance of the 4-neighbour Laplacian of its luminance
+// (keyframe selection, texturing weights). 0 for images smaller than 3x3.
+double Sharpness(const ImageRgb& color);
 
 }  // namespace genscene

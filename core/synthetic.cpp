@@ -43,6 +43,12 @@ void Consider(std::optional<SyntheticScene::Hit>& best, double t, const Eigen::V
 
 }  // namespace
 
+Eigen::Vector3f SyntheticScene::Box::AlbedoAt(const Eigen::Vector3d& p) const {
+  if (!(stripe_period > 0.0)) return albedo;
+  const double t = 0.5 + 0.5 * std::sin(2.0 * M_PI * (p.x() + p.z()) / stripe_period);
+  return albedo + (albedo2 - albedo) * static_cast<float>(t);
+}
+
 std::optional<SyntheticScene::Hit> SyntheticScene::Intersect(const Eigen::Vector3d& o,
                                                              const Eigen::Vector3d& d,
                                                              double t_min) const {
@@ -62,7 +68,7 @@ std::optional<SyntheticScene::Hit> SyntheticScene::Intersect(const Eigen::Vector
     if (auto h = IntersectSlabs(box.bounds, o, d); h && h->axis_near >= 0) {
       Eigen::Vector3d n = Eigen::Vector3d::Zero();
       n[h->axis_near] = h->sign_near;
-      Consider(best, h->t_near, n, box.albedo, t_min);
+      Consider(best, h->t_near, n, box.AlbedoAt(o + h->t_near * d), t_min);
     }
   }
   for (const Sphere& s : spheres) {

@@ -25,6 +25,11 @@ struct SyntheticScene {
   struct Box {  // axis-aligned; seen from outside
     Eigen::AlignedBox3d bounds;
     Eigen::Vector3f albedo;
+    // Optional smooth stripes (a textured surface): with stripe_period > 0 the albedo at p is
+    // albedo + (albedo2 - albedo) * (0.5 + 0.5 sin(2 pi (p.x + p.z) / stripe_period)).
+    Eigen::Vector3f albedo2 = Eigen::Vector3f::Zero();
+    double stripe_period = 0.0;  // meters; 0 = plain albedo
+    Eigen::Vector3f AlbedoAt(const Eigen::Vector3d& p) const;
   };
   struct Room {  // axis-aligned; seen from inside; albedo per wall: -x +x -y +y -z(floor) +z(ceiling)
     Eigen::AlignedBox3d bounds;

@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "core/color.h"
 #include "core/options.h"
 #include "core/se3.h"
 
@@ -12,27 +13,6 @@ void KeyframeOptions::Validate() const {
   RequireRange("keyframe_rotation", rotation, 0.0, 180.0);
   RequireRange("keyframe_window", window, 1, 1000);
   RequireRange("max_keyframes", max_keyframes, 1, 100000);
-}
-
-double Sharpness(const ImageRgb& color) {
-  const int w = color.width(), h = color.height();
-  if (w < 3 || h < 3) return 0.0;
-  auto luma = [&](int u, int v) {
-    const Eigen::Vector3f& c = color(u, v);
-    return 0.2126 * c.x() + 0.7152 * c.y() + 0.0722 * c.z();
-  };
-  double sum = 0.0, sum_sq = 0.0;
-  size_t n = 0;
-  for (int v = 1; v + 1 < h; ++v) {
-    for (int u = 1; u + 1 < w; ++u) {
-      const double lap = luma(u - 1, v) + luma(u + 1, v) + luma(u, v - 1) + luma(u, v + 1) - 4.0 * luma(u, v);
-      sum += lap;
-      sum_sq += lap * lap;
-      ++n;
-    }
-  }
-  const double mean = sum / static_cast<double>(n);
-  return sum_sq / static_cast<double>(n) - mean * mean;
 }
 
 void KeyframeSelector::Offer(const RgbdFrame& frame) {

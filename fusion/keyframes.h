@@ -21,9 +21,6 @@ struct KeyframeOptions {
   void Validate() const;
 };
 
-// Variance of the 4-neighbour Laplacian of the luminance (linear RGB, Rec. 709 weights).
-double Sharpness(const ImageRgb& color);
-
 class KeyframeSelector {
  public:
   explicit KeyframeSelector(const KeyframeOptions& options) : options_(options) {}

@@ -4,14 +4,13 @@
 #include <cmath>
 
 #include "core/check.h"
+#include "core/color.h"
 #include "core/options.h"
 #include "core/parallel.h"
 
 namespace genscene::inverse {
 
 namespace {
-
-float Luminance(const Eigen::Vector3f& c) { return 0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z(); }
 
 // Offset of a ray origin along the geometric normal, scaled with the magnitude of the position
 // so that it stays above float round-off in large scenes (Mitsuba scenes in centimetres).
