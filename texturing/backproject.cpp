@@ -311,7 +311,7 @@ TexturingResult TextureMesh(const TriangleMesh& input_mesh, const std::vector<Rg
     if (!has_face[v]) known[v] = 1, ++stats.isolated;  // stays black; nothing to fill from
   }
   stats.filled = FillUnobserved(texture, texture.colors(), known, mean.cast<float>(), &stats.unreached);
-  result.views_per_texel = std::move(used);
+  texture.labels().assign(used.begin(), used.end());
   stats.seconds_backproject = SecondsSince(t0);
   return result;
 }

@@ -74,8 +74,9 @@ struct TexturingStats {
 };
 
 struct TexturingResult {
-  MeshColors texture;  // linear RGB observed colour
-  std::vector<uint16_t> views_per_texel;  // keyframe samples averaged into each texel (0 = filled)
+  // Linear RGB observed colour; labels() = the number of keyframe samples averaged into each
+  // texel (0 = not observed: filled from neighbours), which the albedo stage reads.
+  MeshColors texture;
   TexturingStats stats;
 };
 

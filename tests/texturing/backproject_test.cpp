@@ -83,7 +83,7 @@ ErrorFigures WallError(const TexturingResult& r, const Truth& truth) {
   ErrorFigures e;
   float lo = 1e9f, hi = -1e9f;
   for (size_t s = 0; s < truth.albedo.size(); ++s) {
-    if (!truth.on_wall[s] || r.views_per_texel[s] == 0) continue;
+    if (!truth.on_wall[s] || r.texture.labels()[s] == 0) continue;
     const double err = (r.texture.colors()[s] - truth.albedo[s]).cwiseAbs().mean();
     e.mean += err;
     e.max = std::max(e.max, err);
@@ -152,7 +152,7 @@ TEST(Texturing, StripedWallBehindAnOccluderIsRecoveredWithoutContamination) {
   // The occluder's own front face is red.
   double worst_occluder = 0.0;
   for (size_t s = 0; s < truth.albedo.size(); ++s) {
-    if (truth.on_wall[s] || r.views_per_texel[s] == 0) continue;
+    if (truth.on_wall[s] || r.texture.labels()[s] == 0) continue;
     if ((truth.albedo[s] - Eigen::Vector3f(0.9f, 0.05f, 0.05f)).norm() > 1e-6) continue;
     worst_occluder = std::max(worst_occluder, static_cast<double>((r.texture.colors()[s] - truth.albedo[s]).cwiseAbs().maxCoeff()));
   }
