@@ -3,11 +3,13 @@
 #include <iostream>
 #include <sstream>
 
+#include "capture/openni2_source.h"
+
 namespace genscene::apps {
 
 FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_options,
                          const fusion::FusionOptions& options, const Workspace& workspace) {
-  auto source = OpenFrameSource(input, source_options);
+  auto source = capture::OpenAnySource(input, source_options);
   FuseSummary summary;
   summary.source = source->Describe();
   fusion::KinectFusion fusion(options, source->Intrinsics());

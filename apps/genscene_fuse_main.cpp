@@ -15,7 +15,7 @@ int main(int argc, char** argv) {
     cli.Add(source, "Input");
     cli.Add(fusion, "Fusion");
     std::string input, out;
-    app.add_option("--input", input, "TUM or Redwood folder, or a view set")->required();
+    app.add_option("--input", input, "TUM or Redwood folder, view set, .oni recording, or openni2[:URI] (live camera)")->required();
     app.add_option("workspace,--out", out, "workspace folder (created when missing)")->required();
     if (auto code = cli.Parse(argc, argv)) return *code;
 

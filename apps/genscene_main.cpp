@@ -138,7 +138,7 @@ int Run(int argc, char** argv) {
   chain.AddTo(cli);
   std::string input, out;
   bool redo = false;
-  app.add_option("--input", input, "TUM folder, view set or Redwood folder")->required();
+  app.add_option("--input", input, "TUM folder, view set, Redwood folder, .oni recording or openni2[:URI]")->required();
   app.add_option("out,--out", out, "workspace folder")->required();
   app.add_flag("--redo", redo, "re-run stages whose outputs are up to date");
   if (auto code = cli.Parse(argc, argv)) return *code;
@@ -156,7 +156,7 @@ int Inspect(int argc, char** argv) {
   genscene::SourceOptions source;
   cli.Add(source, "Input");
   std::string input;
-  app.add_option("input,--input", input, "TUM folder, view set, Redwood folder, or a PLY mesh")->required();
+  app.add_option("input,--input", input, "TUM folder, view set, Redwood folder, .oni recording, or a PLY mesh")->required();
   if (auto code = cli.Parse(argc, argv)) return *code;
   if (std::filesystem::path(input).extension() == ".ply") {
     const genscene::TriangleMesh mesh = genscene::ReadPly(input);

@@ -4,13 +4,14 @@
 #include <iostream>
 #include <nlohmann/json.hpp>
 
+#include "capture/openni2_source.h"
 #include "core/file_util.h"
 
 namespace genscene::apps {
 
 IngestSummary IngestSequence(const std::string& input, const SourceOptions& options,
                              const std::filesystem::path& summary_json) {
-  auto source = OpenFrameSource(input, options);
+  auto source = capture::OpenAnySource(input, options);
   IngestSummary summary;
   summary.description = source->Describe();
   summary.width = source->Intrinsics().width;

@@ -395,8 +395,9 @@ std::unique_ptr<FrameSource> OpenRedwoodFolder(const fs::path& folder, const fs:
 std::unique_ptr<FrameSource> OpenFrameSource(const std::string& spec, const SourceOptions& options) {
   options.Validate();
   if (spec.empty()) throw Error("no input given (a TUM or Redwood folder, or a view set)");
-  if (spec.rfind("openni2", 0) == 0 || fs::path(spec).extension() == ".oni") {
-    throw Error(Format(spec, ": OpenNI2 cameras and .oni recordings are not supported yet (issue 9)"));
+  if (spec == "openni2" || spec.rfind("openni2:", 0) == 0 || fs::path(spec).extension() == ".oni") {
+    throw Error(Format(spec, ": OpenNI2 cameras and .oni recordings are opened by the capture library "
+                       "(genscene::capture::OpenAnySource, capture/openni2_source.h), not by core's folder readers"));
   }
   const fs::path folder(spec);
   std::error_code ec;

@@ -1,6 +1,6 @@
 // Sequence readers behind one interface. Fusion and every other consumer read frames through
 // FrameSource and never know where they came from: a TUM folder, a view set (DESIGN.md §2), an
-// Open3D/Redwood folder, and (issue 9) a .oni recording or a live OpenNI2 camera.
+// Open3D/Redwood folder, and (capture/openni2_source.h) a .oni recording or a live OpenNI2 camera.
 #pragma once
 
 #include <memory>

@@ -12,6 +12,8 @@ PACKAGES=(
   libopenmesh-dev
   # inverse (path tracer, Mitsuba XML scenes)
   libembree-dev libtinyxml2-dev
+  # capture (OpenNI2 cameras and .oni recordings; openni2-utils brings NiViewer2)
+  libopenni2-dev openni2-utils
   # tests
   libgtest-dev
 )

@@ -26,5 +26,6 @@ echo "test: sanitizer build (ASan + UBSan)"
 scripts/build.sh --sanitize
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+export LSAN_OPTIONS="suppressions=$PWD/scripts/lsan.supp:print_suppressions=0"
 (cd build-sanitize && ctest --output-on-failure -j 2 --timeout 900 -LE slow)
 echo "test: all passed (Release and ASan + UBSan)"

@@ -204,7 +204,7 @@ TEST(FrameSource, UnknownSourcesAreErrors) {
   test::TempDir dir;
   ExpectOpenOrReadFails((dir / "nope").string(), "no such file or folder");
   ExpectOpenOrReadFails(dir.path().string(), "not a recognised sequence");
-  ExpectOpenOrReadFails("openni2", "not supported yet");
+  ExpectOpenOrReadFails("openni2", "opened by the capture library");
 }
 
 TEST(FrameSource, AssociationFollowsTumRule) {

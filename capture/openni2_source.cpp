@@ -1,0 +1,407 @@
+#include "capture/openni2_source.h"
+
+#include <OpenNI.h>
+#include <spdlog/spdlog.h>
+
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <mutex>
+
+#include "capture/oni_format.h"
+#include "core/check.h"
+#include "core/color.h"
+#include "core/options.h"
+
+namespace genscene::capture {
+
+namespace fs = std::filesystem;
+
+void CaptureOptions::Validate() const {
+  RequireOneOf("mode", mode, {"640x480", "320x240"});
+  RequireRange("fps", fps, 1, 120);
+  RequireRange("frame_timeout", frame_timeout, 0.05, 600.0);
+}
+
+int CaptureOptions::Width() const {
+  return mode == "320x240" ? 320 : 640;
+}
+int CaptureOptions::Height() const {
+  return mode == "320x240" ? 240 : 480;
+}
+
+bool IsOpenNI2Spec(const std::string& spec) {
+  if (spec == "openni2" || spec.rfind("openni2:", 0) == 0) return true;
+  std::string ext = fs::path(spec).extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".oni";
+}
+
+namespace {
+
+// OpenNI2 is initialised once per process (it loads its drivers from
+// <libdir>/OpenNI2/Drivers, Debian: /usr/lib/x86_64-linux-gnu/OpenNI2/Drivers) and never shut
+// down: shutting down while a recording's player thread winds down has no benefit at exit.
+void InitializeOpenNI2() {
+  static std::once_flag once;
+  static openni::Status status = openni::STATUS_OK;
+  static std::string error;
+  std::call_once(once, [] {
+    status = openni::OpenNI::initialize();
+    if (status != openni::STATUS_OK) error = openni::OpenNI::getExtendedError();
+  });
+  if (status != openni::STATUS_OK) throw Error(Format("OpenNI2 failed to initialise: ", error));
+}
+
+std::string LastOpenNI2Error() {
+  std::string e = openni::OpenNI::getExtendedError();
+  while (!e.empty() && (e.back() == '\n' || e.back() == ' ')) e.pop_back();
+  while (!e.empty() && (e.front() == '\t' || e.front() == ' ')) e.erase(e.begin());
+  return e.empty() ? "no details" : e;
+}
+
+}  // namespace
+
+std::vector<std::string> ListCameraUris() {
+  InitializeOpenNI2();
+  openni::Array<openni::DeviceInfo> devices;
+  openni::OpenNI::enumerateDevices(&devices);
+  std::vector<std::string> uris;
+  for (int i = 0; i < devices.getSize(); ++i) {
+    std::error_code ec;
+    const std::string uri = devices[i].getUri();
+    if (std::string(devices[i].getName()) == "oni File" || fs::is_regular_file(uri, ec)) continue;
+    uris.push_back(uri);
+  }
+  return uris;
+}
+
+namespace {
+
+// 8-bit code value -> linear, for one camera response. The code value is scaled as core's image
+// reader (OpenCV convertTo) scales it, so both give bit-identical colours.
+std::array<float, 256> LinearTable(const CameraResponse& response) {
+  std::array<float, 256> table;
+  for (int i = 0; i < 256; ++i)
+    table[i] = response.ToLinear(static_cast<float>(i) * static_cast<float>(1.0 / 255.0));
+  return table;
+}
+
+class OpenNI2Source : public FrameSource {
+ public:
+  OpenNI2Source(const std::string& spec, const SourceOptions& options,
+                const CaptureOptions& capture)
+      : spec_(spec),
+        options_(options),
+        capture_(capture),
+        to_linear_(LinearTable(CameraResponse::Parse(options.camera_response))) {
+    InitializeOpenNI2();
+    is_file_ = !(spec == "openni2" || spec.rfind("openni2:", 0) == 0);
+    std::optional<OniFileInfo> info;
+    if (is_file_) {
+      // Inspect the container first: truncated files, depth-only files and streams without
+      // xnCropping would otherwise end in a crash, a hang or no frames inside OpenNI2.
+      info = InspectOniFile(spec);
+      RequirePlayableRgbd(*info);
+      OpenDevice(spec.c_str());
+    } else {
+      // A recording opened earlier in this process stays listed as a device (and would be what
+      // ANY_DEVICE opens): only real cameras count, and the first one is opened by its URI.
+      const std::vector<std::string> cameras = ListCameraUris();
+      if (cameras.empty()) throw Error(kNoDeviceMessage);
+      const std::string uri = spec.size() > 8 ? spec.substr(8) : cameras.front();
+      OpenDevice(uri.c_str());
+    }
+    CreateStreams();
+    intrinsics_ = ChooseIntrinsics(info);
+    intrinsics_.Validate(Describe());
+    if (is_file_) {
+      // Manual stepping, no repeat: every frame once, in order. (seek() is never used: it crashes.)
+      openni::PlaybackControl* playback = device_.getPlaybackControl();
+      if (!playback)
+        throw Error(Format(spec_, ": OpenNI2 gives no playback control for this recording"));
+      playback->setRepeatEnabled(false);
+      playback->setSpeed(-1.0f);
+      total_ = std::min(playback->getNumberOfFrames(depth_), playback->getNumberOfFrames(color_));
+      if (total_ <= 0) throw Error(Format(spec_, ": OpenNI2 reports no frames"));
+    }
+    for (openni::VideoStream* s : {&depth_, &color_}) {
+      if (s->start() != openni::STATUS_OK)
+        throw Error(Format(spec_, ": cannot start a stream: ", LastOpenNI2Error()));
+    }
+    started_ = true;
+  }
+
+  ~OpenNI2Source() override {
+    if (started_) {
+      depth_.stop();
+      color_.stop();
+    }
+    depth_.destroy();
+    color_.destroy();
+    device_.close();
+  }
+
+  std::string Describe() const override {
+    return Format(is_file_ ? "OpenNI2 recording " : "OpenNI2 camera ", spec_, " (",
+                  is_file_ ? Format(total_, " frames, ") : std::string(), width_, "x", height_,
+                  ")");
+  }
+  std::optional<size_t> FrameCount() const override {
+    if (!is_file_) return std::nullopt;
+    size_t n = 0;
+    for (int i = options_.first_frame; i < total_; i += options_.stride) ++n;
+    if (options_.max_frames > 0) n = std::min<size_t>(n, options_.max_frames);
+    return n;
+  }
+  const CameraIntrinsics& Intrinsics() const override { return intrinsics_; }
+  const Trajectory& KnownPoses() const override { return no_poses_; }
+
+  std::optional<RgbdFrame> Next() override {
+    if (options_.max_frames > 0 && emitted_ >= static_cast<size_t>(options_.max_frames))
+      return std::nullopt;
+    // Skip to the next selected frame (first_frame, then every stride-th).
+    const size_t wanted = options_.first_frame + emitted_ * options_.stride;
+    while (static_cast<size_t>(next_index_) < wanted) {
+      if (!ReadPair()) return std::nullopt;
+      ++next_index_;
+    }
+    if (!ReadPair()) return std::nullopt;
+    ++next_index_;
+    ++emitted_;
+    return ToRgbdFrame();
+  }
+
+ private:
+  void OpenDevice(const char* uri) {
+    if (device_.open(uri) != openni::STATUS_OK) {
+      const std::string error = LastOpenNI2Error();
+      if (!is_file_ && error.find("no devices found") != std::string::npos)
+        throw Error(kNoDeviceMessage);
+      throw Error(Format(spec_, ": OpenNI2 cannot open it: ", error));
+    }
+  }
+
+  void CreateStreams() {
+    if (!device_.hasSensor(openni::SENSOR_DEPTH) || !device_.hasSensor(openni::SENSOR_COLOR)) {
+      throw Error(Format(spec_, ": the device has no ",
+                         device_.hasSensor(openni::SENSOR_DEPTH) ? "colour" : "depth",
+                         " sensor (genscene needs depth + colour)"));
+    }
+    if (depth_.create(device_, openni::SENSOR_DEPTH) != openni::STATUS_OK ||
+        color_.create(device_, openni::SENSOR_COLOR) != openni::STATUS_OK) {
+      throw Error(
+          Format(spec_, ": cannot create the depth and colour streams: ", LastOpenNI2Error()));
+    }
+    if (!is_file_) {
+      SetLiveMode(depth_, {openni::PIXEL_FORMAT_DEPTH_1_MM, openni::PIXEL_FORMAT_DEPTH_100_UM},
+                  "depth");
+      SetLiveMode(color_, {openni::PIXEL_FORMAT_RGB888}, "colour");
+      depth_.setMirroringEnabled(false);
+      color_.setMirroringEnabled(false);
+      if (capture_.registration) {
+        if (device_.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR)) {
+          if (device_.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR) !=
+              openni::STATUS_OK) {
+            spdlog::warn("{}: depth-to-colour registration failed: {}", spec_, LastOpenNI2Error());
+          }
+        } else {
+          spdlog::warn("{}: the device cannot register depth to colour; frames are unregistered",
+                       spec_);
+        }
+        if (device_.setDepthColorSyncEnabled(true) != openni::STATUS_OK) {
+          spdlog::warn("{}: the device cannot synchronise depth and colour frames", spec_);
+        }
+      }
+    }
+    const openni::VideoMode dm = depth_.getVideoMode(), cm = color_.getVideoMode();
+    if (dm.getResolutionX() != cm.getResolutionX() || dm.getResolutionY() != cm.getResolutionY()) {
+      throw Error(Format(spec_, ": depth ", dm.getResolutionX(), "x", dm.getResolutionY(),
+                         " but colour ", cm.getResolutionX(), "x", cm.getResolutionY(),
+                         " (genscene needs equal sizes)"));
+    }
+    width_ = dm.getResolutionX();
+    height_ = dm.getResolutionY();
+    if (width_ <= 0 || height_ <= 0)
+      throw Error(Format(spec_, ": streams report size ", width_, "x", height_));
+  }
+
+  // Picks the camera mode of the requested size and rate with one of `formats`.
+  void SetLiveMode(openni::VideoStream& stream, std::initializer_list<openni::PixelFormat> formats,
+                   const char* what) {
+    const openni::Array<openni::VideoMode>& modes = stream.getSensorInfo().getSupportedVideoModes();
+    std::string available;
+    for (openni::PixelFormat format : formats) {
+      for (int i = 0; i < modes.getSize(); ++i) {
+        const openni::VideoMode& m = modes[i];
+        if (m.getResolutionX() == capture_.Width() && m.getResolutionY() == capture_.Height() &&
+            m.getFps() == capture_.fps && m.getPixelFormat() == format) {
+          if (stream.setVideoMode(m) != openni::STATUS_OK) {
+            throw Error(Format(spec_, ": cannot set the ", what, " mode ", capture_.mode, " @ ",
+                               capture_.fps, ": ", LastOpenNI2Error()));
+          }
+          return;
+        }
+      }
+    }
+    for (int i = 0; i < modes.getSize(); ++i) {
+      available +=
+          Format(i ? ", " : "", modes[i].getResolutionX(), "x", modes[i].getResolutionY(), "@",
+                 modes[i].getFps(), " format ", static_cast<int>(modes[i].getPixelFormat()));
+    }
+    throw Error(Format(spec_, ": the camera has no ", what, " mode ", capture_.mode, " @ ",
+                       capture_.fps, " Hz (it offers: ", available, ")"));
+  }
+
+  CameraIntrinsics ChooseIntrinsics(const std::optional<OniFileInfo>& info) const {
+    if (!options_.intrinsics.empty()) {
+      CameraIntrinsics k = ResolveIntrinsics(options_.intrinsics);
+      if (k.width != width_ || k.height != height_) {
+        throw Error(Format(spec_, ": frames ", width_, "x", height_, " but intrinsics ",
+                           options_.intrinsics, " say ", k.width, "x", k.height));
+      }
+      return k;
+    }
+    if (info) {
+      if (const OniNodeInfo* node = info->FindNode(kOniNodeDepth); node && node->gs_intrinsics) {
+        const auto& v = *node->gs_intrinsics;
+        CameraIntrinsics k;
+        k.fx = v[0], k.fy = v[1], k.cx = v[2], k.cy = v[3], k.width = width_, k.height = height_;
+        return k;
+      }
+    }
+    // Registered depth lives in the colour camera: take the colour stream's field of view.
+    const openni::VideoStream& s = (!is_file_ && capture_.registration) ? color_ : depth_;
+    return IntrinsicsFromFieldOfView(s.getHorizontalFieldOfView(), s.getVerticalFieldOfView(),
+                                     width_, height_);
+  }
+
+  // Reads the next depth frame and the next colour frame. False at the end of a recording.
+  bool ReadPair() {
+    if (is_file_ && depth_read_ >= total_ && color_read_ >= total_) return false;
+    depth_frame_.release();
+    color_frame_.release();
+    openni::VideoStream* streams[2] = {&depth_, &color_};
+    const int timeout_ms = static_cast<int>(std::lround(capture_.frame_timeout * 1000.0));
+    while (!depth_frame_.isValid() || !color_frame_.isValid()) {
+      int ready = -1;
+      const openni::Status rc = openni::OpenNI::waitForAnyStream(streams, 2, &ready, timeout_ms);
+      if (rc == openni::STATUS_TIME_OUT || ready < 0) {
+        throw Error(Format(spec_, ": no ", depth_frame_.isValid() ? "colour" : "depth",
+                           " frame within ", capture_.frame_timeout, " s",
+                           is_file_ ? Format(" after frame ", depth_read_, " of ", total_,
+                                             " (unplayable recording)")
+                                    : std::string(" (camera stalled or unplugged)")));
+      }
+      if (rc != openni::STATUS_OK)
+        throw Error(Format(spec_, ": waiting for frames failed: ", LastOpenNI2Error()));
+      openni::VideoFrameRef frame;
+      if (streams[ready]->readFrame(&frame) != openni::STATUS_OK) {
+        throw Error(Format(spec_, ": reading a frame failed: ", LastOpenNI2Error()));
+      }
+      if (ready == 0) {
+        depth_frame_ = frame;
+        ++depth_read_;
+      } else {
+        color_frame_ = frame;
+        ++color_read_;
+      }
+    }
+    // In a recording, frame numbers pair depth with colour; a mismatch means a damaged file.
+    if (is_file_ && depth_frame_.getFrameIndex() != color_frame_.getFrameIndex()) {
+      throw Error(Format(spec_, ": depth frame ", depth_frame_.getFrameIndex(),
+                         " arrived with colour frame ", color_frame_.getFrameIndex(),
+                         " (unpaired streams)"));
+    }
+    return true;
+  }
+
+  RgbdFrame ToRgbdFrame() const {
+    RgbdFrame out;
+    out.timestamp = depth_frame_.getTimestamp() * 1e-6;
+    out.intrinsics = intrinsics_;
+    out.depth = ImageDepth(width_, height_);
+    out.color = ImageRgb(width_, height_);
+    const std::string where = Format(spec_, ": frame ", next_index_);
+    for (const openni::VideoFrameRef* f : {&depth_frame_, &color_frame_}) {
+      if (f->getWidth() != width_ || f->getHeight() != height_) {
+        throw Error(Format(where, ": a ", f == &depth_frame_ ? "depth" : "colour", " frame of ",
+                           f->getWidth(), "x", f->getHeight(), " in a ", width_, "x", height_,
+                           " stream"));
+      }
+    }
+    // Depth: millimetres (or 100 um units) -> meters.
+    const openni::PixelFormat df = depth_frame_.getVideoMode().getPixelFormat();
+    if (df != openni::PIXEL_FORMAT_DEPTH_1_MM && df != openni::PIXEL_FORMAT_DEPTH_100_UM) {
+      throw Error(Format(where, ": depth pixel format ", static_cast<int>(df),
+                         " is not DEPTH_1_MM or DEPTH_100_UM"));
+    }
+    // Divided in double and then rounded to float, exactly as core's folder reader does, so that a
+    // recording and a TUM folder of the same millimetres give bit-identical depth maps.
+    const double units_per_meter = df == openni::PIXEL_FORMAT_DEPTH_1_MM ? 1000.0 : 10000.0;
+    const auto* depth_bytes = static_cast<const uint8_t*>(depth_frame_.getData());
+    for (int v = 0; v < height_; ++v) {
+      const auto* row = reinterpret_cast<const uint16_t*>(
+          depth_bytes + static_cast<size_t>(v) * depth_frame_.getStrideInBytes());
+      for (int u = 0; u < width_; ++u)
+        out.depth(u, v) = static_cast<float>(row[u] / units_per_meter);
+    }
+    // Colour: RGB888 code values -> linear with the camera response.
+    if (color_frame_.getVideoMode().getPixelFormat() != openni::PIXEL_FORMAT_RGB888) {
+      throw Error(Format(where, ": colour pixel format ",
+                         static_cast<int>(color_frame_.getVideoMode().getPixelFormat()),
+                         " is not RGB888"));
+    }
+    const auto* color_bytes = static_cast<const uint8_t*>(color_frame_.getData());
+    for (int v = 0; v < height_; ++v) {
+      const uint8_t* row = color_bytes + static_cast<size_t>(v) * color_frame_.getStrideInBytes();
+      for (int u = 0; u < width_; ++u) {
+        out.color(u, v) = {to_linear_[row[3 * u]], to_linear_[row[3 * u + 1]],
+                           to_linear_[row[3 * u + 2]]};
+      }
+    }
+    out.Validate();
+    return out;
+  }
+
+  std::string spec_;
+  SourceOptions options_;
+  CaptureOptions capture_;
+  std::array<float, 256> to_linear_;
+  bool is_file_ = false;
+  bool started_ = false;
+  openni::Device device_;
+  openni::VideoStream depth_, color_;
+  openni::VideoFrameRef depth_frame_, color_frame_;
+  int width_ = 0, height_ = 0;
+  int total_ = 0;                        // frames in a recording
+  int depth_read_ = 0, color_read_ = 0;  // frames read from each stream so far
+  int next_index_ = 0;                   // index of the next frame pair to read
+  size_t emitted_ = 0;
+  CameraIntrinsics intrinsics_;
+  Trajectory no_poses_;
+};
+
+}  // namespace
+
+std::unique_ptr<FrameSource> OpenOpenNI2Source(const std::string& spec,
+                                               const SourceOptions& options,
+                                               const CaptureOptions& capture) {
+  options.Validate();
+  capture.Validate();
+  if (!IsOpenNI2Spec(spec))
+    throw Error(Format(spec, ": not an OpenNI2 source (openni2, openni2:URI or a .oni file)"));
+  if (!options.trajectory.empty()) {
+    throw Error(Format(
+        spec, ": option trajectory is not supported for OpenNI2 sources (frames carry no poses)"));
+  }
+  return std::make_unique<OpenNI2Source>(spec, options, capture);
+}
+
+std::unique_ptr<FrameSource> OpenAnySource(const std::string& spec, const SourceOptions& options,
+                                           const CaptureOptions& capture) {
+  if (IsOpenNI2Spec(spec)) return OpenOpenNI2Source(spec, options, capture);
+  return OpenFrameSource(spec, options);
+}
+
+}  // namespace genscene::capture
