@@ -2,8 +2,9 @@
 //   genscene demo [--out WS]            synthesise a Cornell-box sequence and run the chain on it
 //   genscene run --input SRC --out WS   run the chain on a recording
 //   genscene inspect --input SRC        read and check a recording, print what it holds
-// Stages land one by one (texturing, lights, refinement to come); today the chain reads and
-// checks the input (ingest, sequence.json), fuses it (fusion) and extracts the mesh (meshing).
+// Stages land one by one (lights and refinement to come); today the chain reads and checks the
+// input (ingest, sequence.json), fuses it (fusion), extracts the mesh (meshing), back-projects the
+// keyframes onto it (texturing) and clusters the observed colour into albedo (albedo).
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -11,6 +12,7 @@
 #include "apps/fuse.h"
 #include "apps/ingest.h"
 #include "apps/synth.h"
+#include "apps/texture.h"
 #include "core/cli.h"
 #include "core/ply_io.h"
 #include "core/tsdf_volume.h"
@@ -50,9 +52,13 @@ std::string Describe(const IngestSummary& s) {
 struct ChainOptions {
   genscene::fusion::FusionOptions fusion;
   genscene::meshing::MeshingOptions meshing;
+  genscene::texturing::TexturingOptions texturing;
+  genscene::texturing::AlbedoOptions albedo;
   void AddTo(genscene::CommandLine& cli) {
     cli.Add(fusion, "Fusion");
     cli.Add(meshing, "Meshing");
+    cli.Add(texturing, "Texturing");
+    cli.Add(albedo, "Albedo");
   }
 };
 
@@ -95,6 +101,24 @@ void RunChain(const std::string& input, const genscene::SourceOptions& source, c
     });
     rows.push_back({"meshing", seconds, Format(result.stats.vertices, " vertices, ", result.stats.triangles,
                                                " triangles (", ws.Mesh().string(), ")")});
+  }
+
+  if (!redo && Workspace::IsFresh({ws.Texture(), ws.TexturePly()}, {ws.Mesh(), ws.Keyframes()})) {
+    rows.push_back({"texturing", 0.0, "up to date (" + ws.Texture().string() + "), skipped"});
+  } else {
+    genscene::SourceOptions keyframes;
+    keyframes.camera_response = source.camera_response;
+    const auto s = Timed(&seconds, [&] {
+      return genscene::apps::TextureWorkspace({}, keyframes, options.texturing, ws);
+    });
+    rows.push_back({"texturing", seconds, genscene::apps::ToString(s)});
+  }
+
+  if (!redo && Workspace::IsFresh({ws.Albedo(), ws.AlbedoPly()}, {ws.Mesh(), ws.Texture()})) {
+    rows.push_back({"albedo", 0.0, "up to date (" + ws.Albedo().string() + "), skipped"});
+  } else {
+    const auto s = Timed(&seconds, [&] { return genscene::apps::AlbedoWorkspace({}, options.albedo, ws); });
+    rows.push_back({"albedo", seconds, genscene::apps::ToString(s)});
   }
 }
 

@@ -237,11 +237,14 @@ TexturingResult TextureMesh(const TriangleMesh& input_mesh, const std::vector<Rg
     view.camera_from_world = keyframes[i].world_from_camera->inverse();
     view.center = keyframes[i].world_from_camera->translation();
     view.zbuffer = RenderDepth(mesh, keyframes[i].intrinsics, view.camera_from_world, kNear);
-    view.edges = DepthEdgeMask(view.zbuffer, options.depth_jump_ratio, options.edge_margin);
+    // The margin shrinks on thumbnails: at most 1/40 of the image's smaller side.
+    const int margin = std::min(options.edge_margin, std::min(keyframes[i].intrinsics.width,
+                                                              keyframes[i].intrinsics.height) / 40);
+    view.edges = DepthEdgeMask(view.zbuffer, options.depth_jump_ratio, margin);
     if (options.use_sensor_depth && !keyframes[i].depth.empty()) {
       // Discontinuities the mesh lacks (objects not fused, moved things) mix colours too.
       const Image<uint8_t> sensor = DepthEdgeMask(keyframes[i].depth, options.depth_jump_ratio,
-                                                  options.edge_margin, /*empty_is_edge=*/false);
+                                                  margin, /*empty_is_edge=*/false);
       for (size_t p = 0; p < sensor.size(); ++p) view.edges.pixels()[p] |= sensor.pixels()[p];
     }
     view.sharpness_weight = Sharpness(keyframes[i].color);

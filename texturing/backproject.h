@@ -39,7 +39,7 @@ struct TexturingOptions {
   double depth_tolerance_ratio = 0.02;  // ... or this fraction of its depth, whichever is larger
   bool use_sensor_depth = true;      // also test against the keyframe's measured depth
   double depth_jump_ratio = 0.05;    // a depth discontinuity: neighbours differ by this x depth
-  int edge_margin = 2;               // pixels around discontinuities not used, px
+  int edge_margin = 2;               // pixels around discontinuities not used (at most 1/40 of the image's smaller side), px
   double max_view_angle = 75.0;      // samples seen at a more grazing angle are not used, degrees
   double outlier_ratio = 0.25;       // keep samples within m (1 +- this) of the median luminance
 
@@ -52,7 +52,7 @@ struct TexturingOptions {
     v("depth_tolerance_ratio", depth_tolerance_ratio, "", "visibility tolerance as a fraction of depth (the larger applies)");
     v("use_sensor_depth", use_sensor_depth, "", "also test visibility against the keyframes' measured depth");
     v("depth_jump_ratio", depth_jump_ratio, "", "neighbouring depths differing by this fraction are a discontinuity");
-    v("edge_margin", edge_margin, "px", "pixels around depth discontinuities that are not used");
+    v("edge_margin", edge_margin, "px", "pixels around depth discontinuities that are not used (at most 1/40 of the image's smaller side)");
     v("max_view_angle", max_view_angle, "deg", "most grazing view angle used");
     v("outlier_ratio", outlier_ratio, "", "samples farther than this fraction from the median luminance are dropped");
   }
