@@ -7,25 +7,34 @@ namespace genscene::texturing {
 
 namespace {
 
-// Sutherland-Hodgman clip of a camera-space polygon against z >= near.
-int ClipNear(const Eigen::Vector3d in[3], double near, Eigen::Vector3d out[4]) {
+// A camera-space vertex with its barycentric coordinates in the original (unclipped) triangle.
+struct ClipVertex {
+  Eigen::Vector3d p;
+  Eigen::Vector3d bary;
+};
+
+// Sutherland-Hodgman clip of a camera-space triangle against z >= near.
+int ClipNear(const ClipVertex in[3], double near, ClipVertex out[4]) {
   int n = 0;
   for (int k = 0; k < 3; ++k) {
-    const Eigen::Vector3d& a = in[k];
-    const Eigen::Vector3d& b = in[(k + 1) % 3];
-    const bool a_in = a.z() >= near, b_in = b.z() >= near;
+    const ClipVertex& a = in[k];
+    const ClipVertex& b = in[(k + 1) % 3];
+    const bool a_in = a.p.z() >= near, b_in = b.p.z() >= near;
     if (a_in) out[n++] = a;
     if (a_in != b_in) {
-      const double t = (near - a.z()) / (b.z() - a.z());
-      out[n++] = a + t * (b - a);
+      const double t = (near - a.p.z()) / (b.p.z() - a.p.z());
+      out[n++] = {a.p + t * (b.p - a.p), a.bary + t * (b.bary - a.bary)};
     }
   }
   return n;
 }
 
-// Draws one camera-space triangle (all z >= near) into the z-buffer.
-void DrawTriangle(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Eigen::Vector3d& p2,
-                  const CameraIntrinsics& k, ImageDepth& depth) {
+// Calls pixel(u, v, z, bary) for every pixel centre inside one camera-space triangle (all
+// z >= near); bary is perspective-correct, in the original triangle's coordinates.
+template <typename Pixel>
+void DrawTriangle(const ClipVertex& c0, const ClipVertex& c1, const ClipVertex& c2,
+                  const CameraIntrinsics& k, const Pixel& pixel) {
+  const Eigen::Vector3d &p0 = c0.p, &p1 = c1.p, &p2 = c2.p;
   const Eigen::Vector2d s0(k.fx * p0.x() / p0.z() + k.cx, k.fy * p0.y() / p0.z() + k.cy);
   const Eigen::Vector2d s1(k.fx * p1.x() / p1.z() + k.cx, k.fy * p1.y() / p1.z() + k.cy);
   const Eigen::Vector2d s2(k.fx * p2.x() / p2.z() + k.cx, k.fy * p2.y() / p2.z() + k.cy);
@@ -33,11 +42,11 @@ void DrawTriangle(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Ei
   if (!(std::abs(area) > 1e-12)) return;  // degenerate, or edge-on
   const double lo_u = std::min({s0.x(), s1.x(), s2.x()}), hi_u = std::max({s0.x(), s1.x(), s2.x()});
   const double lo_v = std::min({s0.y(), s1.y(), s2.y()}), hi_v = std::max({s0.y(), s1.y(), s2.y()});
-  if (hi_u < 0.0 || hi_v < 0.0 || lo_u > depth.width() - 1.0 || lo_v > depth.height() - 1.0) return;
+  if (hi_u < 0.0 || hi_v < 0.0 || lo_u > k.width - 1.0 || lo_v > k.height - 1.0) return;
   const int u0 = std::max(0, static_cast<int>(std::ceil(lo_u)));
-  const int u1 = std::min(depth.width() - 1, static_cast<int>(std::floor(hi_u)));
+  const int u1 = std::min(k.width - 1, static_cast<int>(std::floor(hi_u)));
   const int v0 = std::max(0, static_cast<int>(std::ceil(lo_v)));
-  const int v1 = std::min(depth.height() - 1, static_cast<int>(std::floor(hi_v)));
+  const int v1 = std::min(k.height - 1, static_cast<int>(std::floor(hi_v)));
   const double inv_area = 1.0 / area;
   const double iz0 = 1.0 / p0.z(), iz1 = 1.0 / p1.z(), iz2 = 1.0 / p2.z();
   for (int v = v0; v <= v1; ++v) {
@@ -48,9 +57,29 @@ void DrawTriangle(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Ei
       const double w1 = ((s2 - p).x() * (s0 - p).y() - (s2 - p).y() * (s0 - p).x()) * inv_area;
       const double w2 = 1.0 - w0 - w1;
       if (w0 < 0.0 || w1 < 0.0 || w2 < 0.0) continue;
-      const float z = static_cast<float>(1.0 / (w0 * iz0 + w1 * iz1 + w2 * iz2));
-      float& d = depth(u, v);
-      if (d == 0.0f || z < d) d = z;
+      const double inv_z = w0 * iz0 + w1 * iz1 + w2 * iz2;
+      pixel(u, v, 1.0 / inv_z, [&] {
+        return Eigen::Vector3d((w0 * iz0 * c0.bary + w1 * iz1 * c1.bary + w2 * iz2 * c2.bary) / inv_z);
+      });
+    }
+  }
+}
+
+// Clips and draws every face of the mesh.
+template <typename Pixel>
+void DrawMesh(const TriangleMesh& mesh, const CameraIntrinsics& intrinsics,
+              const Eigen::Isometry3d& camera_from_world, double near, const Pixel& pixel) {
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
+    const Eigen::Vector3i& tri = mesh.faces[f];
+    const ClipVertex c[3] = {{camera_from_world * mesh.vertices[tri[0]].cast<double>(), Eigen::Vector3d::UnitX()},
+                             {camera_from_world * mesh.vertices[tri[1]].cast<double>(), Eigen::Vector3d::UnitY()},
+                             {camera_from_world * mesh.vertices[tri[2]].cast<double>(), Eigen::Vector3d::UnitZ()}};
+    if (c[0].p.z() < near && c[1].p.z() < near && c[2].p.z() < near) continue;
+    ClipVertex clipped[4];
+    const int n = ClipNear(c, near, clipped);
+    for (int k = 1; k + 1 < n; ++k) {
+      DrawTriangle(clipped[0], clipped[k], clipped[k + 1], intrinsics,
+                   [&](int u, int v, double z, const auto& bary) { pixel(static_cast<int>(f), u, v, z, bary); });
     }
   }
 }
@@ -60,16 +89,30 @@ void DrawTriangle(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, const Ei
 ImageDepth RenderDepth(const TriangleMesh& mesh, const CameraIntrinsics& intrinsics,
                        const Eigen::Isometry3d& camera_from_world, double near) {
   ImageDepth depth(intrinsics.width, intrinsics.height, 0.0f);
-  for (const Eigen::Vector3i& f : mesh.faces) {
-    const Eigen::Vector3d p[3] = {camera_from_world * mesh.vertices[f[0]].cast<double>(),
-                                  camera_from_world * mesh.vertices[f[1]].cast<double>(),
-                                  camera_from_world * mesh.vertices[f[2]].cast<double>()};
-    if (p[0].z() < near && p[1].z() < near && p[2].z() < near) continue;
-    Eigen::Vector3d clipped[4];
-    const int n = ClipNear(p, near, clipped);
-    for (int k = 1; k + 1 < n; ++k) DrawTriangle(clipped[0], clipped[k], clipped[k + 1], intrinsics, depth);
-  }
+  DrawMesh(mesh, intrinsics, camera_from_world, near, [&](int, int u, int v, double z, const auto&) {
+    float& d = depth(u, v);
+    if (d == 0.0f || z < d) d = static_cast<float>(z);
+  });
   return depth;
+}
+
+SurfaceImage RenderSurface(const TriangleMesh& mesh, const CameraIntrinsics& intrinsics,
+                           const Eigen::Isometry3d& camera_from_world, double near) {
+  SurfaceImage out;
+  out.depth = ImageDepth(intrinsics.width, intrinsics.height, 0.0f);
+  out.face = Image<int>(intrinsics.width, intrinsics.height, -1);
+  out.b1 = ImageDepth(intrinsics.width, intrinsics.height, 0.0f);
+  out.b2 = ImageDepth(intrinsics.width, intrinsics.height, 0.0f);
+  DrawMesh(mesh, intrinsics, camera_from_world, near, [&](int f, int u, int v, double z, const auto& bary) {
+    float& d = out.depth(u, v);
+    if (d != 0.0f && z >= d) return;
+    d = static_cast<float>(z);
+    const Eigen::Vector3d b = bary();
+    out.face(u, v) = f;
+    out.b1(u, v) = static_cast<float>(b.y());
+    out.b2(u, v) = static_cast<float>(b.z());
+  });
+  return out;
 }
 
 Image<uint8_t> DepthEdgeMask(const ImageDepth& depth, double jump_ratio, int radius,

@@ -18,6 +18,16 @@ namespace genscene::texturing {
 ImageDepth RenderDepth(const TriangleMesh& mesh, const CameraIntrinsics& intrinsics,
                        const Eigen::Isometry3d& camera_from_world, double near = 0.01);
 
+// What the camera sees at each pixel centre: depth (0 = nothing), the face (-1 = nothing) and
+// the perspective-correct barycentric point (b1, b2) on it, for rendering Mesh Colors.
+struct SurfaceImage {
+  ImageDepth depth;
+  Image<int> face;
+  ImageDepth b1, b2;
+};
+SurfaceImage RenderSurface(const TriangleMesh& mesh, const CameraIntrinsics& intrinsics,
+                           const Eigen::Isometry3d& camera_from_world, double near = 0.01);
+
 // Marks the pixels within `radius` pixels of a depth discontinuity: a 4-neighbour that differs
 // by more than `jump_ratio` x depth, or (with empty_is_edge) has no depth. Colour samples near
 // such edges mix foreground and background and are not used. For sensor depth, whose holes are

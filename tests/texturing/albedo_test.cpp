@@ -19,6 +19,7 @@ struct CboxFigures {
   int clusters = 0;          // clusters holding >= 0.5 % of the observed texels
   int distinct_albedos = 0;  // in the ground truth of the faces the keyframes see
   double worst_chroma = 0.0; // largest |chromaticity - truth| over those clusters and channels
+  double mislabelled = 0.0;  // fraction of observed texels in a cluster standing for another albedo
 };
 
 CboxFigures RunCbox(const std::filesystem::path& data, const std::string& views) {
@@ -77,6 +78,17 @@ CboxFigures RunCbox(const std::filesystem::path& data, const std::string& views)
               << (ChromaOf(c.albedo) - ChromaOf(truth)).cwiseAbs().maxCoeff() << ")\n";
     fig.worst_chroma = std::max(fig.worst_chroma, err);
   }
+  // Texels whose cluster stands for another albedo than their own face's.
+  size_t wrong = 0;
+  for (size_t s = 0; s < texture.texture.SampleCount(); ++s) {
+    if (texture.texture.labels()[s] == 0) continue;
+    int f;
+    double b1, b2;
+    texture.texture.SampleFacePoint(s, &f, &b1, &b2);
+    wrong += (cluster_truth[albedo.albedo.labels()[s]] - mesh.face_colors[f]).norm() > 1e-6f;
+  }
+  fig.mislabelled = static_cast<double>(wrong) / static_cast<double>(observed);
+  std::cout << views << ": " << 100.0 * fig.mislabelled << " % of the observed texels in a cluster of another albedo\n";
   std::cout << views << ": " << fig.clusters << " clusters for " << fig.distinct_albedos << " distinct albedos; "
             << albedo.stats.chroma_classes << " chromaticity classes, " << albedo.stats.pieces
             << " pieces, worst chromaticity error " << fig.worst_chroma << "\n";
@@ -89,6 +101,12 @@ TEST(Albedo, CyclesCornellBoxClustersIntoItsAlbedos) {
   EXPECT_EQ(fig.distinct_albedos, 3);
   EXPECT_LE(std::abs(fig.clusters - fig.distinct_albedos), 1);
   EXPECT_LE(fig.worst_chroma, 0.02);
+  // Regression guard, not an acceptance figure: 16 % today. The blocks' sides that face the red
+  // and green walls get no direct light, only light from those walls, and are as saturated as
+  // the walls themselves (tall block side: chromaticity (0.80, 0.13) vs the red wall's (0.89,
+  // 0.07)); chromaticity alone cannot tell them apart. Light estimation and refinement, which
+  // divide by the path-traced irradiance, are where this gets fixed.
+  EXPECT_LT(fig.mislabelled, 0.2);
 }
 
 TEST(Albedo, BadInputsAreClearErrors) {
