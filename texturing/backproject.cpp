@@ -93,17 +93,11 @@ struct ColorSample {
 int RobustMean(std::vector<ColorSample>& samples, double outlier_ratio, Eigen::Vector3f* out) {
   std::sort(samples.begin(), samples.end(),
             [](const ColorSample& a, const ColorSample& b) { return a.luminance < b.luminance; });
-  double total = 0.0;
-  for (const ColorSample& s : samples) total += s.weight;
-  double acc = 0.0;
-  float median = samples.back().luminance;
-  for (const ColorSample& s : samples) {
-    acc += s.weight;
-    if (acc >= 0.5 * total) {
-      median = s.luminance;
-      break;
-    }
-  }
+  // One vote per view: a heavily weighted view (near, frontal, sharp) must not carry its own
+  // highlight past the median.
+  const size_t n = samples.size();
+  const float median = n % 2 ? samples[n / 2].luminance
+                             : 0.5f * (samples[n / 2 - 1].luminance + samples[n / 2].luminance);
   const double lo = median * (1.0 - outlier_ratio), hi = median * (1.0 + outlier_ratio);
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   double weight = 0.0;
@@ -114,7 +108,11 @@ int RobustMean(std::vector<ColorSample>& samples, double outlier_ratio, Eigen::V
     weight += s.weight;
     ++kept;
   }
-  GS_CHECK_GT(kept, 0);  // the median sample itself is always inside
+  if (kept == 0) {  // two views that disagree by more than the ratio: keep the darker one
+    sum = samples.front().color.cast<double>();
+    weight = 1.0;
+    kept = 1;
+  }
   *out = (sum / weight).cast<float>();
   return kept;
 }
@@ -252,7 +250,7 @@ TexturingResult TextureMesh(const TriangleMesh& input_mesh, const std::vector<Rg
   double sharpest = 0.0;
   for (const View& view : views) sharpest = std::max(sharpest, view.sharpness_weight);
   for (View& view : views) {
-    view.sharpness_weight = sharpest > 0.0 ? std::max(0.05, view.sharpness_weight / sharpest) : 1.0;
+    view.sharpness_weight = sharpest > 0.0 ? std::max(0.25, view.sharpness_weight / sharpest) : 1.0;
   }
   stats.seconds_visibility = SecondsSince(t0);
 

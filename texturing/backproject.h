@@ -9,11 +9,13 @@
 //                 z-buffer or of the measured depth;
 //   sample    =  the keyframe's linear colour, bilinear at the projected point;
 //   weight    =  cos(view angle) / z^2 * sharpness, where sharpness is the keyframe's variance of
-//                the Laplacian of luminance relative to the sharpest keyframe (blurred frames count
-//                less).
-// The texel's colour is a robust weighted mean: the weighted median luminance m of its samples is
-// found, samples whose luminance is outside m (1 +- outlier_ratio) are dropped (specular
-// highlights, misregistration), and the rest are averaged. Texels no keyframe sees are filled
+//                the Laplacian of luminance relative to the sharpest keyframe, at least 0.25
+//                (blurred frames count less).
+// The texel's colour is a robust weighted mean: the median luminance m of its samples (one vote
+// per view, so that one heavily weighted view cannot carry its highlight) is found, samples whose
+// luminance is outside m (1 +- outlier_ratio) are dropped (specular highlights, misregistration),
+// and the rest are averaged with their weights. (Two views that disagree beyond the ratio: the
+// darker is kept, highlights being the likelier outlier.) Texels no keyframe sees are filled
 // from their lattice neighbours and counted.
 //
 // Resolution: each face gets the smallest power-of-two resolution whose sample spacing is at most

@@ -79,11 +79,14 @@ struct ErrorFigures {
   size_t texels = 0;
   double range = 0.0;            // max - min of the true values
 };
-ErrorFigures WallError(const TexturingResult& r, const Truth& truth) {
+// Over wall texels seen by at least `min_views` keyframes (by `seen`'s view counts; default: r's).
+ErrorFigures WallError(const TexturingResult& r, const Truth& truth, int min_views = 1,
+                       const TexturingResult* seen = nullptr) {
   ErrorFigures e;
   float lo = 1e9f, hi = -1e9f;
+  const std::vector<int32_t>& views = (seen ? seen : &r)->texture.labels();
   for (size_t s = 0; s < truth.albedo.size(); ++s) {
-    if (!truth.on_wall[s] || r.texture.labels()[s] == 0) continue;
+    if (!truth.on_wall[s] || views[s] < min_views) continue;
     const double err = (r.texture.colors()[s] - truth.albedo[s]).cwiseAbs().mean();
     e.mean += err;
     e.max = std::max(e.max, err);
@@ -175,6 +178,36 @@ TEST(Texturing, SensorDepthStopsAnOccluderTheMeshLacks) {
   const ErrorFigures bad = WallError(without, truth);
   EXPECT_LT(good.max, 0.1);
   EXPECT_GT(bad.max, 0.2) << "without the depth test the red box must leak in (else this test proves nothing)";
+}
+
+TEST(Texturing, SpecularHighlightsInSomeViewsAreRejected) {
+  // A bright disc (3x the albedo, a highlight) in 2 of 9 views, each at another spot of the wall.
+  const SyntheticScene scene = WallScene();
+  const TriangleMesh mesh = scene.ToMesh();
+  std::vector<RgbdFrame> frames = WallViews(scene, 9);
+  for (int i : {2, 6}) {
+    ImageRgb& c = frames[i].color;
+    for (int v = 0; v < c.height(); ++v) {
+      for (int u = 0; u < c.width(); ++u) {
+        if (std::hypot(u - 60.0, v - 50.0) < 25.0) c(u, v) *= 3.0f;
+      }
+    }
+  }
+  TexturingOptions o = TestOptions();
+  const TexturingResult robust = TextureMesh(mesh, frames, o);
+  o.outlier_ratio = 100.0;  // keeps every sample: a plain weighted mean
+  const TexturingResult plain = TextureMesh(mesh, frames, o);
+  const Truth truth = TruthOf(scene, mesh, robust.texture);
+  // Where at least 4 views see a texel, at most 2 of them show a highlight: the median is clean.
+  // (A texel seen only in highlighted views cannot be cleaned by any average.)
+  const ErrorFigures good = WallError(robust, truth, 4, &plain);
+  const ErrorFigures bad = WallError(plain, truth, 4, &plain);
+  std::cout << "highlights: " << good.texels << " wall texels seen 4+ times: robust max error " << good.max << " (" << robust.stats.samples_rejected
+            << " samples rejected), plain mean max error " << bad.max << "\n";
+  EXPECT_GT(robust.stats.samples_rejected, 500u);
+  EXPECT_LT(good.max, 0.1);
+  EXPECT_LE(good.mean, 0.02 * good.range);
+  EXPECT_GT(bad.max, 0.15) << "without rejection the highlights must show (else this test proves nothing)";
 }
 
 TEST(Texturing, SameOutputWithOneAndTwoThreads) {
