@@ -35,23 +35,8 @@ double Now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-SyntheticScene StripedWall() {
-  SyntheticScene scene;
-  SyntheticScene::Box wall;
-  wall.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-1.5, 1.0, 0.0), Eigen::Vector3d(1.5, 1.05, 2.0));
-  wall.albedo = Eigen::Vector3f(0.1f, 0.3f, 0.8f);
-  wall.albedo2 = Eigen::Vector3f(0.9f, 0.7f, 0.2f);
-  wall.stripe_period = 0.5;
-  SyntheticScene::Box box;
-  box.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.3, 0.4, 0.6), Eigen::Vector3d(0.3, 0.6, 1.4));
-  box.albedo = Eigen::Vector3f(0.9f, 0.05f, 0.05f);
-  scene.boxes = {wall, box};
-  scene.ambient = 1.0;
-  return scene;
-}
-
 void SpeedAgainstError(int threads) {
-  const SyntheticScene scene = StripedWall();
+  const SyntheticScene scene = MakeStripedWallScene();
   const TriangleMesh exact = scene.ToMesh();
   // Split into small triangles (R = 32 per original face) like a fused mesh.
   TriangleMesh mesh = MeshColors(exact, std::vector<int>(exact.faces.size(), 32)).ToSubdividedMesh(exact);

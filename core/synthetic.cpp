@@ -152,6 +152,21 @@ TriangleMesh SyntheticScene::ToMesh(int sphere_subdivisions) const {
   return mesh;
 }
 
+SyntheticScene MakeStripedWallScene() {
+  SyntheticScene scene;
+  SyntheticScene::Box wall;
+  wall.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-1.5, 1.0, 0.0), Eigen::Vector3d(1.5, 1.05, 2.0));
+  wall.albedo = Eigen::Vector3f(0.1f, 0.3f, 0.8f);
+  wall.albedo2 = Eigen::Vector3f(0.9f, 0.7f, 0.2f);
+  wall.stripe_period = 0.5;
+  SyntheticScene::Box occluder;
+  occluder.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.3, 0.4, 0.6), Eigen::Vector3d(0.3, 0.6, 1.4));
+  occluder.albedo = Eigen::Vector3f(0.9f, 0.05f, 0.05f);
+  scene.boxes = {wall, occluder};
+  scene.ambient = 1.0;
+  return scene;
+}
+
 SyntheticScene MakeCornellScene() {
   SyntheticScene scene;
   const Eigen::Vector3f white(0.73f, 0.73f, 0.73f), red(0.63f, 0.065f, 0.05f), green(0.14f, 0.45f, 0.091f);

@@ -60,6 +60,11 @@ struct SyntheticScene {
 // green right wall (+x), white elsewhere, a white box and a sphere on the floor. z is up.
 SyntheticScene MakeCornellScene();
 
+// A striped wall (x in [-1.5, 1.5], y in [1, 1.05], z in [0, 2]; albedo varying smoothly between
+// (0.1, 0.3, 0.8) and (0.9, 0.7, 0.2) with a 0.5 m period) and a red box 0.4 m in front of it,
+// under ambient light only (colour = albedo): the texturing tests' and bench's scene.
+SyntheticScene MakeStripedWallScene();
+
 // Exact planar depth (0 where the ray escapes), shaded linear colour and known pose for one view.
 RgbdFrame RenderSyntheticFrame(const SyntheticScene& scene, const CameraIntrinsics& intrinsics,
                                const Eigen::Isometry3d& world_from_camera, double timestamp);

@@ -24,22 +24,6 @@ CameraIntrinsics Intrinsics(int w, int h) {
   return k;
 }
 
-// A striped wall (y in [1, 1.05]) and a red box 0.4 m in front of it, under ambient light only.
-SyntheticScene WallScene() {
-  SyntheticScene scene;
-  SyntheticScene::Box wall;
-  wall.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-1.5, 1.0, 0.0), Eigen::Vector3d(1.5, 1.05, 2.0));
-  wall.albedo = Eigen::Vector3f(0.1f, 0.3f, 0.8f);
-  wall.albedo2 = Eigen::Vector3f(0.9f, 0.7f, 0.2f);
-  wall.stripe_period = 0.5;
-  SyntheticScene::Box occluder;
-  occluder.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.3, 0.4, 0.6), Eigen::Vector3d(0.3, 0.6, 1.4));
-  occluder.albedo = Eigen::Vector3f(0.9f, 0.05f, 0.05f);
-  scene.boxes = {wall, occluder};
-  scene.ambient = 1.0;
-  return scene;
-}
-
 std::vector<RgbdFrame> WallViews(const SyntheticScene& scene, int count) {
   std::vector<RgbdFrame> frames;
   for (int i = 0; i < count; ++i) {
@@ -139,7 +123,7 @@ TEST(Texturing, RasterizerDrawsWallsThatReachBehindTheCamera) {
 }
 
 TEST(Texturing, StripedWallBehindAnOccluderIsRecoveredWithoutContamination) {
-  const SyntheticScene scene = WallScene();
+  const SyntheticScene scene = MakeStripedWallScene();
   const TriangleMesh mesh = scene.ToMesh();
   const std::vector<RgbdFrame> frames = WallViews(scene, 9);
   const TexturingResult r = TextureMesh(mesh, frames, TestOptions());
@@ -164,7 +148,7 @@ TEST(Texturing, StripedWallBehindAnOccluderIsRecoveredWithoutContamination) {
 
 TEST(Texturing, SensorDepthStopsAnOccluderTheMeshLacks) {
   // Images show the red box, the mesh is the wall alone: only the measured depth tells.
-  const SyntheticScene scene = WallScene();
+  const SyntheticScene scene = MakeStripedWallScene();
   SyntheticScene wall_only = scene;
   wall_only.boxes.resize(1);
   const TriangleMesh mesh = wall_only.ToMesh();
@@ -182,7 +166,7 @@ TEST(Texturing, SensorDepthStopsAnOccluderTheMeshLacks) {
 
 TEST(Texturing, SpecularHighlightsInSomeViewsAreRejected) {
   // A bright disc (3x the albedo, a highlight) in 2 of 9 views, each at another spot of the wall.
-  const SyntheticScene scene = WallScene();
+  const SyntheticScene scene = MakeStripedWallScene();
   const TriangleMesh mesh = scene.ToMesh();
   std::vector<RgbdFrame> frames = WallViews(scene, 9);
   for (int i : {2, 6}) {
@@ -211,7 +195,7 @@ TEST(Texturing, SpecularHighlightsInSomeViewsAreRejected) {
 }
 
 TEST(Texturing, SameOutputWithOneAndTwoThreads) {
-  const SyntheticScene scene = WallScene();
+  const SyntheticScene scene = MakeStripedWallScene();
   const TriangleMesh mesh = scene.ToMesh();
   const std::vector<RgbdFrame> frames = WallViews(scene, 5);
   TexturingOptions o = TestOptions();
@@ -226,7 +210,7 @@ TEST(Texturing, SameOutputWithOneAndTwoThreads) {
 }
 
 TEST(Texturing, BadInputsAreClearErrors) {
-  const SyntheticScene scene = WallScene();
+  const SyntheticScene scene = MakeStripedWallScene();
   const TriangleMesh mesh = scene.ToMesh();
   std::vector<RgbdFrame> frames = WallViews(scene, 3);
   const TexturingOptions o = TestOptions();
@@ -246,7 +230,7 @@ TEST(Texturing, BadInputsAreClearErrors) {
 }
 
 TEST(Texturing, NonManifoldEdgesAndIsolatedVerticesAreHandled) {
-  const SyntheticScene scene = WallScene();
+  const SyntheticScene scene = MakeStripedWallScene();
   TriangleMesh mesh = scene.ToMesh();
   // A fin sharing an edge of the wall's front face with both wall triangles (3 faces on one edge),
   // and a vertex no face uses.
