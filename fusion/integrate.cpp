@@ -82,8 +82,13 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
   IntegrationStats stats;
   const std::vector<Eigen::Vector3i> keys = BlocksInTruncationBand(volume, depth, k, world_from_camera);
   stats.blocks_touched = keys.size();
-  size_t missing = 0;
-  for (const auto& key : keys) missing += !volume.FindBlock(key).has_value();
+  // One look-up per key: found blocks keep their index, the missing ones are counted (for the
+  // memory cap, checked before anything is allocated) and allocated after.
+  std::vector<int32_t> indices(keys.size(), -1);
+  ParallelFor(0, keys.size(), [&](size_t i) {
+    if (const auto found = volume.FindBlock(keys[i])) indices[i] = *found;
+  }, 256);
+  const size_t missing = static_cast<size_t>(std::count(indices.begin(), indices.end(), -1));
   const double cap = volume.params().memory_cap_bytes;
   if (cap > 0 && volume.allocated_bytes() + static_cast<double>(missing) * sizeof(TsdfBlock) > cap) {
     throw Error(Format("TSDF volume: memory cap of ", cap / 1e6, " MB exceeded: this frame needs ",
@@ -91,8 +96,9 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
                        sizeof(TsdfBlock), " bytes each) at voxel size ", volume.voxel_size(),
                        " m; use a larger voxel size or raise the memory cap"));
   }
-  std::vector<int32_t> indices(keys.size());
-  for (size_t i = 0; i < keys.size(); ++i) indices[i] = volume.AllocateBlock(keys[i]);
+  for (size_t i = 0; i < keys.size(); ++i) {
+    if (indices[i] < 0) indices[i] = volume.AllocateBlock(keys[i]);
+  }
   stats.blocks_allocated = missing;
 
   // Camera-frame point of lattice point v: R^T (origin + vs v - t) = A v + b.
