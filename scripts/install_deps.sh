@@ -14,8 +14,12 @@ PACKAGES=(
   libembree-dev libtinyxml2-dev
   # capture (OpenNI2 cameras and .oni recordings; openni2-utils brings NiViewer2)
   libopenni2-dev openni2-utils
+  # viewer (GLFW window, OpenGL function loading; Mesa's llvmpipe gives OpenGL 3.3+ core under Xvfb)
+  libglfw3-dev libepoxy-dev libgl1-mesa-dri
   # tests
   libgtest-dev
+  # viewer tests and headless screenshots: an X server without a screen
+  xvfb xauth
 )
 
 missing=()
