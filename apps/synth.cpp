@@ -104,12 +104,7 @@ int SynthOptions::Height() const { return static_cast<int>(ParseSize(size).secon
 SynthSummary Synthesize(const SynthOptions& options, uint64_t seed, const std::filesystem::path& out_dir) {
   options.Validate();
   const Setup setup = MakeSetup(options, seed);
-  CameraIntrinsics k;
-  k.width = options.Width();
-  k.height = options.Height();
-  k.fx = k.fy = 0.5 * k.width / std::tan(0.5 * options.fov * M_PI / 180.0);
-  k.cx = 0.5 * (k.width - 1);
-  k.cy = 0.5 * (k.height - 1);
+  const CameraIntrinsics k = CameraIntrinsics::FromHorizontalFov(options.Width(), options.Height(), options.fov);
 
   const inverse::PathTracer tracer(setup.scene);
   inverse::RenderOptions render;

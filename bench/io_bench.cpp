@@ -17,8 +17,7 @@ int main(int argc, char** argv) {
   const int width = argc > 2 ? std::atoi(argv[2]) : 320;
   const int height = width * 3 / 4;
   const SyntheticScene scene = MakeCornellScene();
-  CameraIntrinsics k;
-  k.width = width, k.height = height, k.fx = k.fy = 0.8 * width, k.cx = 0.5 * (width - 1), k.cy = 0.5 * (height - 1);
+  const CameraIntrinsics k = CameraIntrinsics::Centered(width, height, 0.8 * width);
   std::vector<RgbdFrame> exact;
   const Trajectory orbit = MakeOrbitTrajectory({0, 0, 0.6}, 0.9, 1.0, 60.0, frames);
   for (const auto& p : orbit.poses()) exact.push_back(RenderSyntheticFrame(scene, k, p.world_from_camera, p.timestamp));

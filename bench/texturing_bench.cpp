@@ -42,12 +42,7 @@ void SpeedAgainstError(int threads) {
   TriangleMesh mesh = MeshColors(exact, std::vector<int>(exact.faces.size(), 32)).ToSubdividedMesh(exact);
   mesh.vertex_colors.clear();
   mesh.normals.clear();
-  CameraIntrinsics k;
-  k.width = 320;
-  k.height = 240;
-  k.fx = k.fy = 288.0;
-  k.cx = 159.5;
-  k.cy = 119.5;
+  const CameraIntrinsics k = CameraIntrinsics::Centered(320, 240, 288.0);
   std::vector<RgbdFrame> frames;
   for (int i = 0; i < 9; ++i) {
     const double x = -1.0 + 2.0 * i / 8.0;

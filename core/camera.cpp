@@ -19,6 +19,20 @@ bool CameraIntrinsics::Contains(const Eigen::Vector2d& uv) const {
   return uv.x() >= -0.5 && uv.y() >= -0.5 && uv.x() < width - 0.5 && uv.y() < height - 0.5;
 }
 
+CameraIntrinsics CameraIntrinsics::Centered(int width, int height, double focal) {
+  CameraIntrinsics k;
+  k.width = width;
+  k.height = height;
+  k.fx = k.fy = focal;
+  k.cx = 0.5 * (width - 1);
+  k.cy = 0.5 * (height - 1);
+  return k;
+}
+
+CameraIntrinsics CameraIntrinsics::FromHorizontalFov(int width, int height, double hfov_degrees) {
+  return Centered(width, height, 0.5 * width / std::tan(0.5 * hfov_degrees * M_PI / 180.0));
+}
+
 CameraIntrinsics CameraIntrinsics::Scaled(double factor) const {
   GS_CHECK_GT(factor, 0.0);
   CameraIntrinsics out = *this;

@@ -33,6 +33,11 @@ struct CameraIntrinsics {
   // True when pixel coordinates (u, v) fall inside the image (pixel footprints [-0.5, W-0.5)).
   bool Contains(const Eigen::Vector2d& uv) const;
 
+  // A centred camera (cx = (W-1)/2, cy = (H-1)/2) with square pixels of focal length `focal` px.
+  static CameraIntrinsics Centered(int width, int height, double focal);
+  // The same with the focal length that gives a horizontal field of view of hfov_degrees.
+  static CameraIntrinsics FromHorizontalFov(int width, int height, double hfov_degrees);
+
   // Intrinsics of the same camera with the image resized by `factor` (e.g. 0.5 for one level of
   // an image pyramid): focal lengths scale, and the principal point keeps the pixel-centre
   // convention, c' = (c + 0.5) * factor - 0.5. Sizes are rounded down.

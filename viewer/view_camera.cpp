@@ -28,13 +28,7 @@ Eigen::Matrix4f ClipFromWorld(const PosedView& view, const ClipRange& range) {
 }
 
 CameraIntrinsics DefaultIntrinsics(int width, int height, double hfov_degrees) {
-  CameraIntrinsics k;
-  k.width = width;
-  k.height = height;
-  k.fx = k.fy = 0.5 * width / std::tan(0.5 * hfov_degrees * M_PI / 180.0);
-  k.cx = 0.5 * (width - 1);
-  k.cy = 0.5 * (height - 1);
-  return k;
+  return CameraIntrinsics::FromHorizontalFov(width, height, hfov_degrees);
 }
 
 ClipRange ClipRangeFor(const Eigen::AlignedBox3d& bounds, const Eigen::Vector3d& eye) {

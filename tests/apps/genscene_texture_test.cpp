@@ -24,12 +24,7 @@ void MakeWorkspace(const fs::path& ws) {
   SyntheticScene scene = MakeCornellScene();
   scene.ambient = 1.0;
   WritePly(ws / "mesh.ply", scene.ToMesh());
-  CameraIntrinsics k;
-  k.width = 120;
-  k.height = 90;
-  k.fx = k.fy = 100.0;
-  k.cx = 59.5;
-  k.cy = 44.5;
+  const CameraIntrinsics k = CameraIntrinsics::Centered(120, 90, 100.0);
   std::vector<RgbdFrame> frames;
   const Trajectory orbit = MakeOrbitTrajectory({0.0, 0.0, 0.7}, 0.6, 1.0, 120.0, 6);
   for (const StampedPose& pose : orbit.poses()) {

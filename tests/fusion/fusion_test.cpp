@@ -13,15 +13,7 @@
 namespace genscene::fusion {
 namespace {
 
-CameraIntrinsics Camera(int width, int height) {
-  CameraIntrinsics k;
-  k.width = width;
-  k.height = height;
-  k.fx = k.fy = 0.9 * width;
-  k.cx = (width - 1) / 2.0;
-  k.cy = (height - 1) / 2.0;
-  return k;
-}
+CameraIntrinsics Camera(int width, int height) { return CameraIntrinsics::Centered(width, height, 0.9 * width); }
 
 // The Cornell-like room of core/synthetic.h, translated by `offset`.
 SyntheticScene Room(const Eigen::Vector3d& offset = Eigen::Vector3d::Zero()) {

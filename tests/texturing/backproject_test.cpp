@@ -14,15 +14,7 @@ namespace {
 
 using test::ErrorOf;
 
-CameraIntrinsics Intrinsics(int w, int h) {
-  CameraIntrinsics k;
-  k.width = w;
-  k.height = h;
-  k.fx = k.fy = 0.9 * w;
-  k.cx = (w - 1) / 2.0;
-  k.cy = (h - 1) / 2.0;
-  return k;
-}
+CameraIntrinsics Intrinsics(int w, int h) { return CameraIntrinsics::Centered(w, h, 0.9 * w); }
 
 std::vector<RgbdFrame> WallViews(const SyntheticScene& scene, int count) {
   std::vector<RgbdFrame> frames;
