@@ -28,9 +28,11 @@ struct CameraResponse {
   float FromLinear(float linear) const;
 };
 
-// Luminance of linear RGB (Rec. 709 / sRGB primaries).
-inline float Luminance(const Eigen::Vector3f& rgb) {
-  return 0.2126f * rgb.x() + 0.7152f * rgb.y() + 0.0722f * rgb.z();
+// Luminance of linear RGB (Rec. 709 / sRGB primaries), in the vector's scalar type.
+template <typename Derived>
+typename Derived::Scalar Luminance(const Eigen::MatrixBase<Derived>& rgb) {
+  using S = typename Derived::Scalar;
+  return S(0.2126) * rgb.x() + S(0.7152) * rgb.y() + S(0.0722) * rgb.z();
 }
 
 // Sharpness of a linear colour image: variance of the 4-neighbour Laplacian of its luminance

@@ -5,12 +5,11 @@
 #include <map>
 
 #include "core/check.h"
+#include "core/color.h"
 
 namespace genscene::inverse {
 
 namespace {
-
-double Luminance(const Eigen::Vector3d& c) { return 0.2126 * c.x() + 0.7152 * c.y() + 0.0722 * c.z(); }
 
 // True when the pixel and its 8 neighbours all see the same non-emitting mesh.
 bool Interior(const Image<int>& object, int u, int v, const std::vector<bool>& emitter_meshes) {

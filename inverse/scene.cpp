@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/check.h"
+#include "core/color.h"
 
 namespace genscene::inverse {
 
@@ -69,9 +70,7 @@ float VoxelLightGrid::MaxIntensityLuminance(int voxel) const {
   const auto& l = weights[voxel];
   // max over unit w of sum_k lambda_k max(0, w.d_k) = norm of the per-axis larger weights.
   const double mx = std::max(l[0], l[1]), my = std::max(l[2], l[3]), mz = std::max(l[4], l[5]);
-  const Eigen::Vector3f& L = intensity[voxel];
-  const float luminance = 0.2126f * L.x() + 0.7152f * L.y() + 0.0722f * L.z();
-  return luminance * static_cast<float>(std::sqrt(mx * mx + my * my + mz * mz));
+  return Luminance(intensity[voxel]) * static_cast<float>(std::sqrt(mx * mx + my * my + mz * mz));
 }
 
 std::vector<SceneMesh> VoxelLightGrid::ExportCubeFaces() const {

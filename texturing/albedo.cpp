@@ -234,13 +234,13 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
     if (piece_class[p] < dark_class) {
       const Eigen::Vector2d& m = modes[piece_class[p]];
       const Eigen::Vector3d chroma(m.x(), m.y(), std::max(0.0, 1.0 - m.x() - m.y()));
-      const double l_chroma = 0.2126 * chroma.x() + 0.7152 * chroma.y() + 0.0722 * chroma.z();
-      const double l_mean = 0.2126 * mean[p].x() + 0.7152 * mean[p].y() + 0.0722 * mean[p].z();
+      const double l_chroma = Luminance(chroma);
+      const double l_mean = Luminance(mean[p]);
       if (l_chroma > 1e-9) mean[p] = (chroma * (l_mean / l_chroma)).cwiseMax(1e-6);
     }
   }
   auto log_lum = [](const Eigen::Vector3d& c) {
-    return std::log(std::max(1e-9, 0.2126 * c.x() + 0.7152 * c.y() + 0.0722 * c.z()));
+    return std::log(std::max(1e-9, Luminance(c)));
   };
   std::vector<double> log_mean(n_pieces);
   for (int p = 0; p < n_pieces; ++p) log_mean[p] = log_lum(mean[p]);
@@ -326,8 +326,7 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
   std::vector<Building> building;
   std::vector<int> cluster_of_piece(n_pieces);
   for (int p : order) {
-    const double l = std::max(1e-9, 0.2126 * piece_albedo[p].x() + 0.7152 * piece_albedo[p].y() +
-                                        0.0722 * piece_albedo[p].z());
+    const double l = std::max(1e-9, Luminance(piece_albedo[p]));
     int found = -1;
     for (size_t c = 0; c < building.size(); ++c) {
       if (building[c].klass == piece_class[p] && std::abs(std::log(l / building[c].lum)) <= std::log1p(o.merge_tolerance)) {
