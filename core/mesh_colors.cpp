@@ -336,6 +336,12 @@ TriangleMesh MeshColors::ToSubdividedMesh(const TriangleMesh& mesh) const {
   return out;
 }
 
+int ResolutionForSpacing(double longest_edge, double spacing, int max_resolution) {
+  int r = 1;
+  while (longest_edge / r > spacing && r < max_resolution) r *= 2;
+  return r;
+}
+
 std::vector<int> ChooseFaceResolutions(const TriangleMesh& mesh, double spacing, int max_resolution) {
   if (!(spacing > 0.0) || !std::isfinite(spacing)) {
     throw Error(Format("texel spacing = ", spacing, " m must be positive"));
@@ -352,9 +358,7 @@ std::vector<int> ChooseFaceResolutions(const TriangleMesh& mesh, double spacing,
       longest = std::max(longest,
                          (mesh.vertices[v[k]] - mesh.vertices[v[(k + 1) % 3]]).cast<double>().norm());
     }
-    int r = 1;
-    while (longest / r > spacing && r < max_resolution) r *= 2;
-    out[f] = r;
+    out[f] = ResolutionForSpacing(longest, spacing, max_resolution);
   }
   return out;
 }

@@ -53,6 +53,8 @@ class MeshColors {
   const std::vector<int>& face_resolutions() const { return face_resolution_; }
   // The two vertices of edge e (lower index first) and the edge of face side k (vertex k to k+1).
   const Eigen::Vector2i& Edge(int edge) const { return edges_[edge]; }
+  // True for a vertex no face uses (its sample has no neighbours and no face point).
+  bool IsolatedVertex(int vertex) const { return vertex_face_[vertex] < 0; }
   int FaceEdge(int face, int side) const { return face_edges_[3 * face + side]; }
 
   size_t SampleCount() const { return colors_.size(); }
@@ -120,8 +122,11 @@ constexpr size_t MeshColorsInteriorCount(int r) { return r < 2 ? 0 : size_t(r - 
 
 uint64_t MeshFingerprint(const TriangleMesh& mesh);
 
-// Per-face resolution for a target sample spacing in meters: the smallest power of two R with
-// longest edge / R <= spacing, at most max_resolution.
+// The smallest power of two R with longest_edge / R <= spacing, at most max_resolution.
+int ResolutionForSpacing(double longest_edge, double spacing, int max_resolution);
+
+// Per-face resolution for a target sample spacing in meters: ResolutionForSpacing of each face's
+// longest edge.
 std::vector<int> ChooseFaceResolutions(const TriangleMesh& mesh, double spacing, int max_resolution);
 
 // .mcol: "GSMCOL01", u32 vertex count, u32 face count, u64 mesh fingerprint, one u8 log2(R) per

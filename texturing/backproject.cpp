@@ -152,11 +152,8 @@ std::vector<int> FaceResolutions(const TriangleMesh& mesh, const std::vector<Vie
       res[f] = 1;  // no keyframe sees it: its colour is filled from neighbours anyway
       return;
     }
-    const double spacing = std::max(o.texel_spacing, footprint);
     const double longest = std::max({(p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()});
-    int rf = 1;
-    while (longest / rf > spacing && rf < o.max_resolution) rf *= 2;
-    res[f] = rf;
+    res[f] = ResolutionForSpacing(longest, std::max(o.texel_spacing, footprint), o.max_resolution);
   }, 64);
   return res;
 }
@@ -265,12 +262,10 @@ TexturingResult TextureMesh(const TriangleMesh& input_mesh, const std::vector<Rg
   std::vector<uint8_t> known(n, 0);
   std::vector<uint16_t> used(n, 0), rejected(n, 0);
   std::vector<std::atomic<uint8_t>> seen_by(views.size());
-  std::vector<uint8_t> has_face(static_cast<size_t>(texture.num_vertices()), 0);
-  for (const Eigen::Vector3i& f : mesh.faces) has_face[f[0]] = has_face[f[1]] = has_face[f[2]] = 1;
   ParallelForChunks(0, n, 1024, [&](size_t begin, size_t end) {
     std::vector<ColorSample> samples;
     for (size_t s = begin; s < end; ++s) {
-      if (s < has_face.size() && !has_face[s]) continue;  // isolated vertex
+      if (s < texture.VertexSampleCount() && texture.IsolatedVertex(static_cast<int>(s))) continue;
       const Eigen::Vector3d p = positions[s].cast<double>();
       Eigen::Vector3d normal = normals[s].cast<double>();
       if (!(normal.norm() > 0.0)) continue;
@@ -308,8 +303,8 @@ TexturingResult TextureMesh(const TriangleMesh& input_mesh, const std::vector<Rg
     if (known[s]) mean += texture.colors()[s].cast<double>();
   }
   mean /= static_cast<double>(stats.observed);
-  for (size_t v = 0; v < has_face.size(); ++v) {
-    if (!has_face[v]) known[v] = 1, ++stats.isolated;  // stays black; nothing to fill from
+  for (int v = 0; v < texture.num_vertices(); ++v) {
+    if (texture.IsolatedVertex(v)) known[v] = 1, ++stats.isolated;  // stays black; nothing to fill from
   }
   stats.filled = FillUnobserved(texture, texture.colors(), known, mean.cast<float>(), &stats.unreached);
   texture.labels().assign(used.begin(), used.end());
