@@ -5,6 +5,7 @@
 #include "core/check.h"
 #include "core/file_util.h"
 #include "core/mesh_colors.h"
+#include "core/options_json.h"
 #include "core/ply_io.h"
 
 namespace genscene::apps {
@@ -20,13 +21,6 @@ TriangleMesh LoadMesh(const std::filesystem::path& path) {
   TriangleMesh mesh = ReadPly(path);
   if (mesh.faces.empty()) throw Error(Format(path.string(), ": the mesh has no faces, nothing to texture"));
   return mesh;
-}
-
-template <typename Options>
-json OptionsJson(Options options) {
-  json j = json::object();
-  options.Visit([&](const char* key, const auto& value, const char*, const char*) { j[key] = value; });
-  return j;
 }
 
 }  // namespace
@@ -68,7 +62,7 @@ TextureSummary TextureWorkspace(const TextureInputs& inputs, const SourceOptions
               {"isolated", s.isolated}, {"samples_used", s.samples_used}, {"samples_rejected", s.samples_rejected},
               {"keyframes", s.keyframes}, {"keyframes_seeing_mesh", s.keyframes_seeing_mesh},
               {"seconds_visibility", s.seconds_visibility}, {"seconds_backproject", s.seconds_backproject}}},
-            {"options", OptionsJson(options)}})
+            {"options", OptionsToJson(options)}})
               .dump(1) + "\n");
   return summary;
 }
@@ -111,7 +105,7 @@ AlbedoSummary AlbedoWorkspace(const std::filesystem::path& mesh_path_in, const t
              {{"clusters", result.clusters.size()}, {"chroma_classes", s.chroma_classes}, {"pieces", s.pieces},
               {"boundary_edges", s.boundary_edges}, {"shading_jump_rms", s.shading_jump_rms}}},
             {"clusters", clusters},
-            {"options", OptionsJson(options)}})
+            {"options", OptionsToJson(options)}})
           .dump(1) +
       "\n";
   WriteMeshColors(ws.Albedo(), result.albedo);

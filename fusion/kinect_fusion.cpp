@@ -6,6 +6,7 @@
 
 #include "core/file_util.h"
 #include "core/options.h"
+#include "core/options_json.h"
 #include "core/se3.h"
 #include "core/sequence_writer.h"
 
@@ -217,9 +218,7 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
     summary["ate"] = {{"pairs", ate->pairs}, {"rmse_m", ate->rmse}, {"mean_m", ate->mean},
                       {"median_m", ate->median}, {"max_m", ate->max}};
   }
-  json options = json::object();
-  FusionOptions copy = fusion.options();
-  copy.Visit([&](const char* key, const auto& value, const char*, const char*) { options[key] = value; });
+  const json options = OptionsToJson(fusion.options());
 
   WriteTumTrajectory(workspace.Trajectory(), fusion.trajectory());
   WriteTsdfVolume(workspace.Tsdf(), volume);
