@@ -35,7 +35,7 @@ double Now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
-void SpeedAgainstError(int threads) {
+void SpeedAgainstError() {
   const SyntheticScene scene = MakeStripedWallScene();
   const TriangleMesh exact = scene.ToMesh();
   // Split into small triangles (R = 32 per original face) like a fused mesh.
@@ -96,7 +96,6 @@ void SpeedAgainstError(int threads) {
                 r.stats.texels / best / 1e6, sum / std::max<size_t>(n, 1), worst);
   }
   std::printf("(error: mean over channels of |linear lookup - albedo| at random points of the observed wall; albedo range 0.1-0.9)\n");
-  (void)threads;
 }
 
 void CornellFigure(const fs::path& data, const fs::path& out) {
@@ -156,7 +155,7 @@ int main(int argc, char** argv) {
   }
   SetThreadCount(threads);
   try {
-    SpeedAgainstError(threads);
+    SpeedAgainstError();
     if (fs::exists(data / "cbox-cycles")) {
       CornellFigure(data, out);
     } else {

@@ -75,8 +75,8 @@ std::optional<Hit> See(const View& view, const Eigen::Vector3d& p, const Eigen::
 }
 
 Eigen::Vector3f Bilinear(const ImageRgb& image, double u, double v) {
-  const int u0 = std::min(static_cast<int>(u), image.width() - 2 < 0 ? 0 : image.width() - 2);
-  const int v0 = std::min(static_cast<int>(v), image.height() - 2 < 0 ? 0 : image.height() - 2);
+  const int u0 = std::min(static_cast<int>(u), std::max(0, image.width() - 2));
+  const int v0 = std::min(static_cast<int>(v), std::max(0, image.height() - 2));
   const int u1 = std::min(u0 + 1, image.width() - 1), v1 = std::min(v0 + 1, image.height() - 1);
   const float fu = static_cast<float>(u - u0), fv = static_cast<float>(v - v0);
   return (1 - fv) * ((1 - fu) * image(u0, v0) + fu * image(u1, v0)) +

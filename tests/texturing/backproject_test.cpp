@@ -91,7 +91,6 @@ TEST(Texturing, RasterizerDrawsWallsThatReachBehindTheCamera) {
   const CameraIntrinsics k = Intrinsics(64, 48);
   const Eigen::Isometry3d world_from_camera = LookAt(Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 5, 0.5));
   const ImageDepth depth = RenderDepth(floor, k, world_from_camera.inverse());
-  const Eigen::Isometry3d camera_from_world = world_from_camera.inverse();
   int drawn = 0;
   double worst = 0.0;
   for (int v = 0; v < k.height; ++v) {
@@ -111,7 +110,6 @@ TEST(Texturing, RasterizerDrawsWallsThatReachBehindTheCamera) {
   }
   EXPECT_GT(drawn, k.width * k.height / 3);
   EXPECT_LT(worst, 1e-5) << "perspective-correct depth";
-  (void)camera_from_world;
 }
 
 TEST(Texturing, StripedWallBehindAnOccluderIsRecoveredWithoutContamination) {
