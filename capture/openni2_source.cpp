@@ -7,6 +7,8 @@
 #include <cmath>
 #include <filesystem>
 #include <mutex>
+#include <optional>
+#include <utility>
 
 #include "capture/oni_format.h"
 #include "core/check.h"
@@ -97,50 +99,15 @@ class OpenNI2Source : public FrameSource {
         to_linear_(LinearTable(CameraResponse::Parse(options.camera_response))) {
     InitializeOpenNI2();
     is_file_ = !(spec == "openni2" || spec.rfind("openni2:", 0) == 0);
-    std::optional<OniFileInfo> info;
-    if (is_file_) {
-      // Inspect the container first: truncated files, depth-only files and streams without
-      // xnCropping would otherwise end in a crash, a hang or no frames inside OpenNI2.
-      info = InspectOniFile(spec);
-      RequirePlayableRgbd(*info);
-      OpenDevice(spec.c_str());
-    } else {
-      // A recording opened earlier in this process stays listed as a device (and would be what
-      // ANY_DEVICE opens): only real cameras count, and the first one is opened by its URI.
-      const std::vector<std::string> cameras = ListCameraUris();
-      if (cameras.empty()) throw Error(kNoDeviceMessage);
-      const std::string uri = spec.size() > 8 ? spec.substr(8) : cameras.front();
-      OpenDevice(uri.c_str());
+    try {
+      Open();
+    } catch (...) {
+      Close();  // the members' own destructors would tear down in the unsafe order (see Close)
+      throw;
     }
-    CreateStreams();
-    intrinsics_ = ChooseIntrinsics(info);
-    intrinsics_.Validate(Describe());
-    if (is_file_) {
-      // Manual stepping, no repeat: every frame once, in order. (seek() is never used: it crashes.)
-      openni::PlaybackControl* playback = device_.getPlaybackControl();
-      if (!playback)
-        throw Error(Format(spec_, ": OpenNI2 gives no playback control for this recording"));
-      playback->setRepeatEnabled(false);
-      playback->setSpeed(-1.0f);
-      total_ = std::min(playback->getNumberOfFrames(depth_), playback->getNumberOfFrames(color_));
-      if (total_ <= 0) throw Error(Format(spec_, ": OpenNI2 reports no frames"));
-    }
-    for (openni::VideoStream* s : {&depth_, &color_}) {
-      if (s->start() != openni::STATUS_OK)
-        throw Error(Format(spec_, ": cannot start a stream: ", LastOpenNI2Error()));
-    }
-    started_ = true;
   }
 
-  ~OpenNI2Source() override {
-    if (started_) {
-      depth_.stop();
-      color_.stop();
-    }
-    depth_.destroy();
-    color_.destroy();
-    device_.close();
-  }
+  ~OpenNI2Source() override { Close(); }
 
   std::string Describe() const override {
     return Format(is_file_ ? "OpenNI2 recording " : "OpenNI2 camera ", spec_, " (",
@@ -173,6 +140,94 @@ class OpenNI2Source : public FrameSource {
   }
 
  private:
+  // The constructor's work: opens the device, creates and starts the depth + colour streams.
+  void Open() {
+    std::optional<OniFileInfo> info;
+    if (is_file_) {
+      // Inspect the container first: truncated files, depth-only files and streams without
+      // xnCropping would otherwise end in a crash, a hang or no frames inside OpenNI2.
+      info = InspectOniFile(spec_);
+      RequirePlayableRgbd(*info);
+      OpenDevice(spec_.c_str());
+    } else {
+      // A recording opened earlier in this process stays listed as a device (and would be what
+      // ANY_DEVICE opens): only real cameras count, and the first one is opened by its URI.
+      const std::vector<std::string> cameras = ListCameraUris();
+      if (cameras.empty()) throw Error(kNoDeviceMessage);
+      const std::string uri = spec_.size() > 8 ? spec_.substr(8) : cameras.front();
+      OpenDevice(uri.c_str());
+    }
+    CreateStreams();
+    intrinsics_ = ChooseIntrinsics(info);
+    intrinsics_.Validate(Describe());
+    if (is_file_) {
+      // Manual stepping, no repeat: every frame once, in order. (seek() is never used: it crashes.)
+      openni::PlaybackControl* playback = device_.getPlaybackControl();
+      if (!playback)
+        throw Error(Format(spec_, ": OpenNI2 gives no playback control for this recording"));
+      playback->setRepeatEnabled(false);
+      playback->setSpeed(-1.0f);
+      depth_total_ = playback->getNumberOfFrames(*depth_);
+      color_total_ = playback->getNumberOfFrames(*color_);
+      total_ = std::min(depth_total_, color_total_);
+      if (total_ <= 0) throw Error(Format(spec_, ": OpenNI2 reports no frames"));
+    }
+    for (openni::VideoStream* s : {&*depth_, &*color_}) {
+      if (s->start() != openni::STATUS_OK)
+        throw Error(Format(spec_, ": cannot start a stream: ", LastOpenNI2Error()));
+      any_started_ = true;
+    }
+  }
+
+  // Releases everything OpenNI2 gave us; also after a partial Open.
+  //
+  // For a recording, no plain teardown order is safe with Debian's OpenNI2 2.2.0.33; which one is
+  // depends on where the OniFile driver's player thread is (upstream
+  // Source/Drivers/OniFile/PlayerDevice.cpp). Failures seen with two test processes side by side
+  // on 2 CPUs (ctest -j2; the player thread gets preempted at the wrong moment), none alone:
+  // - Streams destroyed, then the device closed (the usual order): the player thread's MainLoop
+  //   walks the device's stream list (PlayerDevice::m_streams) WITHOUT the device lock -- every
+  //   10 ms while no stream is started, in a busy loop once a recording has reached its end --
+  //   while PlayerDevice::destroyStream (reached from oniStreamDestroy) unlinks and frees that
+  //   list's node on our thread: SIGSEGV in MainLoop reading the freed node, while Device::close
+  //   waits for the thread. 21 of 800 processes whose recording had played to its end.
+  // - Device closed first: OpenNI2's core Device::close deletes its per-sensor objects and only
+  //   then closes the driver device, which wakes and joins the player thread. A player stopped
+  //   part-way is parked in OnNodeNewData holding the next frame and, once woken, delivers it into
+  //   the deleted object: SIGSEGV in 52 of 300 processes that stop after 4 of 6 frames. And
+  //   destroying a stream after its device is closed reads and writes that deleted object too
+  //   (valgrind, every time).
+  // So, for a recording whose player can hold no frame -- no stream ever started (it reads nothing
+  // before a start) or both streams read to their last frame (it then reads the end record, closes
+  // the file and delivers nothing more) -- the device is closed first, which joins the player
+  // thread before the stream list is touched, and the two stream handles are then left alone for
+  // the rest of the process (two idle OpenNI2 stream objects and threads per recording read).
+  // Residual race, not closed here: the player thread may still be returning from the delivery
+  // of the last frame (it releases the frame through the per-sensor object after we have it) when
+  // Device::close deletes that object -- 1 of 500 such processes under the same load. A fix would
+  // wait for OpenNI2's device-state event ONI_DEVICE_STATE_EOF (raised after that return) first.
+  // A recording stopped part-way is torn down streams first: the driver then unregisters its
+  // streams, so the held frame goes nowhere, and the parked player thread walks the stream list
+  // only under the device lock, once per 2 s wait (0 failures in 300 processes).
+  // Live cameras: streams first, then the device, as OpenNI2 documents.
+  void Close() {
+    depth_frame_.release();
+    color_frame_.release();
+    for (std::optional<openni::VideoStream>* s : {&depth_, &color_}) {
+      if (*s) (*s)->stop();
+    }
+    const bool player_holds_no_frame =
+        !any_started_ || (depth_read_ >= depth_total_ && color_read_ >= color_total_);
+    if (!(is_file_ && player_holds_no_frame)) {
+      for (std::optional<openni::VideoStream>* s : {&depth_, &color_}) {
+        if (*s && (*s)->isValid()) oniStreamDestroy((*s)->_getHandle());
+      }
+    }
+    depth_.reset();  // the wrappers do not own the handles: nothing is destroyed here
+    color_.reset();
+    device_.close();
+  }
+
   void OpenDevice(const char* uri) {
     if (device_.open(uri) != openni::STATUS_OK) {
       const std::string error = LastOpenNI2Error();
@@ -188,17 +243,21 @@ class OpenNI2Source : public FrameSource {
                          device_.hasSensor(openni::SENSOR_DEPTH) ? "colour" : "depth",
                          " sensor (genscene needs depth + colour)"));
     }
-    if (depth_.create(device_, openni::SENSOR_DEPTH) != openni::STATUS_OK ||
-        color_.create(device_, openni::SENSOR_COLOR) != openni::STATUS_OK) {
-      throw Error(
-          Format(spec_, ": cannot create the depth and colour streams: ", LastOpenNI2Error()));
+    for (auto [stream, sensor] :
+         {std::pair{&depth_, ONI_SENSOR_DEPTH}, std::pair{&color_, ONI_SENSOR_COLOR}}) {
+      OniStreamHandle handle = nullptr;
+      if (oniDeviceCreateStream(device_._getHandle(), sensor, &handle) != ONI_STATUS_OK) {
+        throw Error(
+            Format(spec_, ": cannot create the depth and colour streams: ", LastOpenNI2Error()));
+      }
+      stream->emplace(handle);  // a wrapper that does not own the handle (see Close)
     }
     if (!is_file_) {
-      SetLiveMode(depth_, {openni::PIXEL_FORMAT_DEPTH_1_MM, openni::PIXEL_FORMAT_DEPTH_100_UM},
+      SetLiveMode(*depth_, {openni::PIXEL_FORMAT_DEPTH_1_MM, openni::PIXEL_FORMAT_DEPTH_100_UM},
                   "depth");
-      SetLiveMode(color_, {openni::PIXEL_FORMAT_RGB888}, "colour");
-      depth_.setMirroringEnabled(false);
-      color_.setMirroringEnabled(false);
+      SetLiveMode(*color_, {openni::PIXEL_FORMAT_RGB888}, "colour");
+      depth_->setMirroringEnabled(false);
+      color_->setMirroringEnabled(false);
       if (capture_.registration) {
         if (device_.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR)) {
           if (device_.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR) !=
@@ -214,7 +273,7 @@ class OpenNI2Source : public FrameSource {
         }
       }
     }
-    const openni::VideoMode dm = depth_.getVideoMode(), cm = color_.getVideoMode();
+    const openni::VideoMode dm = depth_->getVideoMode(), cm = color_->getVideoMode();
     if (dm.getResolutionX() != cm.getResolutionX() || dm.getResolutionY() != cm.getResolutionY()) {
       throw Error(Format(spec_, ": depth ", dm.getResolutionX(), "x", dm.getResolutionY(),
                          " but colour ", cm.getResolutionX(), "x", cm.getResolutionY(),
@@ -271,7 +330,7 @@ class OpenNI2Source : public FrameSource {
       }
     }
     // Registered depth lives in the colour camera: take the colour stream's field of view.
-    const openni::VideoStream& s = (!is_file_ && capture_.registration) ? color_ : depth_;
+    const openni::VideoStream& s = (!is_file_ && capture_.registration) ? *color_ : *depth_;
     return IntrinsicsFromFieldOfView(s.getHorizontalFieldOfView(), s.getVerticalFieldOfView(),
                                      width_, height_);
   }
@@ -281,7 +340,7 @@ class OpenNI2Source : public FrameSource {
     if (is_file_ && depth_read_ >= total_ && color_read_ >= total_) return false;
     depth_frame_.release();
     color_frame_.release();
-    openni::VideoStream* streams[2] = {&depth_, &color_};
+    openni::VideoStream* streams[2] = {&*depth_, &*color_};
     const int timeout_ms = static_cast<int>(std::lround(capture_.frame_timeout * 1000.0));
     while (!depth_frame_.isValid() || !color_frame_.isValid()) {
       int ready = -1;
@@ -369,14 +428,16 @@ class OpenNI2Source : public FrameSource {
   CaptureOptions capture_;
   std::array<float, 256> to_linear_;
   bool is_file_ = false;
-  bool started_ = false;
+  bool any_started_ = false;  // a stream was started (the player may hold a frame; see Close)
   openni::Device device_;
-  openni::VideoStream depth_, color_;
+  // Wrappers that do not own their stream handles: Close decides whether a handle is destroyed.
+  std::optional<openni::VideoStream> depth_, color_;
   openni::VideoFrameRef depth_frame_, color_frame_;
   int width_ = 0, height_ = 0;
-  int total_ = 0;                        // frames in a recording
-  int depth_read_ = 0, color_read_ = 0;  // frames read from each stream so far
-  int next_index_ = 0;                   // index of the next frame pair to read
+  int total_ = 0;                          // frames in a recording (pairs: the smaller count)
+  int depth_total_ = 0, color_total_ = 0;  // frames of each stream in a recording
+  int depth_read_ = 0, color_read_ = 0;    // frames read from each stream so far
+  int next_index_ = 0;                     // index of the next frame pair to read
   size_t emitted_ = 0;
   CameraIntrinsics intrinsics_;
   Trajectory no_poses_;

@@ -57,9 +57,14 @@ TEST_F(OniFromTumFolder, PlaysInOpenNI2sOwnPlayer) {
   ASSERT_TRUE(device.isFile());
   ASSERT_TRUE(device.hasSensor(openni::SENSOR_DEPTH));
   ASSERT_TRUE(device.hasSensor(openni::SENSOR_COLOR));
-  openni::VideoStream depth, color;
-  ASSERT_EQ(depth.create(device, openni::SENSOR_DEPTH), openni::STATUS_OK);
-  ASSERT_EQ(color.create(device, openni::SENSOR_COLOR), openni::STATUS_OK);
+  // Streams wrapped without ownership of their handles, which are left alone at the end (see
+  // there): the C++ wrapper of a stream made with create() destroys it in its destructor.
+  OniStreamHandle depth_handle = nullptr, color_handle = nullptr;
+  ASSERT_EQ(oniDeviceCreateStream(device._getHandle(), ONI_SENSOR_DEPTH, &depth_handle),
+            ONI_STATUS_OK);
+  ASSERT_EQ(oniDeviceCreateStream(device._getHandle(), ONI_SENSOR_COLOR, &color_handle),
+            ONI_STATUS_OK);
+  openni::VideoStream depth(depth_handle), color(color_handle);
   EXPECT_EQ(depth.getVideoMode().getResolutionX(), 64);
   EXPECT_EQ(depth.getVideoMode().getResolutionY(), 48);
   EXPECT_EQ(depth.getVideoMode().getPixelFormat(), openni::PIXEL_FORMAT_DEPTH_1_MM);
@@ -104,10 +109,13 @@ TEST_F(OniFromTumFolder, PlaysInOpenNI2sOwnPlayer) {
   // At the end: no further frame arrives (and waiting does not hang).
   int ready = -1;
   EXPECT_EQ(openni::OpenNI::waitForAnyStream(streams, 2, &ready, 300), openni::STATUS_TIME_OUT);
+  // The recording has played to its end: stop, close the device, and leave the two stream
+  // handles alone. Destroying a stream of an open recording races with the OniFile driver's
+  // player thread, which walks its stream list without a lock (SIGSEGV now and then under
+  // ctest -j2), and destroying it after the device is closed touches freed memory (valgrind).
+  // OpenNI2Source::Close (capture/openni2_source.cpp) has the details and the other cases.
   depth.stop();
   color.stop();
-  depth.destroy();
-  color.destroy();
   device.close();
 }
 
