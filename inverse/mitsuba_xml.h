@@ -86,7 +86,7 @@ LoadedScene ImportMitsubaXml(const std::filesystem::path& path,
 //   albedo per face too); per-vertex albedo and albedo fields are first reduced to one value per
 //   face (the value at the face centroid), which is an approximation and adds a warning;
 // - point lights as `point` emitters; voxel lights as the emissive cube faces of
-//   VoxelLightGrid::ExportCubeFaces(), each a `rectangle` with a to_world matrix;
+//   VoxelCubeFaces(), each a `rectangle` with a to_world matrix;
 // - views as perspective sensors (x fov, principal point offsets, to_world matrix) with the
 //   settings' film, filter, sampler and integrator. Views need fx == fy and no distortion;
 //   their timestamps are not kept (an imported file numbers its sensors 0, 1, 2...).

@@ -217,7 +217,7 @@ std::vector<std::string> ExportMitsubaXml(const fs::path& path, const Scene& sce
   // is Mitsuba's rectangle [-1, 1]^2 mapped by the columns [a, b, n, centre], a = (v1 - v0) / 2,
   // b = (v3 - v0) / 2, n = unit(a x b), so that its +z front becomes the face's front.
   if (scene.voxel_lights) {
-    for (const SceneMesh& face : scene.voxel_lights->ExportCubeFaces()) {
+    for (const SceneMesh& face : VoxelCubeFaces(*scene.voxel_lights)) {
       const auto& v = face.mesh.vertices;
       const Vector3d a = (v[1] - v[0]).cast<double>() / 2.0, b = (v[3] - v[0]).cast<double>() / 2.0;
       Matrix3d linear;

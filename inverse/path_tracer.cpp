@@ -324,6 +324,104 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin, const Eigen:
   return radiance;
 }
 
+void VoxelSplitting::SetPmf(std::vector<double> probabilities, int samples_per_vertex) {
+  GS_CHECK_GT(samples_per_vertex, 0);
+  double total = 0.0;
+  for (double p : probabilities) total += p;
+  GS_CHECK_GT(total, 0.0);
+  pmf = std::move(probabilities);
+  cdf.resize(pmf.size());
+  double running = 0.0;
+  for (size_t i = 0; i < pmf.size(); ++i) {
+    pmf[i] /= total;
+    running += pmf[i];
+    cdf[i] = running;
+  }
+  cdf.back() = 1.0;
+  samples = samples_per_vertex;
+}
+
+int VoxelSplitting::Choose(double u) const {
+  const auto it = std::upper_bound(cdf.begin(), cdf.end(), u);
+  size_t i = std::min(static_cast<size_t>(it - cdf.begin()), pmf.size() - 1);
+  while (pmf[i] <= 0.0 && i + 1 < pmf.size()) ++i;
+  return static_cast<int>(i);
+}
+
+void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                                   const VoxelLightGrid& grid, const VoxelSplitting& splitting,
+                                   const RenderOptions& options, CounterRng& rng, const VoxelCoefficientSink& sink,
+                                   RayCounts* counts, float first_vertex_weight) const {
+  RayCounts local;
+  Eigen::Vector3f beta = Eigen::Vector3f::Ones();
+  Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
+  const auto allowed = [&](int segments) { return options.max_depth < 0 || segments <= options.max_depth; };
+  const int voxels = grid.VoxelCount();
+
+  for (int depth = 1;; ++depth) {
+    ++local.intersect;
+    const auto hit = Hit(ray_o, ray_d);
+    if (!hit || !allowed(depth + 1)) break;
+    const SceneMesh& mesh = scene_.meshes[hit->mesh];
+    const Eigen::Vector3f albedo = mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2);
+    if (albedo.maxCoeff() <= 0.0f) break;
+    SurfacePoint at = *hit;
+    if (at.ng.dot(ray_d) > 0.0f) at.ng = -at.ng, at.ns = -at.ns;
+    const Eigen::Vector3f origin_offset = at.p + OffsetScale(at.p) * at.ng;
+    const Eigen::Vector3f f_beta = beta.cwiseProduct(albedo) / static_cast<float>(M_PI);
+
+    // One shadow ray to voxel j; as SampleLight + next-event estimation in Radiance().
+    const auto connect = [&](int j, float weight) {
+      const Eigen::Vector3f to_light = grid.VoxelCenter(j).cast<float>() - at.p;
+      const float d2 = to_light.squaredNorm();
+      if (d2 <= 0.0f) return;
+      const float distance = std::sqrt(d2);
+      const Eigen::Vector3f wi = to_light / distance;
+      const float cos_s = at.ns.dot(wi);
+      if (cos_s <= 0.0f || at.ng.dot(wi) <= 0.0f) return;
+      ++local.occluded;
+      if (tracer_->Occluded(origin_offset, wi, 0.0f, distance * (1.0f - 1e-4f))) return;
+      // I(w) = L sum_k lambda_k max(0, w . d_k) with w = -wi, from the voxel to the surface.
+      const Eigen::Vector3f base = f_beta * (cos_s / d2 * weight);
+      std::array<Eigen::Vector3f, 6> c;
+      const float w[3] = {-wi.x(), -wi.y(), -wi.z()};
+      for (int axis = 0; axis < 3; ++axis) {
+        c[2 * axis] = base * std::max(0.0f, w[axis]);
+        c[2 * axis + 1] = base * std::max(0.0f, -w[axis]);
+      }
+      sink(j, c);
+    };
+    if (depth == 1 && first_vertex_weight <= 0.0f) {
+      // direct light estimated by other paths
+    } else if (depth <= splitting.all_until_depth || splitting.samples <= 0) {
+      const float weight = depth == 1 ? first_vertex_weight : 1.0f;
+      for (int j = 0; j < voxels; ++j) {
+        if (splitting.enabled.empty() || splitting.enabled[j]) connect(j, weight);
+      }
+    } else {
+      for (int s = 0; s < splitting.samples; ++s) {
+        const int j = splitting.Choose(rng.UniformDouble());
+        connect(j, static_cast<float>(1.0 / (splitting.samples * splitting.pmf[j])));
+      }
+    }
+
+    const Eigen::Vector3f wi = SampleCosine(at.ns, rng.Uniform(), rng.Uniform());
+    if (at.ng.dot(wi) <= 0.0f) break;
+    beta = beta.cwiseProduct(albedo);
+    if (depth >= options.rr_depth) {
+      const float q = std::min(0.95f, beta.maxCoeff());
+      if (rng.Uniform() >= q) break;
+      beta /= q;
+    }
+    ray_o = origin_offset;
+    ray_d = wi;
+  }
+  if (counts) {
+    counts->intersect += local.intersect;
+    counts->occluded += local.occluded;
+  }
+}
+
 RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, uint64_t seed) const {
   options.Validate();
   const CameraIntrinsics& k = view.intrinsics;

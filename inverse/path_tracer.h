@@ -5,7 +5,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -60,6 +62,25 @@ struct RenderOutput {
   RayCounts rays;        // traced for the radiance (not for the geometry buffers)
 };
 
+// Which voxel lights a path vertex connects to when light estimation splits (issue 7). Vertices up
+// to depth `all_until_depth` (1 = the first surface hit) connect to every voxel with
+// `enabled[j]` (empty = all of them); deeper vertices draw `samples` voxels with probabilities
+// `pmf` (sum 1), each connection weighted 1 / (samples * pmf[j]); with samples = 0 they connect
+// to every voxel too.
+struct VoxelSplitting {
+  std::vector<bool> enabled;
+  int all_until_depth = 1 << 30;
+  int samples = 0;
+  std::vector<double> pmf;
+  std::vector<double> cdf;  // running sum of pmf (filled by SetPmf)
+  void SetPmf(std::vector<double> probabilities, int samples_per_vertex);
+  int Choose(double u) const;
+};
+
+// Receives, for a path vertex connected to voxel j, the RGB coefficient c_k of each product
+// L_j * lambda_jk: the vertex's contribution to the pixel is sum_k c_k (*) L_j lambda_jk.
+using VoxelCoefficientSink = std::function<void(int voxel, const std::array<Eigen::Vector3f, 6>& c)>;
+
 class PathTracer {
  public:
   // Copies what it needs from the scene (validated) and builds the ray tracer.
@@ -73,6 +94,19 @@ class PathTracer {
   // Adds the rays it traces to `counts` when given.
   Eigen::Vector3f Radiance(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
                            const RenderOptions& options, CounterRng& rng, RayCounts* counts = nullptr) const;
+
+  // Light estimation's walk (issue 7): the same camera path as Radiance() (BSDF sampling,
+  // Russian roulette, max_depth), but at every vertex it connects to the voxels of `splitting`
+  // (positions from `grid`; its intensities are not read) with a shadow ray each, and reports
+  // the coefficient of every L_j lambda_jk to `sink` instead of adding radiance. Emitters and the
+  // scene's own lights are ignored. The predicted radiance is linear in the products L lambda.
+  // The connections of the first vertex (direct light) are weighted by `first_vertex_weight`
+  // (0: not traced), so that direct and indirect light can be estimated from different numbers
+  // of paths.
+  void VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                         const VoxelLightGrid& grid, const VoxelSplitting& splitting,
+                         const RenderOptions& options, CounterRng& rng, const VoxelCoefficientSink& sink,
+                         RayCounts* counts = nullptr, float first_vertex_weight = 1.0f) const;
 
   const Scene& scene() const { return scene_; }
   const RayTracer& tracer() const { return *tracer_; }

@@ -37,6 +37,20 @@ Scene MakeCornellBoxScene() {
   return scene;
 }
 
+std::vector<View> CornellLightViews(int width, int height) {
+  const CameraIntrinsics k = CameraIntrinsics::FromHorizontalFov(width, height, 60.0);
+  const std::pair<Eigen::Vector3d, Eigen::Vector3d> eye_target[] = {
+      {{0.0, -0.95, 1.0}, {0.0, 0.5, 0.8}},    // training: the whole box from the front
+      {{-0.8, -0.9, 1.4}, {0.3, 0.6, 0.5}},    // training: from the left, looking down
+      {{0.8, -0.9, 0.6}, {-0.3, 0.5, 1.1}},    // training: from the right, looking up
+      {{0.85, 0.85, 1.3}, {-0.5, -0.5, 0.6}},  // novel: from the back corner
+      {{-0.9, 0.2, 0.5}, {0.8, -0.2, 1.2}},    // novel: from the red wall towards the green one
+  };
+  std::vector<View> views;
+  for (const auto& [eye, target] : eye_target) views.push_back({k, LookAt(eye, target)});
+  return views;
+}
+
 Scene MakeRoomScene() {
   SyntheticScene room;
   const Eigen::Vector3f wall(0.78f, 0.76f, 0.72f), floor(0.35f, 0.3f, 0.27f), wood(0.45f, 0.3f, 0.18f);

@@ -14,4 +14,9 @@ Scene MakeCornellBoxScene();
 // a ball, lit by a ceiling panel and a warm lamp on the cabinet.
 Scene MakeRoomScene();
 
+// The light-estimation replica of the paper's Fig. 3 (issue 7): five views inside the Cornell box
+// of MakeCornellBoxScene, `width` x `height`, 60 degrees horizontal field of view; the first three
+// are the training views, the last two the novel views.
+std::vector<View> CornellLightViews(int width, int height);
+
 }  // namespace genscene::inverse

@@ -42,46 +42,15 @@ Eigen::Vector3f SurfaceAlbedo::Eval(const TriangleMesh& mesh, int face, float b1
   return constant;
 }
 
-const std::array<Eigen::Vector3d, 6>& VoxelLightGrid::Directions() {
-  static const std::array<Eigen::Vector3d, 6> d = {
-      Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(-1, 0, 0), Eigen::Vector3d(0, 1, 0),
-      Eigen::Vector3d(0, -1, 0), Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 0, -1)};
-  return d;
-}
-
-Eigen::Vector3d VoxelLightGrid::VoxelCenter(int voxel) const {
-  const int x = voxel % dims.x();
-  const int y = (voxel / dims.x()) % dims.y();
-  const int z = voxel / (dims.x() * dims.y());
-  const Eigen::Vector3d size = bounds.sizes().cwiseQuotient(dims.cast<double>());
-  return bounds.min() + Eigen::Vector3d(x + 0.5, y + 0.5, z + 0.5).cwiseProduct(size);
-}
-
-Eigen::Vector3f VoxelLightGrid::Intensity(int voxel, const Eigen::Vector3d& w) const {
-  const auto& lambda = weights[voxel];
-  // Faces facing w: +x when w.x > 0, -x when w.x < 0, and so on.
-  const double sum = lambda[0] * std::max(0.0, w.x()) + lambda[1] * std::max(0.0, -w.x()) +
-                     lambda[2] * std::max(0.0, w.y()) + lambda[3] * std::max(0.0, -w.y()) +
-                     lambda[4] * std::max(0.0, w.z()) + lambda[5] * std::max(0.0, -w.z());
-  return intensity[voxel] * static_cast<float>(sum);
-}
-
-float VoxelLightGrid::MaxIntensityLuminance(int voxel) const {
-  const auto& l = weights[voxel];
-  // max over unit w of sum_k lambda_k max(0, w.d_k) = norm of the per-axis larger weights.
-  const double mx = std::max(l[0], l[1]), my = std::max(l[2], l[3]), mz = std::max(l[4], l[5]);
-  return Luminance(intensity[voxel]) * static_cast<float>(std::sqrt(mx * mx + my * my + mz * mz));
-}
-
-std::vector<SceneMesh> VoxelLightGrid::ExportCubeFaces() const {
+std::vector<SceneMesh> VoxelCubeFaces(const VoxelLightGrid& grid) {
   std::vector<SceneMesh> out;
-  const double h = 0.5 * cube_size;
-  const auto& dirs = Directions();
-  for (int v = 0; v < VoxelCount(); ++v) {
-    if (intensity[v].maxCoeff() <= 0.0f) continue;
-    const Eigen::Vector3d c = VoxelCenter(v);
+  const double h = 0.5 * grid.cube_size;
+  const auto& dirs = VoxelLightGrid::Directions();
+  for (int v = 0; v < grid.VoxelCount(); ++v) {
+    if (grid.intensity[v].maxCoeff() <= 0.0f) continue;
+    const Eigen::Vector3d c = grid.VoxelCenter(v);
     for (int k = 0; k < 6; ++k) {
-      if (weights[v][k] <= 0.0f) continue;
+      if (grid.weights[v][k] <= 0.0f) continue;
       const Eigen::Vector3d n = dirs[k];
       // Two tangent axes with t1 x t2 = n, so (c + h(+-t1 +-t2)) is counter-clockwise seen from n.
       const Eigen::Vector3d t1 = dirs[(k / 2 * 2 + 2) % 6];
@@ -95,37 +64,11 @@ std::vector<SceneMesh> VoxelLightGrid::ExportCubeFaces() const {
       m.mesh.faces = {Eigen::Vector3i(0, 1, 2), Eigen::Vector3i(0, 2, 3)};
       m.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Zero());
       // Intensity along n of a Lambertian quad of area A and radiance R is R A: R = L lambda / A.
-      m.emission = intensity[v] * static_cast<float>(weights[v][k] / (cube_size * cube_size));
+      m.emission = grid.intensity[v] * static_cast<float>(grid.weights[v][k] / (grid.cube_size * grid.cube_size));
       out.push_back(std::move(m));
     }
   }
   return out;
-}
-
-void VoxelLightGrid::Validate() const {
-  if (dims.minCoeff() < 1 || dims.maxCoeff() > 256) {
-    throw Error(Format("voxel lights: grid ", dims.transpose(), " is not in [1, 256] per axis"));
-  }
-  if (bounds.isEmpty() || !bounds.min().allFinite() || !bounds.max().allFinite()) {
-    throw Error("voxel lights: bounds are empty or not finite");
-  }
-  const size_t n = static_cast<size_t>(VoxelCount());
-  if (intensity.size() != n || weights.size() != n) {
-    throw Error(Format("voxel lights: ", intensity.size(), " intensities and ", weights.size(),
-                       " weight sets for ", n, " voxels"));
-  }
-  for (size_t v = 0; v < n; ++v) {
-    if (!intensity[v].allFinite() || intensity[v].minCoeff() < 0.0f) {
-      throw Error(Format("voxel lights: voxel ", v, " has intensity (", intensity[v].transpose(),
-                         "), must be finite and >= 0"));
-    }
-    for (float w : weights[v]) {
-      if (!std::isfinite(w) || w < 0.0f) {
-        throw Error(Format("voxel lights: voxel ", v, " has a directional weight ", w, ", must be >= 0"));
-      }
-    }
-  }
-  if (!(cube_size > 0.0)) throw Error(Format("voxel lights: cube_size ", cube_size, " must be > 0"));
 }
 
 void Scene::Validate() const {

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "core/light_set.h"
 #include "core/mesh.h"
 #include "core/view_set.h"
 
@@ -60,39 +61,10 @@ struct PointLight {
   Eigen::Vector3f intensity = Eigen::Vector3f::Zero();  // radiant intensity, W/sr per channel
 };
 
-// Voxel lights (the paper's Fig. 1): a regular grid of dims.x * dims.y * dims.z voxels over
-// `bounds`, each with an RGB intensity L >= 0 and six directional weights lambda_k >= 0 for the
-// directions d_k = +x, -x, +y, -y, +z, -z (in that order).
-//
-// Emission model: a voxel is a tiny cube at the voxel centre whose face k is a one-sided
-// Lambertian emitter facing d_k. Seen from direction w (unit, from the voxel towards the
-// receiver), face k shows its projected area A * max(0, w . d_k), so the voxel's radiant
-// intensity is
-//     I(w) = L * sum_k lambda_k * max(0, w . d_k)        [W/sr]
-// i.e. L * lambda_k is the intensity along d_k. The cube is treated as a point for shading (it
-// is tiny next to the distances to the surfaces it lights), which makes the predicted pixel a
-// linear function of the products L * lambda_k (what light estimation caches). The model is
-// physically exact and exports to any renderer as six emissive quads of side `cube_size` with
-// radiance L * lambda_k / cube_size^2 (ExportCubeFaces).
-struct VoxelLightGrid {
-  Eigen::AlignedBox3d bounds;
-  Eigen::Vector3i dims = Eigen::Vector3i::Constant(7);
-  std::vector<Eigen::Vector3f> intensity;        // L per voxel, x fastest, then y, then z
-  std::vector<std::array<float, 6>> weights;     // lambda per voxel
-  double cube_size = 0.01;                       // side of the exported emitting cube, meters
-
-  static const std::array<Eigen::Vector3d, 6>& Directions();
-  int VoxelCount() const { return dims.x() * dims.y() * dims.z(); }
-  Eigen::Vector3d VoxelCenter(int voxel) const;
-  // Radiant intensity of `voxel` towards unit direction w (from the voxel to the receiver).
-  Eigen::Vector3f Intensity(int voxel, const Eigen::Vector3d& w) const;
-  // Upper bound of the intensity over directions (for light selection): L * max over the
-  // combinations of at most three faces facing one direction.
-  float MaxIntensityLuminance(int voxel) const;
-  // The six emitting quads of every active voxel, as emissive scene meshes.
-  std::vector<SceneMesh> ExportCubeFaces() const;
-  void Validate() const;
-};
+// Voxel lights: core/light_set.h (the light set is shared with the viewer). The six emitting
+// quads of every active voxel as emissive scene meshes, for renderers that have no voxel lights:
+// side `grid.cube_size`, radiance L * lambda_k / cube_size^2.
+std::vector<SceneMesh> VoxelCubeFaces(const VoxelLightGrid& grid);
 
 struct Scene {
   std::vector<SceneMesh> meshes;

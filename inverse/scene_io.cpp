@@ -13,6 +13,7 @@
 
 #include "core/check.h"
 #include "core/file_util.h"
+#include "core/json_util.h"
 #include "core/ply_io.h"
 #include "core/se3.h"
 #include "inverse/mitsuba_xml.h"
@@ -28,61 +29,7 @@ using Eigen::Vector3d;
 using Eigen::Vector3f;
 using json = nlohmann::ordered_json;  // keeps the documented key order when writing
 
-// ------------------------------------------------------------------------------------------------
-// JSON helpers: every value is checked, every unknown key is an Error naming it.
-
-void CheckKeys(const json& j, std::initializer_list<const char*> allowed,
-               const std::string& where) {
-  if (!j.is_object()) throw Error(Format(where, ": must be a JSON object"));
-  for (const auto& [key, value] : j.items()) {
-    if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; })) {
-      throw Error(Format(where, ": unknown key '", key, "'"));
-    }
-  }
-}
-
-double JsonNumber(const json& j, const std::string& where) {
-  if (!j.is_number() || !std::isfinite(j.get<double>())) {
-    throw Error(Format(where, ": expected a finite number, got ", j.dump()));
-  }
-  return j.get<double>();
-}
-
-template <int N>
-Eigen::Matrix<double, N, 1> JsonVector(const json& j, const std::string& where) {
-  if (!j.is_array() || j.size() != N)
-    throw Error(Format(where, ": expected ", N, " numbers, got ", j.dump()));
-  Eigen::Matrix<double, N, 1> v;
-  for (int i = 0; i < N; ++i) v[i] = JsonNumber(j[static_cast<size_t>(i)], where);
-  return v;
-}
-
-json JsonArray(const json& j, const std::string& where) {  // a copy: callers pass temporaries
-  if (!j.is_array()) throw Error(Format(where, ": expected a list"));
-  return j;
-}
-
-json ToJson(const Eigen::Ref<const Eigen::VectorXd>& v) {
-  return std::vector<double>(v.data(), v.data() + v.size());
-}
-// Floats as the double of their shortest decimal text: "0.725", not "0.7250000238418579".
-json FloatsToJson(const Vector3f& v) {
-  std::vector<double> out;
-  for (float x : {v.x(), v.y(), v.z()}) {
-    char text[32];
-    *std::to_chars(text, text + sizeof(text) - 1, x).ptr = '\0';
-    out.push_back(std::strtod(text, nullptr));
-  }
-  return out;
-}
-
-json ParseJsonFile(const fs::path& path) {
-  try {
-    return json::parse(ReadTextFile(path));
-  } catch (const json::parse_error& e) {
-    throw Error(Format(path.string(), ": malformed JSON (", e.what(), ")"));
-  }
-}
+using namespace json_util;  // NOLINT: CheckKeys, JsonNumber, JsonVector, ... (core/json_util.h)
 
 std::string Digits17(const std::vector<double>& values) {
   std::ostringstream out;
@@ -224,29 +171,6 @@ SceneMesh ParseMesh(const json& j, const fs::path& file, const std::string& wher
   return m;
 }
 
-VoxelLightGrid ParseVoxelLights(const json& j, const std::string& where) {
-  CheckKeys(j, {"bounds_min", "bounds_max", "dims", "cube_size", "intensity", "weights"}, where);
-  for (const char* key : {"bounds_min", "bounds_max", "dims", "intensity", "weights"}) {
-    if (!j.contains(key)) throw Error(Format(where, ": missing \"", key, "\""));
-  }
-  VoxelLightGrid g;
-  g.bounds = Eigen::AlignedBox3d(JsonVector<3>(j["bounds_min"], where + ".bounds_min"),
-                                 JsonVector<3>(j["bounds_max"], where + ".bounds_max"));
-  const Vector3d dims = JsonVector<3>(j["dims"], where + ".dims");
-  if (dims != dims.array().round().matrix()) throw Error(Format(where, ".dims: expected integers"));
-  g.dims = dims.cast<int>();
-  if (j.contains("cube_size")) g.cube_size = JsonNumber(j["cube_size"], where + ".cube_size");
-  for (const json& v : JsonArray(j["intensity"], where + ".intensity")) {
-    g.intensity.push_back(JsonVector<3>(v, where + ".intensity").cast<float>());
-  }
-  for (const json& v : JsonArray(j["weights"], where + ".weights")) {
-    const Eigen::Matrix<double, 6, 1> w = JsonVector<6>(v, where + ".weights");
-    g.weights.push_back({});
-    for (int k = 0; k < 6; ++k) g.weights.back()[static_cast<size_t>(k)] = static_cast<float>(w[k]);
-  }
-  g.Validate();
-  return g;
-}
 
 LoadedScene LoadSceneJsonUnguarded(const fs::path& path) {
   const std::string name = path.string();
@@ -276,7 +200,7 @@ LoadedScene LoadSceneJsonUnguarded(const fs::path& path) {
     }
   }
   if (j.contains("voxel_lights"))
-    out.scene.voxel_lights = ParseVoxelLights(j["voxel_lights"], name + ": voxel_lights");
+    out.scene.voxel_lights = VoxelLightGridFromJson(j["voxel_lights"], name + ": voxel_lights");
   if (j.contains("cameras")) {
     for (const json& c : JsonArray(j["cameras"], name + ": cameras")) {
       out.views.push_back(ParseCamera(c, Format(name, ": cameras[", out.views.size(), "]")));
@@ -369,18 +293,7 @@ void SaveSceneJson(const fs::path& path, const Scene& scene, const std::vector<V
     lights.push_back({{"position", ToJson(p.position)}, {"intensity", FloatsToJson(p.intensity)}});
   }
   j["point_lights"] = lights;
-  if (scene.voxel_lights) {
-    const VoxelLightGrid& g = *scene.voxel_lights;
-    json intensity = json::array(), weights = json::array();
-    for (const Vector3f& l : g.intensity) intensity.push_back(FloatsToJson(l));
-    for (const auto& w : g.weights) weights.push_back(std::vector<double>(w.begin(), w.end()));
-    j["voxel_lights"] = {{"bounds_min", ToJson(g.bounds.min())},
-                         {"bounds_max", ToJson(g.bounds.max())},
-                         {"dims", {g.dims.x(), g.dims.y(), g.dims.z()}},
-                         {"cube_size", g.cube_size},
-                         {"intensity", intensity},
-                         {"weights", weights}};
-  }
+  if (scene.voxel_lights) j["voxel_lights"] = VoxelLightGridToJson(*scene.voxel_lights);
   if (!views.empty()) {
     json cameras = json::array();
     for (const View& v : views) cameras.push_back(CameraToJson(v));

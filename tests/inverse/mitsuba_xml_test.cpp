@@ -582,7 +582,7 @@ TEST(MitsubaXmlExport, RoundTripKeepsGeometryAlbedoEmissionLightsAndViews) {
   EXPECT_TRUE(ExportMitsubaXml(dir / "out.xml", scene, views, settings).empty());
   const LoadedScene back = ImportMitsubaXml(dir / "out.xml");
   EXPECT_TRUE(back.warnings.empty());
-  const std::vector<SceneMesh> cube_faces = grid.ExportCubeFaces();
+  const std::vector<SceneMesh> cube_faces = VoxelCubeFaces(grid);
   ASSERT_EQ(back.scene.meshes.size(), 1 + 2 + cube_faces.size());  // the wall splits by albedo
   const SceneMesh& lamp_back = back.scene.meshes[0];
   EXPECT_EQ(lamp_back.name, "lamp");
@@ -609,7 +609,7 @@ TEST(MitsubaXmlExport, RoundTripKeepsGeometryAlbedoEmissionLightsAndViews) {
       }
     }
   }
-  // Voxel lights come back as emissive quads equal to ExportCubeFaces().
+  // Voxel lights come back as emissive quads equal to VoxelCubeFaces().
   for (size_t i = 0; i < cube_faces.size(); ++i) {
     const SceneMesh& q = back.scene.meshes[3 + i];
     EXPECT_EQ(q.emission, cube_faces[i].emission);

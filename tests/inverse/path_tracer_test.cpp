@@ -214,7 +214,7 @@ TEST(PathTracer, VoxelLightMatchesItsSixQuadExport) {
   voxel.voxel_lights = grid;
   Scene quads;
   quads.meshes = voxel.meshes;
-  for (const SceneMesh& m : grid.ExportCubeFaces()) quads.meshes.push_back(m);
+  for (const SceneMesh& m : VoxelCubeFaces(grid)) quads.meshes.push_back(m);
   EXPECT_EQ(quads.meshes.size(), 1u + 5u + 5u);  // zero weights export no quad
 
   const View view = LookingDownAt({0.1, -1.5, 2.0}, {0.0, 0.0, 0.0}, 16, 12, 10.0);

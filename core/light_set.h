@@ -1,0 +1,74 @@
+// The light set of a scene model (DESIGN.md §3): voxel lights, the paper's Fig. 1, as light
+// estimation writes them to `lights.json` and the renderer, the viewer and the exporters read them.
+//
+// lights.json (written by genscene-lights, version 1):
+//   {
+//     "genscene_lights": 1,
+//     "voxel_lights": {
+//       "bounds_min": [x, y, z], "bounds_max": [x, y, z],   meters, world frame
+//       "dims": [nx, ny, nz],                              voxels per axis
+//       "cube_size": s,                                     side of the exported emitting cube, m
+//       "intensity": [[r, g, b], ...],                      L per voxel (W/sr), x fastest, then y, z
+//       "weights": [[l+x, l-x, l+y, l-y, l+z, l-z], ...]    six lambdas per voxel, in [0, 1]
+//     },
+//     "estimate": { ... }                                   free-form: how the estimate was made
+//   }
+#pragma once
+
+#include <Eigen/Geometry>
+#include <array>
+#include <filesystem>
+#include <nlohmann/json_fwd.hpp>
+#include <string>
+#include <vector>
+
+namespace genscene {
+
+// Voxel lights (the paper's Fig. 1): a regular grid of dims.x * dims.y * dims.z voxels over
+// `bounds`, each with an RGB intensity L >= 0 and six directional weights lambda_k >= 0 for the
+// directions d_k = +x, -x, +y, -y, +z, -z (in that order).
+//
+// Emission model: a voxel is a tiny cube at the voxel centre whose face k is a one-sided
+// Lambertian emitter facing d_k. Seen from direction w (unit, from the voxel towards the
+// receiver), face k shows its projected area A * max(0, w . d_k), so the voxel's radiant
+// intensity is
+//     I(w) = L * sum_k lambda_k * max(0, w . d_k)        [W/sr]
+// i.e. L * lambda_k is the intensity along d_k. The cube is treated as a point for shading (it
+// is tiny next to the distances to the surfaces it lights), which makes the predicted pixel a
+// linear function of the products L * lambda_k (what light estimation caches). The model is
+// physically exact and exports to any renderer as six emissive quads of side `cube_size` with
+// radiance L * lambda_k / cube_size^2 (inverse::VoxelCubeFaces).
+struct VoxelLightGrid {
+  Eigen::AlignedBox3d bounds;
+  Eigen::Vector3i dims = Eigen::Vector3i::Constant(7);
+  std::vector<Eigen::Vector3f> intensity;        // L per voxel, x fastest, then y, then z
+  std::vector<std::array<float, 6>> weights;     // lambda per voxel
+  double cube_size = 0.01;                       // side of the exported emitting cube, meters
+
+  static const std::array<Eigen::Vector3d, 6>& Directions();
+  int VoxelCount() const { return dims.x() * dims.y() * dims.z(); }
+  Eigen::Vector3d VoxelCenter(int voxel) const;
+  // Radiant intensity of `voxel` towards unit direction w (from the voxel to the receiver).
+  Eigen::Vector3f Intensity(int voxel, const Eigen::Vector3d& w) const;
+  // Upper bound of the intensity over directions (for light selection): L * max over the
+  // combinations of at most three faces facing one direction.
+  float MaxIntensityLuminance(int voxel) const;
+  // Radiant power (W) of `voxel`, per channel: the integral of I(w) over the sphere,
+  // pi * L * sum_k lambda_k.
+  Eigen::Vector3f Power(int voxel) const;
+  // Voxels whose power luminance is at least `fraction` of the largest one (0: any power > 0).
+  std::vector<int> ActiveVoxels(double fraction = 0.0) const;
+  void Validate() const;
+};
+
+// The "voxel_lights" object above, read (every key checked, Errors name `where`) and written.
+VoxelLightGrid VoxelLightGridFromJson(const nlohmann::ordered_json& j, const std::string& where);
+nlohmann::ordered_json VoxelLightGridToJson(const VoxelLightGrid& grid);
+
+// lights.json: the grid plus a free-form "estimate" object (a JSON text, may be empty "{}").
+// Write is atomic (temporary name, then rename); Read throws Error naming the file.
+void WriteLightsJson(const std::filesystem::path& path, const VoxelLightGrid& grid,
+                     const std::string& estimate_json = "{}");
+VoxelLightGrid ReadLightsJson(const std::filesystem::path& path);
+
+}  // namespace genscene

@@ -1,0 +1,867 @@
+#include "inverse/light_estimation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+
+#include "core/check.h"
+#include "core/color.h"
+#include "core/options.h"
+#include "core/parallel.h"
+#include "core/rng.h"
+
+namespace genscene::inverse {
+
+namespace {
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// Calls sink(voxel, coefficients) for every connection of the `paths.spp` paths through `pixel`,
+// scaled so that their sum estimates the pixel. Direct light (the first vertex's connections)
+// comes from the first `direct_paths` of them, indirect light from all. Each group's positions
+// in the pixel are a Latin hypercube (stratified in x and in y) over the box filter's footprint
+// [u - 0.5, u + 0.5) x [v - 0.5, v + 0.5). Random numbers are keyed by (seed, view, pixel).
+template <typename Sink>
+void WalkPixel(const PathTracer& tracer, const VoxelLightGrid& grid, const VoxelSplitting& splitting,
+               const SampledPixel& pixel, const View& view, const RenderOptions& paths, int direct_paths,
+               uint64_t seed, const Sink& sink, RayCounts* rays) {
+  const CameraIntrinsics& k = view.intrinsics;
+  const Eigen::Matrix3f rotation = view.world_from_camera.rotation().cast<float>();
+  const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
+  const uint64_t stream = (static_cast<uint64_t>(pixel.view) << 32) |
+                          static_cast<uint64_t>(pixel.v * k.width + pixel.u);
+  const int total = paths.spp, direct = std::clamp(direct_paths, 1, total);
+  const float scale = 1.0f / static_cast<float>(total);
+  const VoxelCoefficientSink scaled = [&](int voxel, const std::array<Eigen::Vector3f, 6>& c) {
+    std::array<Eigen::Vector3f, 6> s;
+    for (int i = 0; i < 6; ++i) s[i] = c[i] * scale;
+    sink(voxel, s);
+  };
+  // Latin hypercube per group: path s of a group of n takes x stratum s and y stratum perm[s].
+  CounterRng strata(seed, stream, 0xFFFFFFFFull);
+  std::vector<int> perm(static_cast<size_t>(total));
+  for (int begin : {0, direct}) {
+    const int end = begin == 0 ? direct : total;
+    for (int s = begin; s < end; ++s) perm[s] = s - begin;
+    for (int s = end - 1; s > begin; --s) std::swap(perm[s], perm[begin + strata.UniformInt(static_cast<uint32_t>(s - begin + 1))]);
+  }
+  for (int s = 0; s < total; ++s) {
+    CounterRng rng(seed, stream, static_cast<uint64_t>(s));
+    const int n = s < direct ? direct : total - direct, stratum = s < direct ? s : s - direct;
+    const double x = pixel.u - 0.5 + (stratum + rng.UniformDouble()) / n;
+    const double y = pixel.v - 0.5 + (perm[s] + rng.UniformDouble()) / n;
+    const Eigen::Vector3f dir = rotation * k.RayDirection(x, y).cast<float>().normalized();
+    const float first_weight = s < direct ? static_cast<float>(total) / static_cast<float>(direct) : 0.0f;
+    tracer.VoxelCoefficients(eye, dir, grid, splitting, paths, rng, scaled, rays, first_weight);
+  }
+}
+
+void CheckView(const TrainingView& tv, size_t index) {
+  const CameraIntrinsics& k = tv.view.intrinsics;
+  k.Validate(Format("view ", index));
+  if (tv.image.width() != k.width || tv.image.height() != k.height) {
+    throw Error(Format("view ", index, ": image ", tv.image.width(), "x", tv.image.height(), " but intrinsics say ",
+                       k.width, "x", k.height));
+  }
+}
+
+}  // namespace
+
+void LightEstimationOptions::Validate() const {
+  RequireRange("grid", grid, 1, 64);
+  RequireRange("pixels_per_view", pixels_per_view, 1, 1 << 24);
+  RequireRange("spp", spp, 2, 1 << 16);
+  if (spp % 2) throw Error(Format("option spp = ", spp, " must be even (two independent halves)"));
+  RequireRange("direct_paths", direct_paths, 1, 1 << 16);  // at most all of a half's paths
+  if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
+  RequireRange("rr_depth", rr_depth, 1, 1 << 20);
+  RequireRange("penalty_weight", penalty_weight, 0.0, 1e6);
+  RequireRange("penalty_epsilon", penalty_epsilon, 1e-9, 1e6);
+  RequireRange("rounds", rounds, 1, 100);
+  RequireRange("round_tolerance", round_tolerance, 0.0, 10.0);
+  RequireRange("resample_voxels", resample_voxels, 1, 1 << 16);
+  RequireRange("resample_uniform", resample_uniform, 0.0, 1.0);
+  RequireRange("max_iterations", max_iterations, 1, 1 << 20);
+  RequireRange("tolerance", tolerance, 0.0, 1.0);
+  RequireRange("saturation", saturation, 0.0, 1e30);
+  RequireRange("emitter_factor", emitter_factor, 1.0, 1e30);
+  RequireRange("noise_correction", noise_correction, 0.0, 1.0);
+  RequireRange("active_fraction", active_fraction, 0.0, 1.0);
+}
+
+RenderOptions LightEstimationOptions::Paths() const {
+  RenderOptions r;
+  r.spp = spp;
+  r.max_depth = max_depth;
+  r.rr_depth = rr_depth;
+  r.filter = "box";
+  return r;
+}
+
+Scene WithoutLights(const Scene& scene) {
+  Scene out;
+  for (const SceneMesh& m : scene.meshes) {
+    if (!m.IsEmitter()) out.meshes.push_back(m);
+  }
+  if (out.meshes.empty()) throw Error("light estimation: the scene has no reflecting (non-emitting) mesh");
+  return out;
+}
+
+VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims) {
+  VoxelLightGrid g;
+  for (const SceneMesh& m : scene.meshes) {
+    if (m.IsEmitter()) continue;
+    for (const auto& v : m.mesh.vertices) g.bounds.extend(v.cast<double>());
+  }
+  if (g.bounds.isEmpty() || g.bounds.sizes().minCoeff() <= 0.0) {
+    // A flat scene (one wall): give the grid some depth so it still has volume.
+    const double size = std::max(1e-3, g.bounds.isEmpty() ? 1.0 : g.bounds.sizes().maxCoeff());
+    g.bounds.extend(g.bounds.min() - Eigen::Vector3d::Constant(0.5 * size));
+    g.bounds.extend(g.bounds.max() + Eigen::Vector3d::Constant(0.5 * size));
+  }
+  g.dims = Eigen::Vector3i::Constant(dims);
+  g.intensity.assign(static_cast<size_t>(g.VoxelCount()), Eigen::Vector3f::Zero());
+  g.weights.assign(static_cast<size_t>(g.VoxelCount()), {1, 1, 1, 1, 1, 1});
+  g.cube_size = 0.05 * g.bounds.sizes().minCoeff() / dims;
+  return g;
+}
+
+Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& tv, const LightEstimationOptions& options,
+                           PixelMaskCounts* counts) {
+  const CameraIntrinsics& k = tv.view.intrinsics;
+  const Eigen::Matrix3f rotation = tv.view.world_from_camera.rotation().cast<float>();
+  const Eigen::Vector3f eye = tv.view.world_from_camera.translation().cast<float>();
+  Image<uint8_t> valid(k.width, k.height, 0);
+  PixelMaskCounts local;
+  std::vector<float> luminance;
+  for (int v = 0; v < k.height; ++v) {
+    for (int u = 0; u < k.width; ++u) {
+      const Eigen::Vector3f& observed = tv.image(u, v);
+      if (!observed.allFinite()) {
+        throw Error(Format("pixel (", u, ", ", v, ") holds a non-finite value (", observed.transpose(), ")"));
+      }
+      const Eigen::Vector3f dir = rotation * k.RayDirection(u, v).cast<float>().normalized();
+      const auto hit = tracer.tracer().Intersect(eye, dir);
+      bool reflects = false;
+      if (hit) {
+        const SceneMesh& m = tracer.scene().meshes[hit->mesh];
+        reflects = !m.IsEmitter() && m.albedo.Eval(m.mesh, hit->face, hit->b1, hit->b2).maxCoeff() > 0.0f;
+      }
+      if (!reflects) {
+        ++local.miss;
+      } else if (options.saturation > 0.0 && observed.maxCoeff() >= options.saturation) {
+        ++local.saturated;
+      } else {
+        valid(u, v) = 1;
+        luminance.push_back(Luminance(observed));
+      }
+    }
+  }
+  // Emitters seen directly: far brighter than anything the lit surfaces show.
+  if (!luminance.empty()) {
+    std::vector<float> sorted = luminance;
+    const size_t at = static_cast<size_t>(0.95 * static_cast<double>(sorted.size() - 1));
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(at), sorted.end());
+    const double limit = options.emitter_factor * std::max(0.0f, sorted[at]);
+    // The box filter mixes an emitter into the pixels around it: those go too (8-neighbours).
+    Image<uint8_t> bright(k.width, k.height, 0);
+    for (int v = 0; v < k.height; ++v) {
+      for (int u = 0; u < k.width; ++u) bright(u, v) = limit > 0.0 && Luminance(tv.image(u, v)) > limit;
+    }
+    for (int v = 0; v < k.height; ++v) {
+      for (int u = 0; u < k.width; ++u) {
+        bool near = false;
+        for (int dv = -1; dv <= 1; ++dv) {
+          for (int du = -1; du <= 1; ++du) {
+            const int uu = u + du, vv = v + dv;
+            near = near || (uu >= 0 && vv >= 0 && uu < k.width && vv < k.height && bright(uu, vv));
+          }
+        }
+        if (valid(u, v) && near) {
+          valid(u, v) = 0;
+          ++local.emitter;
+        }
+      }
+    }
+  }
+  for (size_t i = 0; i < valid.size(); ++i) local.valid += valid.data()[i];
+  if (counts) *counts = local;
+  return valid;
+}
+
+std::vector<SampledPixel> SamplePixels(const PathTracer& tracer, const std::vector<TrainingView>& views,
+                                       const LightEstimationOptions& options, uint64_t seed,
+                                       std::vector<PixelMaskCounts>* counts) {
+  options.Validate();
+  if (views.empty()) throw Error("light estimation: no training views");
+  std::vector<SampledPixel> out;
+  if (counts) counts->clear();
+  for (size_t i = 0; i < views.size(); ++i) {
+    CheckView(views[i], i);
+    PixelMaskCounts c;
+    Image<uint8_t> valid;
+    try {
+      valid = ValidPixels(tracer, views[i], options, &c);
+    } catch (const Error& e) {
+      throw Error(Format("view ", i, ": ", e.what()));
+    }
+    if (counts) counts->push_back(c);
+    std::vector<int> candidates;
+    for (size_t p = 0; p < valid.size(); ++p) {
+      if (valid.data()[p]) candidates.push_back(static_cast<int>(p));
+    }
+    // Partial Fisher-Yates: the first n of a seeded shuffle, then raster order.
+    const size_t n = std::min(candidates.size(), static_cast<size_t>(options.pixels_per_view));
+    CounterRng rng(seed, 0x9E3779B97F4A7C15ull, i);
+    for (size_t a = 0; a < n; ++a) {
+      const size_t b = a + rng.UniformInt(static_cast<uint32_t>(candidates.size() - a));
+      std::swap(candidates[a], candidates[b]);
+    }
+    candidates.resize(n);
+    std::sort(candidates.begin(), candidates.end());
+    const int width = views[i].image.width();
+    for (int p : candidates) {
+      SampledPixel s;
+      s.view = static_cast<int>(i);
+      s.u = p % width;
+      s.v = p / width;
+      s.observed = views[i].image(s.u, s.v);
+      out.push_back(s);
+    }
+  }
+  if (out.empty()) {
+    throw Error("light estimation: no valid pixel in any view (every camera ray misses the geometry, sees an "
+                "emitter or is saturated)");
+  }
+  return out;
+}
+
+LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid, const VoxelSplitting& splitting,
+                           const std::vector<TrainingView>& views, const std::vector<SampledPixel>& pixels,
+                           const LightEstimationOptions& options, uint64_t seed) {
+  const RenderOptions paths = options.Paths();
+  const int parameters = 6 * grid.VoxelCount();
+  struct Row {
+    std::vector<int32_t> index;
+    std::vector<Eigen::Vector3f> coefficient;
+    RayCounts rays;
+  };
+  std::vector<Row> rows(pixels.size());
+  ParallelForChunks(0, pixels.size(), 8, [&](size_t begin, size_t end) {
+    // Dense accumulator over the parameters, reset through the list of touched entries.
+    std::vector<Eigen::Vector3f> sum(static_cast<size_t>(parameters), Eigen::Vector3f::Zero());
+    std::vector<int32_t> touched;
+    for (size_t i = begin; i < end; ++i) {
+      const SampledPixel& pixel = pixels[i];
+      GS_CHECK_LT(static_cast<size_t>(pixel.view), views.size());
+      touched.clear();
+      WalkPixel(tracer, grid, splitting, pixel, views[pixel.view].view, paths, options.direct_paths, seed,
+                [&](int voxel, const std::array<Eigen::Vector3f, 6>& c) {
+                  for (int k = 0; k < 6; ++k) {
+                    if (c[k].maxCoeff() <= 0.0f) continue;
+                    const int32_t p = 6 * voxel + k;
+                    if (sum[p].maxCoeff() <= 0.0f) touched.push_back(p);
+                    sum[p] += c[k];
+                  }
+                },
+                &rows[i].rays);
+      std::sort(touched.begin(), touched.end());
+      touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+      Row& row = rows[i];
+      row.index = touched;
+      for (int32_t p : touched) {
+        row.coefficient.push_back(sum[p]);
+        sum[p].setZero();
+      }
+    }
+  });
+  LightCache cache;
+  cache.parameters = parameters;
+  cache.pixels = pixels;
+  cache.row_begin.push_back(0);
+  for (Row& row : rows) {
+    cache.index.insert(cache.index.end(), row.index.begin(), row.index.end());
+    cache.coefficient.insert(cache.coefficient.end(), row.coefficient.begin(), row.coefficient.end());
+    cache.row_begin.push_back(cache.index.size());
+    cache.rays.intersect += row.rays.intersect;
+    cache.rays.occluded += row.rays.occluded;
+  }
+  return cache;
+}
+
+Eigen::Vector3f RenderSampledPixel(const PathTracer& tracer, const VoxelLightGrid& grid,
+                                   const VoxelSplitting& splitting, const SampledPixel& pixel,
+                                   const std::vector<TrainingView>& views, const LightEstimationOptions& options,
+                                   uint64_t seed) {
+  Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
+  WalkPixel(tracer, grid, splitting, pixel, views.at(static_cast<size_t>(pixel.view)).view, options.Paths(),
+            options.direct_paths, seed,
+            [&](int voxel, const std::array<Eigen::Vector3f, 6>& c) {
+              for (int k = 0; k < 6; ++k) {
+                radiance += c[k].cwiseProduct(grid.intensity[voxel]) * grid.weights[voxel][k];
+              }
+            },
+            nullptr);
+  return radiance;
+}
+
+std::vector<Eigen::Vector3f> LightCache::Predict(const VoxelLightGrid& grid) const {
+  GS_CHECK_EQ(grid.VoxelCount() * 6, parameters);
+  std::vector<Eigen::Vector3f> out(pixels.size(), Eigen::Vector3f::Zero());
+  ParallelFor(0, pixels.size(), [&](size_t i) {
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    for (size_t e = row_begin[i]; e < row_begin[i + 1]; ++e) {
+      const int j = index[e] / 6, k = index[e] % 6;
+      sum += coefficient[e].cwiseProduct(grid.intensity[j]) * grid.weights[j][k];
+    }
+    out[i] = sum;
+  });
+  return out;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Normal equations
+
+namespace {
+
+// The normal equations of NormalEquations::FromCaches from sparse rows: per row, the merged
+// entries of both halves (compact indices, sorted), then per tile of G the products of the
+// row's entries that fall in it. Cost sum_i nnz_i^2 instead of pixels x n^2.
+void FillSparse(const LightCache& first, const LightCache& second, double correction, const std::vector<int>& compact,
+                const std::vector<std::pair<int, int>>& tile_pairs, int tile, NormalEquations* eq) {
+  const int n = static_cast<int>(eq->used.size());
+  const bool same = &first == &second;
+  std::vector<size_t> begin{0};
+  std::vector<int> index;
+  std::vector<Eigen::Vector3f> mean, half_difference;
+  for (size_t i = 0; i < eq->pixels; ++i) {
+    size_t a = first.row_begin[i], b = second.row_begin[i];
+    const size_t a_end = first.row_begin[i + 1], b_end = same ? b : second.row_begin[i + 1];
+    while (a < a_end || b < b_end) {
+      const int32_t pa = a < a_end ? first.index[a] : INT32_MAX, pb = b < b_end ? second.index[b] : INT32_MAX;
+      const int32_t p = std::min(pa, pb);
+      Eigen::Vector3f ca = Eigen::Vector3f::Zero(), cb = Eigen::Vector3f::Zero();
+      if (pa == p) ca = first.coefficient[a++];
+      if (pb == p) cb = second.coefficient[b++];
+      if (same) cb = ca;
+      index.push_back(compact[p]);
+      mean.push_back(0.5f * (ca + cb));
+      half_difference.push_back(0.5f * (ca - cb));
+    }
+    begin.push_back(index.size());
+  }
+  for (int c = 0; c < 3; ++c) {
+    eq->gram[c] = Eigen::MatrixXd::Zero(n, n);
+    eq->rhs[c] = Eigen::VectorXd::Zero(n);
+    eq->observed_sq[c] = 0.0;
+  }
+  for (size_t i = 0; i < eq->pixels; ++i) {
+    const Eigen::Vector3d observed = first.pixels[i].observed.cast<double>();
+    for (int c = 0; c < 3; ++c) eq->observed_sq[c] += observed[c] * observed[c];
+    for (size_t e = begin[i]; e < begin[i + 1]; ++e) {
+      for (int c = 0; c < 3; ++c) eq->rhs[c][index[e]] += static_cast<double>(mean[e][c]) * observed[c];
+    }
+  }
+  ParallelFor(0, tile_pairs.size(), [&](size_t t) {
+    const auto [ta, tb] = tile_pairs[t];
+    const int a_lo = ta * tile, a_hi = a_lo + tile, b_lo = tb * tile, b_hi = b_lo + tile;
+    for (size_t i = 0; i < eq->pixels; ++i) {
+      const auto row = index.begin() + static_cast<std::ptrdiff_t>(begin[i]);
+      const auto row_end = index.begin() + static_cast<std::ptrdiff_t>(begin[i + 1]);
+      const auto a0 = std::lower_bound(row, row_end, a_lo), a1 = std::lower_bound(a0, row_end, a_hi);
+      const auto b0 = std::lower_bound(row, row_end, b_lo), b1 = std::lower_bound(b0, row_end, b_hi);
+      for (auto ia = a0; ia != a1; ++ia) {
+        const size_t ea = static_cast<size_t>(ia - index.begin());
+        for (auto ib = std::max(b0, ia); ib != b1; ++ib) {
+          const size_t eb = static_cast<size_t>(ib - index.begin());
+          for (int c = 0; c < 3; ++c) {
+            eq->gram[c](*ia, *ib) += static_cast<double>(mean[ea][c]) * mean[eb][c] -
+                                     correction * static_cast<double>(half_difference[ea][c]) * half_difference[eb][c];
+          }
+        }
+      }
+    }
+  }, 1);
+  for (int c = 0; c < 3; ++c) eq->gram[c].triangularView<Eigen::StrictlyLower>() = eq->gram[c].transpose();
+}
+
+}  // namespace
+
+NormalEquations NormalEquations::FromCache(const LightCache& cache) { return FromCaches(cache, cache, 0.0); }
+
+NormalEquations NormalEquations::FromCaches(const LightCache& first, const LightCache& second, double correction) {
+  GS_CHECK_EQ(first.parameters, second.parameters);
+  GS_CHECK_EQ(first.pixels.size(), second.pixels.size());
+  NormalEquations eq;
+  eq.parameters = first.parameters;
+  eq.pixels = first.pixels.size();
+  std::vector<int> compact(static_cast<size_t>(eq.parameters), -1);
+  for (const LightCache* cache : {&first, &second}) {
+    for (int32_t p : cache->index) compact[p] = 0;
+  }
+  for (int p = 0; p < eq.parameters; ++p) {
+    if (compact[p] == 0) {
+      compact[p] = static_cast<int>(eq.used.size());
+      eq.used.push_back(p);
+    }
+  }
+  const int n = static_cast<int>(eq.used.size());
+  const bool same = &first == &second;
+  constexpr int kRows = 2048, kTile = 256;
+  const int tiles = (n + kTile - 1) / kTile;
+  std::vector<std::pair<int, int>> tile_pairs;
+  for (int a = 0; a < tiles; ++a) {
+    for (int b = a; b < tiles; ++b) tile_pairs.emplace_back(a, b);
+  }
+  // Dense rows of one chunk: sign +1 gives the mean row (a + b) / 2, -1 the half difference.
+  const auto fill = [&](size_t begin, size_t end, int c, float sign, Eigen::MatrixXf* m) {
+    *m = Eigen::MatrixXf::Zero(static_cast<Eigen::Index>(end - begin), n);
+    for (const LightCache* cache : {&first, &second}) {
+      const float w = cache == &first ? 0.5f : 0.5f * sign;
+      for (size_t i = begin; i < end; ++i) {
+        for (size_t e = cache->row_begin[i]; e < cache->row_begin[i + 1]; ++e) {
+          (*m)(static_cast<Eigen::Index>(i - begin), compact[cache->index[e]]) += w * cache->coefficient[e][c];
+        }
+      }
+    }
+  };
+  // Upper tiles of M^T M: each tile is written by one task, chunks in a fixed order, so the sums
+  // do not depend on the thread count.
+  const auto accumulate = [&](const Eigen::MatrixXf& m, double scale, Eigen::MatrixXd* gram) {
+    ParallelFor(0, tile_pairs.size(), [&](size_t t) {
+      const auto [ta, tb] = tile_pairs[t];
+      const int ca = ta * kTile, cb = tb * kTile;
+      const int wa = std::min(kTile, n - ca), wb = std::min(kTile, n - cb);
+      const Eigen::MatrixXf block = m.middleCols(ca, wa).transpose() * m.middleCols(cb, wb);
+      gram->block(ca, cb, wa, wb) += scale * block.cast<double>();
+    }, 1);
+  };
+  size_t nonzeros = 0;
+  for (const LightCache* cache : {&first, &second}) nonzeros += cache->NonZeros();
+  if (static_cast<double>(nonzeros) < 0.2 * static_cast<double>(n) * static_cast<double>(eq.pixels)) {
+    FillSparse(first, second, same ? 0.0 : correction, compact, tile_pairs, kTile, &eq);
+    return eq;
+  }
+  for (int c = 0; c < 3; ++c) {
+    Eigen::MatrixXd& gram = eq.gram[c];
+    gram = Eigen::MatrixXd::Zero(n, n);
+    eq.rhs[c] = Eigen::VectorXd::Zero(n);
+    eq.observed_sq[c] = 0.0;
+    Eigen::MatrixXf mean, half_difference;
+    for (size_t begin = 0; begin < eq.pixels; begin += kRows) {
+      const size_t end = std::min(eq.pixels, begin + kRows);
+      fill(begin, end, c, 1.0f, &mean);
+      Eigen::VectorXd observed(static_cast<Eigen::Index>(end - begin));
+      for (size_t i = begin; i < end; ++i) observed[static_cast<Eigen::Index>(i - begin)] = first.pixels[i].observed[c];
+      eq.observed_sq[c] += observed.squaredNorm();
+      eq.rhs[c] += mean.cast<double>().transpose() * observed;
+      accumulate(mean, 1.0, &gram);
+      if (!same && correction > 0.0) {
+        fill(begin, end, c, -1.0f, &half_difference);
+        accumulate(half_difference, -correction, &gram);
+      }
+    }
+    gram.triangularView<Eigen::StrictlyLower>() = gram.transpose();
+  }
+  return eq;
+}
+
+void NormalEquations::Add(const NormalEquations& other) {
+  GS_CHECK_EQ(parameters, other.parameters);
+  std::vector<int> merged;
+  std::set_union(used.begin(), used.end(), other.used.begin(), other.used.end(), std::back_inserter(merged));
+  const auto expand = [&](const NormalEquations& from, std::array<Eigen::MatrixXd, 3>* gram,
+                          std::array<Eigen::VectorXd, 3>* rhs) {
+    std::vector<int> at(from.used.size());
+    for (size_t i = 0; i < from.used.size(); ++i) {
+      at[i] = static_cast<int>(std::lower_bound(merged.begin(), merged.end(), from.used[i]) - merged.begin());
+    }
+    const int n = static_cast<int>(merged.size());
+    for (int c = 0; c < 3; ++c) {
+      (*gram)[c] = Eigen::MatrixXd::Zero(n, n);
+      (*rhs)[c] = Eigen::VectorXd::Zero(n);
+      for (size_t b = 0; b < at.size(); ++b) {
+        (*rhs)[c][at[b]] = from.rhs[c][static_cast<Eigen::Index>(b)];
+        for (size_t a = 0; a < at.size(); ++a) {
+          (*gram)[c](at[a], at[b]) = from.gram[c](static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b));
+        }
+      }
+    }
+  };
+  std::array<Eigen::MatrixXd, 3> g1, g2;
+  std::array<Eigen::VectorXd, 3> r1, r2;
+  expand(*this, &g1, &r1);
+  expand(other, &g2, &r2);
+  for (int c = 0; c < 3; ++c) {
+    gram[c] = g1[c] + g2[c];
+    rhs[c] = r1[c] + r2[c];
+    observed_sq[c] += other.observed_sq[c];
+  }
+  used = std::move(merged);
+  pixels += other.pixels;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Cost
+
+namespace {
+
+// The best uniform lighting (every used parameter x = alpha_c): alpha_c = sum b_c / 1^T G_c 1.
+Eigen::Vector3d UniformFit(const NormalEquations& eq) {
+  Eigen::Vector3d alpha = Eigen::Vector3d::Zero();
+  for (int c = 0; c < 3; ++c) {
+    const double denominator = eq.gram[c].sum();
+    if (denominator > 0.0) alpha[c] = std::max(0.0, eq.rhs[c].sum() / denominator);
+  }
+  return alpha;
+}
+
+}  // namespace
+
+LightCost::LightCost(const NormalEquations& equations, double penalty_weight, double penalty_epsilon)
+    : eq_(equations), weight_(penalty_weight) {
+  energy_ = eq_.observed_sq[0] + eq_.observed_sq[1] + eq_.observed_sq[2];
+  if (eq_.used.empty()) {
+    throw Error("light estimation: no sampled path reaches any voxel (every shadow ray is blocked or faces away)");
+  }
+  if (!(energy_ > 0.0)) throw Error("light estimation: the sampled pixels are all black");
+  const Eigen::Vector3d alpha = UniformFit(eq_);
+  const double s_ref = alpha.sum() * (eq_.parameters / 6);
+  epsilon_ = penalty_epsilon * std::max(s_ref, 1e-30);
+}
+
+Eigen::VectorXd LightCost::Pack(const VoxelLightGrid& grid) {
+  Eigen::VectorXd x(9 * grid.VoxelCount());
+  for (int j = 0; j < grid.VoxelCount(); ++j) {
+    x.segment<3>(9 * j) = grid.intensity[j].cast<double>();
+    for (int k = 0; k < 6; ++k) x[9 * j + 3 + k] = grid.weights[j][k];
+  }
+  return x;
+}
+
+void LightCost::Unpack(const Eigen::VectorXd& params, VoxelLightGrid* grid) {
+  GS_CHECK_EQ(params.size(), 9 * grid->VoxelCount());
+  for (int j = 0; j < grid->VoxelCount(); ++j) {
+    grid->intensity[j] = params.segment<3>(9 * j).cast<float>();
+    for (int k = 0; k < 6; ++k) grid->weights[j][k] = static_cast<float>(params[9 * j + 3 + k]);
+  }
+}
+
+double LightCost::Evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient, double* data) const {
+  const int voxels = eq_.parameters / 6;
+  GS_CHECK_EQ(params.size(), 9 * voxels);
+  const int n = static_cast<int>(eq_.used.size());
+  if (gradient) *gradient = Eigen::VectorXd::Zero(params.size());
+  double data_sum = 0.0;
+  Eigen::VectorXd x(n), gx(n);
+  for (int c = 0; c < 3; ++c) {
+    for (int i = 0; i < n; ++i) {
+      const int j = eq_.used[i] / 6, k = eq_.used[i] % 6;
+      x[i] = params[9 * j + c] * params[9 * j + 3 + k];
+    }
+    gx.noalias() = eq_.gram[c].selfadjointView<Eigen::Upper>() * x;
+    // |A x - I|^2 = x^T G x - 2 b^T x + I^T I.
+    data_sum += x.dot(gx) - 2.0 * eq_.rhs[c].dot(x) + eq_.observed_sq[c];
+    if (gradient) {
+      gx = 2.0 * (gx - eq_.rhs[c]) / energy_;
+      for (int i = 0; i < n; ++i) {
+        const int j = eq_.used[i] / 6, k = eq_.used[i] % 6;
+        (*gradient)[9 * j + c] += gx[i] * params[9 * j + 3 + k];
+        (*gradient)[9 * j + 3 + k] += gx[i] * params[9 * j + c];
+      }
+    }
+  }
+  double penalty = 0.0;
+  if (weight_ > 0.0) {
+    for (int j = 0; j < voxels; ++j) {
+      const double s = params[9 * j] + params[9 * j + 1] + params[9 * j + 2];
+      penalty += weight_ * std::log1p(s / epsilon_);
+      if (gradient) {
+        for (int c = 0; c < 3; ++c) (*gradient)[9 * j + c] += weight_ / (epsilon_ + s);
+      }
+    }
+  }
+  if (data) *data = data_sum / energy_;
+  return data_sum / energy_ + penalty;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Solve
+
+namespace {
+
+// min_x x^T H x - 2 g^T x + q^T x over lo <= x <= hi by cyclic coordinate descent; `hx` holds H x
+// on entry and is kept up to date. Coordinates with H_ii <= 0 (no path reaches them) go to lo.
+void CoordinateDescent(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, const Eigen::VectorXd& q, double lo,
+                       double hi, int sweeps, Eigen::VectorXd* x, Eigen::VectorXd* hx) {
+  const Eigen::Index n = x->size();
+  for (int sweep = 0; sweep < sweeps; ++sweep) {
+    double change = 0.0, scale = 0.0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double hii = h(i, i);
+      double value = lo;
+      if (hii > 0.0) value = std::clamp((*x)[i] - ((*hx)[i] - g[i] + 0.5 * q[i]) / hii, lo, hi);
+      const double delta = value - (*x)[i];
+      if (delta != 0.0) {
+        hx->noalias() += h.col(i) * delta;
+        (*x)[i] = value;
+      }
+      change = std::max(change, std::abs(delta) * std::sqrt(std::max(hii, 0.0)));
+      scale = std::max(scale, std::abs(value) * std::sqrt(std::max(hii, 0.0)));
+    }
+    if (change <= 1e-9 * scale) break;
+  }
+}
+
+}  // namespace
+
+SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions& options, VoxelLightGrid* grid) {
+  options.Validate();
+  const int voxels = grid->VoxelCount();
+  GS_CHECK_EQ(6 * voxels, eq.parameters);
+  const LightCost cost(eq, options.penalty_weight, options.penalty_epsilon);
+  const double energy = eq.observed_sq[0] + eq.observed_sq[1] + eq.observed_sq[2];
+  const int n = static_cast<int>(eq.used.size());
+  std::vector<int> voxel_of(static_cast<size_t>(n)), face_of(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) voxel_of[i] = eq.used[i] / 6, face_of[i] = eq.used[i] % 6;
+
+  Eigen::MatrixXd light(voxels, 3);   // L
+  Eigen::MatrixXd lambda(voxels, 6);  // lambda
+  bool dark = true;
+  for (int j = 0; j < voxels; ++j) {
+    light.row(j) = grid->intensity[j].cast<double>().transpose();
+    for (int k = 0; k < 6; ++k) lambda(j, k) = std::clamp<double>(grid->weights[j][k], 0.0, 1.0);
+    dark = dark && grid->intensity[j].maxCoeff() <= 0.0f;
+  }
+  if (dark) {
+    // Start from the convex relaxation: the products x = L lambda as free non-negative
+    // parameters (per channel a non-negative least-squares problem on G_c, from the best uniform
+    // lighting), then each voxel's 3 x 6 product matrix reduced to its best rank-1 non-negative
+    // factor L lambda^T by power iteration.
+    const Eigen::Vector3d alpha = UniformFit(eq);
+    Eigen::MatrixXd products = Eigen::MatrixXd::Zero(6 * voxels, 3);
+    for (int c = 0; c < 3; ++c) {
+      Eigen::VectorXd x = Eigen::VectorXd::Constant(n, alpha[c]);
+      Eigen::VectorXd gx = eq.gram[c] * x;
+      CoordinateDescent(eq.gram[c], eq.rhs[c], Eigen::VectorXd::Zero(n), 0.0, std::numeric_limits<double>::infinity(),
+                        20, &x, &gx);
+      for (int i = 0; i < n; ++i) products(eq.used[i], c) = x[i];
+    }
+    for (int j = 0; j < voxels; ++j) {
+      const Eigen::Matrix<double, 6, 3> x = products.middleRows<6>(6 * j);
+      Eigen::Matrix<double, 6, 1> l6 = Eigen::Matrix<double, 6, 1>::Ones();
+      Eigen::Vector3d l3 = Eigen::Vector3d::Zero();
+      for (int step = 0; step < 20 && x.maxCoeff() > 0.0; ++step) {
+        l3 = x.transpose() * l6 / l6.squaredNorm();
+        if (l3.squaredNorm() <= 0.0) break;
+        l6 = x * l3 / l3.squaredNorm();
+      }
+      const double top = l6.maxCoeff();
+      if (top > 0.0 && l3.maxCoeff() > 0.0) {
+        light.row(j) = (l3 * top).transpose();
+        lambda.row(j) = (l6 / top).transpose();
+      } else {
+        light.row(j).setZero();
+        lambda.row(j).setOnes();
+      }
+    }
+  }
+  const auto pack = [&]() {
+    Eigen::VectorXd p(9 * voxels);
+    for (int j = 0; j < voxels; ++j) {
+      p.segment<3>(9 * j) = light.row(j).transpose();
+      p.segment<6>(9 * j + 3) = lambda.row(j).transpose();
+    }
+    return p;
+  };
+
+  SolveReport report;
+  double previous = cost.Evaluate(pack());
+  for (int it = 0; it < options.max_iterations; ++it) {
+    // L step (per channel): x_i = lambda_i L_j(i), so the quadratic in L is S^T D G D S with
+    // D = diag(lambda), S the parameter-to-voxel selection; the log penalty is majorised by its
+    // tangent at the current s_j: linear weight E w / (eps + s_j) on every L_jc.
+    Eigen::VectorXd q(voxels);
+    for (int j = 0; j < voxels; ++j) {
+      q[j] = options.penalty_weight > 0.0 ? energy * options.penalty_weight / (cost.epsilon() + light.row(j).sum())
+                                          : 0.0;
+    }
+    for (int c = 0; c < 3; ++c) {
+      Eigen::MatrixXd h = Eigen::MatrixXd::Zero(voxels, voxels);
+      Eigen::VectorXd g = Eigen::VectorXd::Zero(voxels);
+      const Eigen::MatrixXd& gram = eq.gram[c];
+      for (int b = 0; b < n; ++b) {
+        const double lb = lambda(voxel_of[b], face_of[b]);
+        if (lb == 0.0) continue;
+        g[voxel_of[b]] += lb * eq.rhs[c][b];
+        double* column = h.col(voxel_of[b]).data();
+        const double* gcol = gram.col(b).data();
+        for (int a = 0; a < n; ++a) column[voxel_of[a]] += lambda(voxel_of[a], face_of[a]) * gcol[a] * lb;
+      }
+      Eigen::VectorXd l = light.col(c);
+      Eigen::VectorXd hl = h * l;
+      CoordinateDescent(h, g, q, 0.0, std::numeric_limits<double>::infinity(), 10, &l, &hl);
+      light.col(c) = l;
+    }
+    // lambda step over the parameters of lit voxels: x_i = L_j(i)c lambda_i, so the quadratic
+    // is sum_c D_c G_c D_c with D_c = diag(L_j(i)c); 0 <= lambda <= 1.
+    std::vector<int> active;
+    for (int i = 0; i < n; ++i) {
+      if (light.row(voxel_of[i]).sum() > 0.0) active.push_back(i);
+    }
+    const int m = static_cast<int>(active.size());
+    if (m > 0) {
+      Eigen::MatrixXd h = Eigen::MatrixXd::Zero(m, m);
+      Eigen::VectorXd g = Eigen::VectorXd::Zero(m), x(m);
+      for (int c = 0; c < 3; ++c) {
+        const Eigen::MatrixXd& gram = eq.gram[c];
+        for (int b = 0; b < m; ++b) {
+          const double lb = light(voxel_of[active[b]], c);
+          g[b] += lb * eq.rhs[c][active[b]];
+          for (int a = 0; a < m; ++a) h(a, b) += light(voxel_of[active[a]], c) * gram(active[a], active[b]) * lb;
+        }
+      }
+      for (int a = 0; a < m; ++a) x[a] = lambda(voxel_of[active[a]], face_of[active[a]]);
+      Eigen::VectorXd hx = h * x;
+      CoordinateDescent(h, g, Eigen::VectorXd::Zero(m), 0.0, 1.0, 5, &x, &hx);
+      for (int a = 0; a < m; ++a) lambda(voxel_of[active[a]], face_of[active[a]]) = x[a];
+    }
+    const double current = cost.Evaluate(pack(), nullptr, &report.data);
+    report.history.push_back(current);
+    report.iterations = it + 1;
+    const bool done = previous - current <= options.tolerance * std::abs(previous);
+    previous = current;
+    if (done) break;
+  }
+  report.cost = cost.Evaluate(pack(), nullptr, &report.data);
+  // Each voxel's lambdas scaled to a maximum of 1 (the same products L lambda).
+  for (int j = 0; j < voxels; ++j) {
+    const double top = lambda.row(j).maxCoeff();
+    if (top > 0.0 && light.row(j).sum() > 0.0) {
+      light.row(j) *= top;
+      lambda.row(j) /= top;
+    } else {
+      light.row(j).setZero();
+    }
+    grid->intensity[j] = light.row(j).transpose().cast<float>();
+    for (int k = 0; k < 6; ++k) grid->weights[j][k] = static_cast<float>(lambda(j, k));
+  }
+  return report;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Rounds
+
+LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>& views,
+                             const LightEstimationOptions& options, uint64_t seed) {
+  options.Validate();
+  const auto start = std::chrono::steady_clock::now();
+  const PathTracer tracer(WithoutLights(scene));
+  LightEstimate out;
+  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, options, seed, &out.masks);
+  out.pixels = pixels.size();
+  out.lights = MakeVoxelGrid(tracer.scene(), options.grid);
+  VoxelLightGrid& grid = out.lights;
+  NormalEquations total;
+  LightCache last;
+  std::vector<double> previous_power;
+  for (int round = 0; round < options.rounds; ++round) {
+    LightRound r;
+    r.round = round;
+    // The first vertex connects to every voxel; deeper ones draw voxels, uniformly in round 0,
+    // then in proportion to the estimated powers mixed with the uniform distribution.
+    VoxelSplitting splitting;
+    splitting.all_until_depth = 1;
+    std::vector<double> pmf(static_cast<size_t>(grid.VoxelCount()), 1.0);
+    if (round > 0) {
+      double total_power = 0.0;
+      for (int j = 0; j < grid.VoxelCount(); ++j) total_power += pmf[j] = Luminance(grid.Power(j));
+      for (double& p : pmf) {
+        p = (1.0 - options.resample_uniform) * (total_power > 0.0 ? p / total_power : 0.0) +
+            options.resample_uniform / grid.VoxelCount();
+      }
+    }
+    splitting.SetPmf(std::move(pmf), options.resample_voxels);
+    auto t = std::chrono::steady_clock::now();
+    LightEstimationOptions half = options;
+    half.spp = options.spp / 2;
+    const uint64_t round_seed = Mix64(seed + 0x51ED * (round + 1));
+    last = TraceLightCache(tracer, grid, splitting, views, pixels, half, round_seed);
+    const LightCache second = TraceLightCache(tracer, grid, splitting, views, pixels, half, ~round_seed);
+    r.trace_seconds = SecondsSince(t);
+    r.nonzeros = last.NonZeros() + second.NonZeros();
+    r.rays = last.rays.total() + second.rays.total();
+    t = std::chrono::steady_clock::now();
+    NormalEquations eq = NormalEquations::FromCaches(last, second, options.noise_correction);
+    if (round == 0) {
+      total = std::move(eq);
+    } else {
+      total.Add(eq);
+    }
+    r.gram_seconds = SecondsSince(t);
+    t = std::chrono::steady_clock::now();
+    r.solve = SolveLights(total, options, &grid);
+    r.solve_seconds = SecondsSince(t);
+    r.active_voxels = static_cast<int>(grid.ActiveVoxels(options.active_fraction).size());
+    std::vector<double> power(static_cast<size_t>(grid.VoxelCount()));
+    for (int j = 0; j < grid.VoxelCount(); ++j) power[j] = Luminance(grid.Power(j));
+    if (round > 0) {
+      double diff = 0.0, norm = 0.0;
+      for (size_t j = 0; j < power.size(); ++j) {
+        diff += (power[j] - previous_power[j]) * (power[j] - previous_power[j]);
+        norm += power[j] * power[j];
+      }
+      r.power_change = norm > 0.0 ? std::sqrt(diff / norm) : 0.0;
+    }
+    previous_power = power;
+    out.rounds.push_back(r);
+    if (round > 0 && r.power_change < options.round_tolerance) break;
+  }
+  const std::vector<Eigen::Vector3f> predicted = last.Predict(grid);
+  double err = 0.0, ref = 0.0;
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    err += (predicted[i] - pixels[i].observed).cast<double>().squaredNorm();
+    ref += pixels[i].observed.cast<double>().squaredNorm();
+  }
+  out.train_rmse = ref > 0.0 ? std::sqrt(err / ref) : 0.0;
+  out.active_voxels = out.rounds.back().active_voxels;
+  out.seconds = SecondsSince(start);
+  return out;
+}
+
+ViewError CompareRender(const PathTracer& lit, const TrainingView& reference, const LightEstimationOptions& options,
+                        int spp, uint64_t seed, double reference_noise_rms, ImageRgb* render) {
+  const Image<uint8_t> valid = ValidPixels(lit, reference, options);
+  RenderOptions half = options.Paths();
+  half.spp = std::max(1, spp / 2);
+  const RenderOutput a = lit.Render(reference.view, half, seed);
+  const RenderOutput b = lit.Render(reference.view, half, seed ^ 0xB5297A4D3F1E0C2Bull);
+  ViewError e;
+  double err = 0.0, ref = 0.0, noise = 0.0;
+  for (int v = 0; v < valid.height(); ++v) {
+    for (int u = 0; u < valid.width(); ++u) {
+      if (!valid(u, v)) continue;
+      const Eigen::Vector3d pa = a.radiance(u, v).cast<double>(), pb = b.radiance(u, v).cast<double>();
+      const Eigen::Vector3d mean = 0.5 * (pa + pb), r = reference.image(u, v).cast<double>();
+      err += (mean - r).squaredNorm();
+      ref += r.squaredNorm();
+      // Variance of the mean of two independent halves: |a - b|^2 / 4.
+      noise += 0.25 * (pa - pb).squaredNorm() + 3.0 * reference_noise_rms * reference_noise_rms;
+      ++e.pixels;
+    }
+  }
+  if (render) {
+    *render = ImageRgb(a.radiance.width(), a.radiance.height());
+    for (size_t i = 0; i < render->size(); ++i) render->data()[i] = 0.5f * (a.radiance.data()[i] + b.radiance.data()[i]);
+  }
+  if (ref > 0.0) {
+    e.rmse = std::sqrt(err / ref);
+    e.noise = std::sqrt(noise / ref);
+    e.rmse_bias = std::sqrt(std::max(0.0, err - noise) / ref);
+  }
+  return e;
+}
+
+}  // namespace genscene::inverse

@@ -1,0 +1,243 @@
+// Light estimation (issue 7; the paper's section II and Fig. 3): voxel lights (core/light_set.h)
+// from known geometry and albedo and posed linear images.
+//
+// Build / solve / report:
+//  1. SamplePixels picks random valid pixels per view (the camera ray hits a reflecting surface;
+//     saturated pixels and pixels that see an emitter directly are masked).
+//  2. TraceLightCache traces camera paths through them once and, at every path vertex, splits: a
+//     shadow ray to every voxel (or to voxels drawn in proportion to the current estimate). It
+//     records the coefficient that multiplies each product x_jk = L_j lambda_jk, so that the
+//     predicted pixel is P_i = sum_jk a_ijk (*) x_jk (per channel; path throughput x BRDF x
+//     cosine / r^2 x visibility x the voxel's face projection max(0, w . d_k)).
+//  3. NormalEquations reduces the cache to G_c = sum_i a_ic a_ic^T, b_c = sum_i a_ic I_ic: one
+//     cost evaluation is then O(parameters^2), independent of the number of pixels. Two
+//     independent halves of the paths give the unbiased cross product instead (FromCaches).
+//  4. LightCost / SolveLights minimise
+//         f(L, lambda) = (1/E) sum_i sum_c (P_ic - I_ic)^2 + w sum_j log(1 + s_j / eps),
+//     E = sum_i sum_c I_ic^2 (so the data term is the squared relative residual), s_j = sum_c
+//     L_jc, eps = penalty_epsilon * s_ref (s_ref: the summed intensity of the best uniform
+//     lighting), L >= 0, 0 <= lambda <= 1 (the upper bound fixes the L x lambda scale gauge).
+//     The log term charges a voxel's first activation and then plateaus (the paper's activation
+//     penalty). The solve alternates between L and lambda; each block is a bound-constrained
+//     quadratic solved exactly by coordinate descent, with the log term majorised by its tangent
+//     (reweighted L1), so the true cost never increases.
+//  5. EstimateLights runs rounds: trace, solve, then re-trace with voxel sampling proportional to
+//     the estimated powers (the paper's remedy for starting without the right sampling
+//     distribution), accumulating the normal equations, until the voxel powers stop changing.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/image.h"
+#include "core/light_set.h"
+#include "inverse/path_tracer.h"
+#include "inverse/scene.h"
+
+namespace genscene::inverse {
+
+struct LightEstimationOptions {
+  static constexpr const char* kSection = "lights";
+
+  int grid = 7;                     // voxels per axis over the scene's bounding box
+  int pixels_per_view = 3000;       // sampled pixels per training view
+  int spp = 16;                     // camera paths per sampled pixel (box filter over the pixel);
+                                    // even: two independent halves give the normal equations
+  int direct_paths = 2;             // of each half's paths, those whose first vertex connects to
+                                    // every voxel (direct light); deeper vertices draw voxels
+  int max_depth = -1;               // longest path, Mitsuba convention (-1: Russian roulette ends it)
+  int rr_depth = 5;                 // Russian roulette from this depth
+  double penalty_weight = 1e-3;     // w of the activation penalty
+  double penalty_epsilon = 0.01;    // eps relative to s_ref
+  int rounds = 3;                   // tracing rounds at most (1 = no resampling); the normal
+                                    // equations of all rounds add up
+  double round_tolerance = 0.05;    // stop when the voxel powers change less than this (relative)
+  int resample_voxels = 8;          // voxels drawn per deeper path vertex (indirect light):
+                                    // uniformly in round 0, then by the estimated powers
+  double resample_uniform = 0.1;    // share of the uniform distribution in the resampling pmf
+  int max_iterations = 300;         // alternating iterations per solve
+  double tolerance = 1e-7;          // stop when the cost decreases less than this (relative)
+  double saturation = 0.0;          // observed values >= this are masked (0: no saturation)
+  double emitter_factor = 8.0;      // pixels brighter than this x the view's 95th percentile
+                                    // luminance are taken for emitters seen directly (masked)
+  double noise_correction = 0.5;    // gamma of NormalEquations::FromCaches, in [0, 1]
+  double active_fraction = 1e-3;    // voxels with at least this share of the largest power are
+                                    // "active" in reports
+
+  template <typename V>
+  void Visit(V&& v) {
+    v("grid", grid, "voxels", "voxels per axis over the scene's bounding box");
+    v("pixels_per_view", pixels_per_view, "", "random valid pixels sampled per training view");
+    v("spp", spp, "", "camera paths per sampled pixel (even: two independent halves)");
+    v("direct_paths", direct_paths, "", "paths per half whose first vertex connects to every voxel");
+    v("max_depth", max_depth, "segments", "longest path (-1: Russian roulette ends it)");
+    v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
+    v("penalty_weight", penalty_weight, "", "weight of the log activation penalty (0: none)");
+    v("penalty_epsilon", penalty_epsilon, "", "activation scale, relative to the best uniform lighting");
+    v("rounds", rounds, "", "tracing rounds at most (later rounds resample voxels by power)");
+    v("round_tolerance", round_tolerance, "", "stop when the voxel powers change less than this");
+    v("resample_voxels", resample_voxels, "", "voxels drawn per deeper path vertex (indirect light)");
+    v("resample_uniform", resample_uniform, "", "share of uniform voxel sampling when resampling");
+    v("max_iterations", max_iterations, "", "alternating L / lambda iterations per solve");
+    v("tolerance", tolerance, "", "relative cost decrease that ends a solve");
+    v("saturation", saturation, "", "observed values at or above this are masked (0: none)");
+    v("emitter_factor", emitter_factor, "", "mask pixels brighter than this x the 95th percentile");
+    v("noise_correction", noise_correction, "", "share of the coefficient noise taken out of the Gram matrix");
+    v("active_fraction", active_fraction, "", "share of the largest voxel power that counts as active");
+  }
+  void Validate() const;
+  RenderOptions Paths() const;  // the path settings as render options
+};
+
+// A training view: camera and its linear RGB image (same size as the intrinsics).
+struct TrainingView {
+  View view;
+  ImageRgb image;
+};
+
+struct SampledPixel {
+  int view = 0;
+  int u = 0, v = 0;
+  Eigen::Vector3f observed = Eigen::Vector3f::Zero();
+};
+
+struct PixelMaskCounts {
+  size_t valid = 0, miss = 0, emitter = 0, saturated = 0;
+};
+
+// Random valid pixels (up to pixels_per_view per view, without replacement; every valid pixel
+// when there are fewer), in view order then raster order. Throws Error when a view's image does
+// not match its intrinsics or holds a non-finite value, and when no pixel at all is valid.
+std::vector<SampledPixel> SamplePixels(const PathTracer& tracer, const std::vector<TrainingView>& views,
+                                       const LightEstimationOptions& options, uint64_t seed,
+                                       std::vector<PixelMaskCounts>* counts = nullptr);
+
+// The grid over the scene's bounding box (non-emitting meshes), dims^3 voxels, all dark.
+VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims);
+
+// Per sampled pixel, the coefficients of the parameters p = 6 j + k (sorted, RGB), compressed.
+struct LightCache {
+  int parameters = 0;                     // 6 x voxels
+  std::vector<SampledPixel> pixels;
+  std::vector<size_t> row_begin;          // pixels + 1 entries into index / coefficient
+  std::vector<int32_t> index;
+  std::vector<Eigen::Vector3f> coefficient;
+  RayCounts rays;
+
+  // Predicted radiance of every sampled pixel for the lights `grid` (same layout).
+  std::vector<Eigen::Vector3f> Predict(const VoxelLightGrid& grid) const;
+  size_t NonZeros() const { return index.size(); }
+};
+
+// Traces `options.spp` paths per pixel (random numbers keyed by seed, view, pixel, sample) and
+// splits at every vertex as `splitting` says.
+LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid, const VoxelSplitting& splitting,
+                           const std::vector<TrainingView>& views, const std::vector<SampledPixel>& pixels,
+                           const LightEstimationOptions& options, uint64_t seed);
+
+// The radiance of one sampled pixel for the lights `grid`, by the same walk and the same random
+// numbers as TraceLightCache (a fresh render, for checking the cache).
+Eigen::Vector3f RenderSampledPixel(const PathTracer& tracer, const VoxelLightGrid& grid,
+                                   const VoxelSplitting& splitting, const SampledPixel& pixel,
+                                   const std::vector<TrainingView>& views, const LightEstimationOptions& options,
+                                   uint64_t seed);
+
+// The cache reduced to its normal equations over the parameters that any pixel touches.
+struct NormalEquations {
+  int parameters = 0;                     // 6 x voxels
+  std::vector<int> used;                  // parameter index of each compact index
+  std::array<Eigen::MatrixXd, 3> gram;    // per channel, compact x compact
+  std::array<Eigen::VectorXd, 3> rhs;     // per channel, compact
+  std::array<double, 3> observed_sq{};    // per channel, sum of I^2
+  size_t pixels = 0;
+
+  static NormalEquations FromCache(const LightCache& cache);
+  // From two independent traces of the same pixels (rows a_i, b_i): the mean rows m = (a + b) / 2
+  // and the half differences d = (a - b) / 2 give G_c = M^T M - gamma D^T D, b_c = M^T I.
+  // M^T M alone carries the Monte Carlo variance of the coefficients in its expectation
+  // (errors-in-variables: it acts as a regulariser that shrinks and smears the lights);
+  // E[D^T D] is that variance, so gamma = 1 is unbiased (= (A^T B + B^T A) / 2), gamma = 0 the
+  // plain Gram matrix of the mean rows. gamma < 1 keeps G safely positive definite.
+  static NormalEquations FromCaches(const LightCache& first, const LightCache& second, double correction);
+  // Adds another cache's equations (same parameters), e.g. from a later tracing round.
+  void Add(const NormalEquations& other);
+};
+
+// The cost f(L, lambda) above over the normal equations. Parameters packed per voxel as
+// [L_r, L_g, L_b, lambda_0..lambda_5] (9 per voxel).
+class LightCost {
+ public:
+  LightCost(const NormalEquations& equations, double penalty_weight, double penalty_epsilon);
+
+  static Eigen::VectorXd Pack(const VoxelLightGrid& grid);
+  static void Unpack(const Eigen::VectorXd& params, VoxelLightGrid* grid);
+
+  // Cost, its data part (squared relative residual) and, when `gradient` is given, the gradient.
+  double Evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient = nullptr, double* data = nullptr) const;
+  double epsilon() const { return epsilon_; }
+  const NormalEquations& equations() const { return eq_; }
+
+ private:
+  const NormalEquations& eq_;
+  double weight_, epsilon_, energy_;
+};
+
+struct SolveReport {
+  int iterations = 0;
+  double cost = 0.0, data = 0.0;          // final cost and its data part
+  std::vector<double> history;            // cost after each iteration
+};
+
+// Minimises LightCost from `grid` (initial values; all-dark starts from the best uniform
+// lighting) and writes the result into it, each voxel's lambdas scaled to a maximum of 1.
+SolveReport SolveLights(const NormalEquations& equations, const LightEstimationOptions& options, VoxelLightGrid* grid);
+
+struct LightRound {
+  int round = 0;
+  size_t nonzeros = 0;                    // cache entries of this round
+  uint64_t rays = 0;
+  double trace_seconds = 0.0, gram_seconds = 0.0, solve_seconds = 0.0;
+  SolveReport solve;
+  int active_voxels = 0;
+  double power_change = 0.0;              // relative change of the voxel powers (round > 0)
+};
+
+struct LightEstimate {
+  VoxelLightGrid lights;
+  std::vector<LightRound> rounds;
+  std::vector<PixelMaskCounts> masks;     // per view
+  size_t pixels = 0;                      // sampled pixels
+  double seconds = 0.0;
+  double train_rmse = 0.0;                // relative RMSE of the final cache's prediction
+  int active_voxels = 0;
+};
+
+// Steps 1-5. `scene`: geometry and albedo (emitters and lights in it are ignored).
+LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>& views,
+                             const LightEstimationOptions& options, uint64_t seed);
+
+// The scene without its emitters and lights: what light estimation traces.
+Scene WithoutLights(const Scene& scene);
+
+// Which pixels of a view light estimation uses (1) and why the others are left out.
+Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& view, const LightEstimationOptions& options,
+                           PixelMaskCounts* counts = nullptr);
+
+// Relative RMSE sqrt(sum |P - R|^2 / sum |R|^2) of a render against a reference over the valid
+// pixels (masked as SamplePixels does), and the part of it that is Monte Carlo noise of the
+// render (from two half renders) and of the reference (given as its RMS noise per channel).
+struct ViewError {
+  size_t pixels = 0;
+  double rmse = 0.0;          // raw
+  double noise = 0.0;         // sqrt(render noise^2 + reference noise^2) on the same scale
+  double rmse_bias = 0.0;     // sqrt(max(0, rmse^2 - noise^2)): the error of the expected images
+};
+// `lit`: the scene with the lights to judge (rendered with next-event estimation, `spp` in total).
+ViewError CompareRender(const PathTracer& lit, const TrainingView& reference,
+                        const LightEstimationOptions& options, int spp, uint64_t seed,
+                        double reference_noise_rms = 0.0, ImageRgb* render = nullptr);
+
+}  // namespace genscene::inverse

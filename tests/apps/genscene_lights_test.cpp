@@ -1,0 +1,55 @@
+// genscene-lights as a user meets it: a scene's geometry and albedo with posed images give
+// lights.json, renders and a Mitsuba scene; bad input gives one error line, a non-zero exit and
+// no lights.json.
+#include <gtest/gtest.h>
+
+#include "core/light_set.h"
+#include "tests/test_util.h"
+
+namespace genscene {
+namespace {
+
+namespace fs = std::filesystem;
+using test::AppPath;
+using test::RunCommand;
+
+constexpr const char* kSmall = " --grid 3 --pixels-per-view 200 --spp 4 --rounds 2 --render-spp 4 --saturation 0.99";
+
+TEST(GensceneLights, EstimatesLightsFromASynthSequence) {
+  test::TempDir dir;
+  const auto synth = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 3 --size 48x36 --spp 16 --out " +
+                                (dir / "seq").string());
+  ASSERT_EQ(synth.exit_code, 0) << synth.output;
+  const std::string ws = (dir / "ws").string();
+  const auto r = RunCommand(AppPath("genscene-lights") + " " + ws + " --scene " + (dir / "seq" / "scene.json").string() +
+                            " --views " + (dir / "seq").string() + kSmall);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_CONTAINS(r.output, "active voxels of 27");
+  const VoxelLightGrid lights = ReadLightsJson(dir / "ws" / "lights.json");
+  EXPECT_EQ(lights.VoxelCount(), 27);
+  EXPECT_FALSE(lights.ActiveVoxels().empty());
+  // The synth light hangs under the ceiling: the strongest voxel is in the top layer.
+  int strongest = 0;
+  for (int j = 0; j < lights.VoxelCount(); ++j) {
+    if (lights.Power(j).sum() > lights.Power(strongest).sum()) strongest = j;
+  }
+  EXPECT_GT(lights.VoxelCenter(strongest).z(), 1.3) << "voxel " << strongest;
+  for (const char* f : {"train_00.exr", "train_00.png", "train_02.png", "scene.xml"}) {
+    EXPECT_TRUE(fs::exists(dir / "ws" / "lights" / f)) << f;
+  }
+}
+
+TEST(GensceneLights, BadInputIsOneLineAndWritesNothing) {
+  test::TempDir dir;
+  const std::string ws = (dir / "ws").string();
+  const auto missing = RunCommand(AppPath("genscene-lights") + " " + ws + " --views " + (dir / "nope").string() + kSmall);
+  EXPECT_NE(missing.exit_code, 0);
+  EXPECT_CONTAINS(missing.output, "mesh.ply: no such mesh");
+  EXPECT_FALSE(fs::exists(dir / "ws" / "lights.json"));
+  const auto odd = RunCommand(AppPath("genscene-lights") + " " + ws + " --spp 3");
+  EXPECT_NE(odd.exit_code, 0);
+  EXPECT_CONTAINS(odd.output, "spp = 3 must be even");
+}
+
+}  // namespace
+}  // namespace genscene

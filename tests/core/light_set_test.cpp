@@ -1,0 +1,71 @@
+// lights.json (core/light_set.h): round trip, checked reading, the voxel model's figures.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "core/check.h"
+#include "core/light_set.h"
+#include "tests/test_util.h"
+
+namespace genscene {
+namespace {
+
+VoxelLightGrid SmallGrid() {
+  VoxelLightGrid g;
+  g.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, 0), Eigen::Vector3d(1, 1, 2));
+  g.dims = Eigen::Vector3i(2, 3, 4);
+  g.intensity.assign(24, Eigen::Vector3f::Zero());
+  g.weights.assign(24, {1, 1, 1, 1, 1, 1});
+  g.intensity[5] = Eigen::Vector3f(0.725f, 1.5f, 3.0f);
+  g.weights[5] = {0.1f, 0.0f, 0.25f, 1.0f, 0.5f, 0.75f};
+  g.intensity[17] = Eigen::Vector3f(0.01f, 0.02f, 0.03f);
+  g.cube_size = 0.02;
+  return g;
+}
+
+TEST(LightSet, LightsJsonRoundTrips) {
+  test::TempDir dir;
+  const VoxelLightGrid g = SmallGrid();
+  WriteLightsJson(dir / "lights.json", g, R"({"note": "test"})");
+  const VoxelLightGrid back = ReadLightsJson(dir / "lights.json");
+  EXPECT_EQ(back.dims, g.dims);
+  EXPECT_EQ(back.bounds.min(), g.bounds.min());
+  EXPECT_EQ(back.bounds.max(), g.bounds.max());
+  EXPECT_EQ(back.cube_size, g.cube_size);
+  EXPECT_EQ(back.intensity, g.intensity);
+  EXPECT_EQ(back.weights, g.weights);
+}
+
+TEST(LightSet, PowerAndActiveVoxels) {
+  const VoxelLightGrid g = SmallGrid();
+  // pi * L * sum(lambda) = pi * L * 2.6.
+  EXPECT_NEAR(g.Power(5).x(), M_PI * 0.725 * 2.6, 1e-5);
+  EXPECT_EQ(g.ActiveVoxels(), (std::vector<int>{5, 17}));
+  EXPECT_EQ(g.ActiveVoxels(0.5), (std::vector<int>{5}));
+}
+
+TEST(LightSet, BadLightsJsonIsAnErrorNamingTheFile) {
+  test::TempDir dir;
+  const auto expect_error = [&](const std::string& text, const std::string& part) {
+    std::ofstream(dir / "lights.json") << text;
+    try {
+      ReadLightsJson(dir / "lights.json");
+      ADD_FAILURE() << "accepted: " << text;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("lights.json"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  };
+  expect_error("{", "malformed JSON");
+  expect_error(R"({"genscene_lights": 2, "voxel_lights": {}})", "not a genscene lights file");
+  expect_error(R"({"genscene_lights": 1, "surprise": 1})", "unknown key 'surprise'");
+  expect_error(R"({"genscene_lights": 1})", "missing \"voxel_lights\"");
+  expect_error(R"({"genscene_lights": 1, "voxel_lights": {"bounds_min": [0,0,0], "bounds_max": [1,1,1],
+      "dims": [1,1,1], "intensity": [[-1, 0, 0]], "weights": [[1,1,1,1,1,1]]}})", "must be finite and >= 0");
+  expect_error(R"({"genscene_lights": 1, "voxel_lights": {"bounds_min": [0,0,0], "bounds_max": [1,1,1],
+      "dims": [2,1,1], "intensity": [[1, 0, 0]], "weights": [[1,1,1,1,1,1]]}})", "1 intensities and 1 weight sets for 2 voxels");
+  EXPECT_THROW(ReadLightsJson(dir / "missing.json"), Error);
+}
+
+}  // namespace
+}  // namespace genscene

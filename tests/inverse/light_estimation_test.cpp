@@ -1,0 +1,391 @@
+// Light estimation (issue 7): the cache against renders, the cost's gradient against finite
+// differences, recovery of known lights, and the hard cases.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "core/color.h"
+#include "core/parallel.h"
+#include "core/rng.h"
+#include "core/synthetic.h"
+#include "inverse/light_estimation.h"
+#include "inverse/procedural.h"
+
+namespace genscene::inverse {
+namespace {
+
+// The Cornell box without its light, and a voxel grid over it with a few lit voxels.
+struct SmallScene {
+  Scene geometry = WithoutLights(MakeCornellBoxScene());
+  VoxelLightGrid grid = MakeVoxelGrid(geometry, 3);
+  SmallScene() {
+    grid.intensity[22] = Eigen::Vector3f(2.0f, 1.5f, 1.0f);  // top layer, centre: (0, 0, 1.67)
+    grid.weights[22] = {0.2f, 0.2f, 0.2f, 0.2f, 0.0f, 1.0f};
+    grid.intensity[4] = Eigen::Vector3f(0.3f, 0.3f, 0.6f);   // bottom layer, centre
+    grid.weights[4] = {1, 1, 1, 1, 1, 1};
+  }
+};
+
+std::vector<TrainingView> Views(const std::vector<View>& views) {
+  std::vector<TrainingView> out;
+  for (const View& v : views) out.push_back({v, ImageRgb(v.intrinsics.width, v.intrinsics.height, Eigen::Vector3f::Ones())});
+  return out;
+}
+
+TEST(LightCache, PredictionEqualsAFreshRenderWithTheSameSamples) {
+  SmallScene s;
+  const PathTracer tracer(s.geometry);
+  const std::vector<TrainingView> views = Views(CornellLightViews(16, 12));
+  LightEstimationOptions o;
+  o.spp = 4;
+  o.pixels_per_view = 40;
+  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+  for (const VoxelSplitting& splitting : {VoxelSplitting{}, [] {
+         VoxelSplitting v;
+         std::vector<double> pmf(27, 1.0);
+         pmf[22] = 20.0;
+         v.SetPmf(pmf, 5);
+         return v;
+       }()}) {
+    const LightCache cache = TraceLightCache(tracer, s.grid, splitting, views, pixels, o, 11);
+    const std::vector<Eigen::Vector3f> predicted = cache.Predict(s.grid);
+    double worst = 0.0;
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      const Eigen::Vector3f fresh = RenderSampledPixel(tracer, s.grid, splitting, pixels[i], views, o, 11);
+      worst = std::max<double>(worst, (fresh - predicted[i]).norm() / std::max(1e-6f, fresh.norm()));
+    }
+    EXPECT_LT(worst, 1e-5) << "the cached prediction differs from the walk it was recorded from";
+  }
+}
+
+// The cache's estimator (splitting over voxels) and the path tracer's (one light sample per
+// vertex) are different Monte Carlo estimators of the same pixel: their means agree.
+TEST(LightCache, AgreesWithThePathTracerOnAverage) {
+  SmallScene s;
+  Scene lit = s.geometry;
+  lit.voxel_lights = s.grid;
+  const PathTracer tracer(s.geometry), lit_tracer(lit);
+  const std::vector<View> all = CornellLightViews(12, 9);
+  const std::vector<TrainingView> views = Views({all[0]});
+  LightEstimationOptions o;
+  o.spp = 256;
+  o.pixels_per_view = 1000;
+  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+  const std::vector<Eigen::Vector3f> predicted =
+      TraceLightCache(tracer, s.grid, VoxelSplitting{}, views, pixels, o, 5).Predict(s.grid);
+  RenderOptions ro;
+  ro.spp = 1024;
+  const RenderOutput render = lit_tracer.Render(all[0], ro, 9);
+  Eigen::Vector3d sum_cache = Eigen::Vector3d::Zero(), sum_render = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    sum_cache += predicted[i].cast<double>();
+    sum_render += render.radiance(pixels[i].u, pixels[i].v).cast<double>();
+  }
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(sum_cache[c] / sum_render[c], 1.0, 0.02) << "channel " << c;
+  }
+}
+
+
+// Renders `views` of `lit` (direct + indirect) as training views.
+std::vector<TrainingView> Render(const Scene& lit, const std::vector<View>& views, int spp, int max_depth = -1) {
+  const PathTracer tracer(lit);
+  RenderOptions ro;
+  ro.spp = spp;
+  ro.max_depth = max_depth;
+  std::vector<TrainingView> out;
+  for (size_t i = 0; i < views.size(); ++i) out.push_back({views[i], tracer.Render(views[i], ro, 100 + i).radiance});
+  return out;
+}
+
+// Normal equations of the small scene from 2 x 4 paths per pixel.
+NormalEquations SmallEquations(const SmallScene& s, const std::vector<TrainingView>& views, double correction) {
+  const PathTracer tracer(s.geometry);
+  LightEstimationOptions o;
+  o.pixels_per_view = 150;
+  o.spp = 8;
+  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+  o.spp = 4;
+  const LightCache a = TraceLightCache(tracer, s.grid, VoxelSplitting{}, views, pixels, o, 1);
+  const LightCache b = TraceLightCache(tracer, s.grid, VoxelSplitting{}, views, pixels, o, 2);
+  return NormalEquations::FromCaches(a, b, correction);
+}
+
+TEST(LightCost, GradientEqualsCentralDifferences) {
+  SmallScene s;
+  Scene lit = s.geometry;
+  lit.voxel_lights = s.grid;
+  const std::vector<View> all = CornellLightViews(16, 12);
+  const std::vector<TrainingView> views = Render(lit, {all[0], all[1]}, 16);
+  const NormalEquations eq = SmallEquations(s, views, 0.5);
+  const LightCost cost(eq, 1e-3, 0.01);
+  // A random interior point (every L and lambda away from 0 and from the bounds).
+  CounterRng rng(5, 0);
+  Eigen::VectorXd x(9 * 27);
+  for (Eigen::Index i = 0; i < x.size(); ++i) x[i] = 0.05 + 0.9 * rng.UniformDouble();
+  Eigen::VectorXd gradient;
+  cost.Evaluate(x, &gradient);
+  double worst = 0.0, mean = 0.0;
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    const double h = 1e-5 * std::max(1.0, std::abs(x[i]));
+    Eigen::VectorXd plus = x, minus = x;
+    plus[i] += h;
+    minus[i] -= h;
+    const double numeric = (cost.Evaluate(plus) - cost.Evaluate(minus)) / (2.0 * h);
+    const double error = std::abs(numeric - gradient[i]) / std::max(1e-8, std::abs(gradient[i]));
+    worst = std::max(worst, error);
+    mean += error / x.size();
+  }
+  EXPECT_LT(worst, 1e-4) << "mean relative error " << mean;
+}
+
+TEST(LightCost, GramCostEqualsThePerPixelCost) {
+  SmallScene s;
+  Scene lit = s.geometry;
+  lit.voxel_lights = s.grid;
+  const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[2]}, 16);
+  const PathTracer tracer(s.geometry);
+  LightEstimationOptions o;
+  o.pixels_per_view = 100;
+  o.spp = 4;
+  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+  const LightCache cache = TraceLightCache(tracer, s.grid, VoxelSplitting{}, views, pixels, o, 1);
+  const NormalEquations eq = NormalEquations::FromCache(cache);
+  VoxelLightGrid other = s.grid;
+  other.intensity[13] = Eigen::Vector3f(0.4f, 0.5f, 0.6f);
+  for (const VoxelLightGrid* g : {&s.grid, &other}) {
+    const std::vector<Eigen::Vector3f> predicted = cache.Predict(*g);
+    double residual = 0.0, energy = 0.0;
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      residual += (predicted[i] - pixels[i].observed).cast<double>().squaredNorm();
+      energy += pixels[i].observed.cast<double>().squaredNorm();
+    }
+    double data = 0.0;
+    LightCost(eq, 0.0, 0.01).Evaluate(LightCost::Pack(*g), nullptr, &data);
+    EXPECT_NEAR(data, residual / energy, 1e-5 * (residual / energy) + 1e-9);
+  }
+}
+
+TEST(NormalEquations, DenseAndSparseRowsAndThreadCountsAgree) {
+  SmallScene s;
+  Scene lit = s.geometry;
+  lit.voxel_lights = s.grid;
+  const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 8);
+  const PathTracer tracer(s.geometry);
+  LightEstimationOptions o;
+  o.pixels_per_view = 120;
+  o.spp = 2;
+  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+  // Sampled voxels (sparse rows) and every voxel (dense rows) take the two code paths.
+  VoxelSplitting sampled;
+  sampled.all_until_depth = 0;
+  sampled.SetPmf(std::vector<double>(27, 1.0), 1);
+  for (const VoxelSplitting* splitting : {static_cast<const VoxelSplitting*>(&sampled), static_cast<const VoxelSplitting*>(nullptr)}) {
+    const VoxelSplitting split = splitting ? *splitting : VoxelSplitting{};
+    const LightCache a = TraceLightCache(tracer, s.grid, split, views, pixels, o, 1);
+    const LightCache b = TraceLightCache(tracer, s.grid, split, views, pixels, o, 2);
+    // Reference: the formula written out densely, in double.
+    const NormalEquations eq = NormalEquations::FromCaches(a, b, 0.5);
+    const int n = static_cast<int>(eq.used.size());
+    std::vector<int> compact(162, -1);
+    for (int i = 0; i < n; ++i) compact[eq.used[i]] = i;
+    for (int c = 0; c < 3; ++c) {
+      Eigen::MatrixXd ma = Eigen::MatrixXd::Zero(pixels.size(), n), mb = ma;
+      for (size_t i = 0; i < pixels.size(); ++i) {
+        for (size_t e = a.row_begin[i]; e < a.row_begin[i + 1]; ++e) ma(i, compact[a.index[e]]) = a.coefficient[e][c];
+        for (size_t e = b.row_begin[i]; e < b.row_begin[i + 1]; ++e) mb(i, compact[b.index[e]]) = b.coefficient[e][c];
+      }
+      const Eigen::MatrixXd mean = 0.5 * (ma + mb), half = 0.5 * (ma - mb);
+      const Eigen::MatrixXd expected = mean.transpose() * mean - 0.5 * half.transpose() * half;
+      EXPECT_LT((eq.gram[c] - expected).norm(), 1e-5 * expected.norm()) << "channel " << c;
+    }
+    SetThreadCount(1);
+    const NormalEquations one = NormalEquations::FromCaches(a, b, 0.5);
+    SetThreadCount(0);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(one.gram[c], eq.gram[c]) << "thread count changed the sums";
+  }
+}
+
+// A light the grid can represent, seen through direct and indirect light: the estimate puts its
+// power in the right place and reproduces the training views.
+TEST(EstimateLights, RecoversAVoxelLight) {
+  SmallScene s;
+  Scene lit = s.geometry;
+  VoxelLightGrid truth = s.grid;
+  truth.intensity[4].setZero();  // one light: top centre, mostly facing down
+  lit.voxel_lights = truth;
+  const std::vector<View> all = CornellLightViews(24, 18);
+  const std::vector<TrainingView> views = Render(lit, {all[0], all[1], all[2]}, 64);
+  LightEstimationOptions o;
+  o.grid = 3;
+  o.pixels_per_view = 300;
+  o.rounds = 2;
+  const LightEstimate e = EstimateLights(lit, views, o, 1);
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  double total = 0.0;
+  for (int j = 0; j < 27; ++j) {
+    const double p = Luminance(e.lights.Power(j));
+    centroid += p * e.lights.VoxelCenter(j);
+    total += p;
+  }
+  centroid /= total;
+  const double voxel = 2.0 / 3.0;
+  EXPECT_LT((centroid - truth.VoxelCenter(22)).norm(), 0.5 * voxel) << "centroid " << centroid.transpose();
+  EXPECT_NEAR(total / Luminance(truth.Power(22)), 1.0, 0.25);
+  EXPECT_LT(e.train_rmse, 0.35);  // the cache's own paths are noisy (8 per half-pixel)
+  EXPECT_LE(e.active_voxels, 6);
+}
+
+TEST(EstimateLights, PenaltyZeroAndHugeStayFinite) {
+  SmallScene s;
+  Scene lit = s.geometry;
+  lit.voxel_lights = s.grid;
+  const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
+  LightEstimationOptions o;
+  o.grid = 3;
+  o.pixels_per_view = 150;
+  o.rounds = 1;
+  o.spp = 4;
+  int previous_active = 1 << 30;
+  for (double w : {0.0, 1e-3, 1e6}) {
+    o.penalty_weight = w;
+    const LightEstimate e = EstimateLights(lit, views, o, 2);
+    for (int j = 0; j < 27; ++j) {
+      ASSERT_TRUE(e.lights.intensity[j].allFinite()) << "w " << w;
+      for (float l : e.lights.weights[j]) ASSERT_TRUE(std::isfinite(l) && l >= 0.0f && l <= 1.0f);
+    }
+    EXPECT_LE(e.active_voxels, previous_active) << "w " << w;
+    previous_active = e.active_voxels;
+    if (w >= 1e6) EXPECT_EQ(e.active_voxels, 0) << "a huge penalty switches every voxel off";
+  }
+}
+
+// A voxel that no path reaches (inside a closed box): a zero column of the Gram matrix. It stays
+// dark and nothing becomes NaN.
+TEST(EstimateLights, UnreachableVoxelStaysDark) {
+  SmallScene s;
+  Scene lit = s.geometry;
+  SyntheticScene closed;
+  closed.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-0.2, -0.2, 0.2), Eigen::Vector3d(0.2, 0.2, 0.5)),
+                          Eigen::Vector3f::Constant(0.5f)});
+  SceneMesh box;
+  box.name = "closed box";
+  box.mesh = closed.ToMesh(1);
+  box.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.5f));
+  lit.meshes.push_back(box);
+  lit.voxel_lights = s.grid;
+  lit.voxel_lights->intensity[4].setZero();  // (0, 0, 0.33) is inside the closed box
+  const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
+  LightEstimationOptions o;
+  o.grid = 3;
+  o.pixels_per_view = 150;
+  o.rounds = 1;
+  o.spp = 4;
+  const LightEstimate e = EstimateLights(lit, views, o, 2);
+  EXPECT_EQ(e.lights.intensity[4], Eigen::Vector3f::Zero());
+  for (int j = 0; j < 27; ++j) EXPECT_TRUE(e.lights.intensity[j].allFinite());
+}
+
+// A light that the views see only through bounces: it faces up, the cameras look down at the
+// floor. Its power is still found in the upper half of the room.
+TEST(EstimateLights, FindsALightSeenOnlyThroughBounces) {
+  SmallScene s;
+  Scene lit = s.geometry;
+  VoxelLightGrid truth = s.grid;
+  truth.intensity[4].setZero();
+  truth.weights[22] = {0, 0, 0, 0, 1, 0};  // +z only: lights the ceiling
+  lit.voxel_lights = truth;
+  const CameraIntrinsics k = CameraIntrinsics::FromHorizontalFov(20, 15, 60.0);
+  const std::vector<View> floor_views = {{k, LookAt({0.0, -0.9, 1.0}, {0.0, 0.3, 0.0})},
+                                         {k, LookAt({0.8, 0.8, 1.0}, {-0.2, -0.2, 0.0})}};
+  const std::vector<TrainingView> views = Render(lit, floor_views, 64);
+  LightEstimationOptions o;
+  o.grid = 3;
+  o.pixels_per_view = 300;
+  o.rounds = 2;
+  const LightEstimate e = EstimateLights(lit, views, o, 2);
+  double upper = 0.0, total = 0.0;
+  for (int j = 0; j < 27; ++j) {
+    const double p = Luminance(e.lights.Power(j));
+    total += p;
+    if (e.lights.VoxelCenter(j).z() > 1.0) upper += p;
+  }
+  ASSERT_GT(total, 0.0);
+  EXPECT_GT(upper / total, 0.5);
+}
+
+// Albedo x light scale: the albedo is given, so halving it doubles the estimated light (in
+// direct light, where the prediction is linear in the albedo).
+TEST(EstimateLights, AlbedoFixesTheScaleGauge) {
+  SmallScene s;
+  Scene lit = s.geometry;
+  lit.voxel_lights = s.grid;
+  const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0], CornellLightViews(16, 12)[1]}, 32, 2);
+  LightEstimationOptions o;
+  o.grid = 3;
+  o.pixels_per_view = 150;
+  o.rounds = 1;
+  o.max_depth = 2;
+  const auto total_power = [&](const Scene& scene) {
+    const LightEstimate e = EstimateLights(scene, views, o, 3);
+    double total = 0.0;
+    for (int j = 0; j < 27; ++j) total += Luminance(e.lights.Power(j));
+    return total;
+  };
+  Scene half = lit;
+  const TriangleMesh& mesh = half.meshes[0].mesh;
+  for (auto& a : half.meshes[0].albedo.values) a *= 0.5f;
+  if (half.meshes[0].albedo.kind == SurfaceAlbedo::Kind::kConstant) half.meshes[0].albedo.constant *= 0.5f;
+  (void)mesh;
+  EXPECT_NEAR(total_power(half) / total_power(lit), 2.0, 0.1);
+}
+
+TEST(EstimateLights, MasksSaturatedAndEmitterPixels) {
+  SmallScene s;
+  Scene lit = s.geometry;
+  lit.voxel_lights = s.grid;
+  std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
+  // A burnt-out patch (above the saturation level, which nothing else reaches) and an
+  // emitter-bright spot.
+  for (int v = 2; v < 5; ++v) {
+    for (int u = 2; u < 6; ++u) views[0].image(u, v) = Eigen::Vector3f::Constant(40.0f);
+  }
+  const PathTracer tracer(s.geometry);
+  LightEstimationOptions o;
+  o.saturation = 30.0;
+  PixelMaskCounts counts;
+  Image<uint8_t> valid = ValidPixels(tracer, views[0], o, &counts);
+  EXPECT_EQ(counts.saturated, 12u);
+  EXPECT_EQ(valid(3, 3), 0);
+  EXPECT_EQ(counts.valid + counts.saturated + counts.emitter + counts.miss, 16u * 12u);
+  views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
+  views[0].image(12, 8) = Eigen::Vector3f::Constant(500.0f);
+  o.saturation = 0.0;
+  valid = ValidPixels(tracer, views[0], o, &counts);
+  EXPECT_EQ(counts.emitter, 9u) << "the bright pixel and its 8 neighbours";
+  EXPECT_EQ(valid(12, 8), 0);
+  EXPECT_EQ(valid(11, 7), 0);
+}
+
+TEST(EstimateLights, BadInputIsAClearError) {
+  SmallScene s;
+  const PathTracer tracer(s.geometry);
+  LightEstimationOptions o;
+  std::vector<TrainingView> views = Views({CornellLightViews(16, 12)[0]});
+  views[0].image = ImageRgb(8, 6);
+  try {
+    SamplePixels(tracer, views, o, 1);
+    FAIL() << "a size mismatch was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("image 8x6 but intrinsics say 16x12"), std::string::npos) << e.what();
+  }
+  views = Views({CornellLightViews(16, 12)[0]});
+  views[0].image(3, 4) = Eigen::Vector3f(NAN, 0, 0);
+  EXPECT_THROW(SamplePixels(tracer, views, o, 1), Error);
+  EXPECT_THROW(SamplePixels(tracer, {}, o, 1), Error);
+  o.spp = 3;
+  EXPECT_THROW(o.Validate(), Error);
+}
+
+}  // namespace
+}  // namespace genscene::inverse
