@@ -48,8 +48,9 @@ struct Replica {
 // The references are slow to render: kept in `cache` (EXR + noise.txt) and reused when present.
 Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
   Replica r;
-  const fs::path dir = cache / ("replica_" + std::to_string(width) + "x" + std::to_string(height) + "_" + std::to_string(spp));
-  if (fs::exists(dir / "noise.txt") && !std::getenv("VOXEL_TRUTH")) {
+  const fs::path dir = cache / ("replica_" + std::to_string(width) + "x" + std::to_string(height) + "_" + std::to_string(spp) +
+                          (std::getenv("VOXEL_TRUTH") ? "_voxel" : "") + (std::getenv("MAXDEPTH") ? "_d" : ""));
+  if (fs::exists(dir / "noise.txt")) {
     r.scene = MakeCornellBoxScene();
     const std::vector<View> views = CornellLightViews(width, height);
     FILE* f = std::fopen((dir / "noise.txt").c_str(), "r");
@@ -181,6 +182,48 @@ int main(int argc, char** argv) {
     }
   }
   fs::create_directories(out);
+  if (std::getenv("SOLVER_CHECK")) {  // diagnostic: the solver's cost against the truth's
+    const Replica replica = MakeReplica(width, height, ref_spp, out);
+    Scene s = WithoutLights(replica.scene);
+    VoxelLightGrid truth = MakeVoxelGrid(s, 7);
+    truth.intensity[3 + 7 * 3 + 49 * 6] = Eigen::Vector3f(3.0f, 2.5f, 1.8f);
+    truth.weights[3 + 7 * 3 + 49 * 6] = {0.1f, 0.1f, 0.1f, 0.1f, 0.0f, 1.0f};
+    const PathTracer tracer(s);
+    LightEstimationOptions o;
+    o.spp = spp;
+    o.direct_paths = spp / 2;
+    o.noise_correction = gamma;
+    o.penalty_weight = weights[0];
+    const std::vector<SampledPixel> pixels = SamplePixels(tracer, replica.train, o, 7);
+    LightEstimationOptions half = o;
+    half.spp = spp / 2;
+    VoxelSplitting all;
+    const LightCache a = TraceLightCache(tracer, truth, all, replica.train, pixels, half, 1);
+    const LightCache b = TraceLightCache(tracer, truth, all, replica.train, pixels, half, 2);
+    const NormalEquations eq = NormalEquations::FromCaches(a, b, gamma);
+    const LightCost cost(eq, o.penalty_weight, o.penalty_epsilon);
+    double data = 0.0;
+    const double at_truth = cost.Evaluate(LightCost::Pack(truth), nullptr, &data);
+    std::printf("truth: cost %.6g data %.6g\n", at_truth, data);
+    for (int it : {100, 300, 1000, 3000}) {
+      o.max_iterations = it;
+      VoxelLightGrid est = MakeVoxelGrid(s, 7);
+      const SolveReport r = SolveLights(eq, o, &est);
+      std::printf("solve %d: cost %.6g data %.6g iterations %d active %zu\n", it, r.cost, r.data, r.iterations,
+                  est.ActiveVoxels(1e-3).size());
+      if (it == 100) {
+        for (int j : est.ActiveVoxels(1e-3)) {
+          std::printf("  voxel (%d %d %d) L %.3f %.3f %.3f lambda %.2f %.2f %.2f %.2f %.2f %.2f\n", j % 7, j / 7 % 7, j / 49,
+                      est.intensity[j][0], est.intensity[j][1], est.intensity[j][2], est.weights[j][0], est.weights[j][1],
+                      est.weights[j][2], est.weights[j][3], est.weights[j][4], est.weights[j][5]);
+        }
+      }
+    }
+    VoxelLightGrid from_truth = truth;
+    const SolveReport r = SolveLights(eq, o, &from_truth);
+    std::printf("solve from truth: cost %.6g data %.6g iterations %d\n", r.cost, r.data, r.iterations);
+    return 0;
+  }
   if (std::getenv("CYCLES")) {
     Cycles(std::getenv("CYCLES"), weights, spp, eval_spp);
     return 0;

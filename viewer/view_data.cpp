@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/check.h"
+#include "core/light_set.h"
 #include "core/ply_io.h"
 #include "core/workspace.h"
 
@@ -71,12 +72,17 @@ ViewData LoadWorkspace(const fs::path& root) {
             [&] { data.trajectory = ReadTumTrajectory(ws.Trajectory()); });
   LoadPiece(ws.Keyframes(), "run genscene-fuse", missing,
             [&] { data.keyframes = ReadViewSet(ws.Keyframes()); });
-  // Light estimation (issue 7) has no file format yet: lights.json is reported, not read.
-  if (fs::exists(ws.Lights(), ec)) {
-    missing->push_back("lights.json: present, but this viewer cannot read it yet (no light format)");
-  } else {
-    missing->push_back("lights.json: missing (light estimation has not run)");
-  }
+  // Voxel lights: a glyph per voxel with at least 0.1 % of the strongest voxel's power.
+  LoadPiece(ws.Lights(), "light estimation has not run (genscene-lights)", missing, [&] {
+    const VoxelLightGrid grid = ReadLightsJson(ws.Lights());
+    for (int j : grid.ActiveVoxels(1e-3)) {
+      LightGlyph glyph;
+      glyph.position = grid.VoxelCenter(j);
+      glyph.power = grid.intensity[j];
+      glyph.weights = grid.weights[j];
+      data.lights.push_back(glyph);
+    }
+  });
   return data;
 }
 

@@ -19,8 +19,8 @@ namespace genscene::viewer {
 
 // A light drawn as a glyph: a solid octahedron at `position` whose size grows with the cube root
 // of the power and whose colour is the power's chromaticity, and six spokes along +x -x +y -y +z
-// -z with lengths proportional to the directional weights (the voxel lights of inverse/scene.h).
-// This is the hook for light estimation (issue 7): whoever reads lights.json fills these.
+// -z with lengths proportional to the directional weights (the voxel lights of core/light_set.h;
+// LoadWorkspace makes one per lit voxel of lights.json).
 struct LightGlyph {
   Eigen::Vector3d position = Eigen::Vector3d::Zero();      // world, meters
   Eigen::Vector3f power = Eigen::Vector3f::Ones();          // linear RGB intensity, W/sr
@@ -35,7 +35,7 @@ struct ViewData {
   std::optional<TriangleMesh> refined_mesh;   // mesh_refined.ply (shown instead of mesh when asked)
   Trajectory trajectory;                      // trajectory.txt (empty when missing)
   std::vector<PosedView> keyframes;           // keyframes/ (intrinsics.txt + groundtruth.txt)
-  std::vector<LightGlyph> lights;             // empty until light estimation writes lights.json
+  std::vector<LightGlyph> lights;             // lights.json: one per voxel with >= 0.1 % of the top power
   // One line per missing or unreadable piece, e.g. "texture.mcol: missing (run genscene-texture)".
   std::vector<std::string> missing;
 };

@@ -7,6 +7,7 @@
 
 #include "core/color.h"
 #include "core/image_io.h"
+#include "core/light_set.h"
 #include "core/mesh_colors.h"
 #include "core/ply_io.h"
 #include "core/se3.h"
@@ -117,6 +118,44 @@ TEST(ViewerApp, CornellBoxScreenshotShowsRedLeftGreenRight) {
       EXPECT_GT((left - right).norm(), 0.05f);
     }
   }
+}
+
+// Acceptance 1, lights: a lights.json with one lit voxel under the ceiling (as genscene-lights
+// writes it) draws a glyph there: the pixels that change against the same view without lights
+// sit around the voxel's projection, above the image centre.
+TEST(ViewerApp, LightGlyphsAppearWhereTheLightsAre) {
+  test::TempDir ws;
+  WritePly(ws / "mesh.ply", MakeCornellScene().ToMesh(1));
+  const std::string camera = PoseText(LookAt({0.0, -3.0, 1.0}, {0.0, 0.0, 1.0}));
+  const std::string common = ws.path().string() + " --size 160x120 --cull-back-faces --camera \"" + camera + "\"";
+  const auto before = RunViewer(common + " --screenshot " + (ws / "before.png").string());
+  ASSERT_EQ(before.exit_code, 0) << before.output;
+  EXPECT_CONTAINS(before.output, "lights.json: missing");
+  VoxelLightGrid grid;
+  grid.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, 0), Eigen::Vector3d(1, 1, 2));
+  grid.dims = Eigen::Vector3i(5, 5, 5);
+  grid.intensity.assign(125, Eigen::Vector3f::Zero());
+  grid.weights.assign(125, {0.1f, 0.1f, 0.1f, 0.1f, 0.0f, 1.0f});
+  const int top = 2 + 5 * 2 + 25 * 4;  // centre column, top layer: (0, 0, 1.8)
+  grid.intensity[top] = Eigen::Vector3f(30.0f, 24.0f, 18.0f);
+  WriteLightsJson(ws / "lights.json", grid);
+  const auto after = RunViewer(common + " --screenshot " + (ws / "after.png").string());
+  ASSERT_EQ(after.exit_code, 0) << after.output;
+  const ImageRgb a = ReadColorImage(ws / "before.png", CameraResponse());
+  const ImageRgb b = ReadColorImage(ws / "after.png", CameraResponse());
+  ASSERT_TRUE(a.SameSize(b.width(), b.height()));
+  double su = 0.0, sv = 0.0;
+  int changed = 0;
+  for (int v = 0; v < a.height(); ++v) {
+    for (int u = 0; u < a.width(); ++u) {
+      if ((a(u, v) - b(u, v)).cwiseAbs().maxCoeff() > 0.05f) su += u, sv += v, ++changed;
+    }
+  }
+  ASSERT_GT(changed, 10) << "no glyph drawn";
+  // (0, 0, 1.8) seen from (0, -3, 1) looking at (0, 0, 1): on the vertical centre line, above
+  // the centre row.
+  EXPECT_NEAR(su / changed, 79.5, 8.0);
+  EXPECT_LT(sv / changed, 50.0);
 }
 
 // Albedo at the lattice point (i, j) of a face: a checkerboard of the samples on the 9 x 9 grid of
