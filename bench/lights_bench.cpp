@@ -162,7 +162,7 @@ void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, i
 int main(int argc, char** argv) {
   fs::path out = "bench_out";
   int width = 160, height = 120, ref_spp = 1024, spp = 4, eval_spp = 256;
-  double gamma = 0.5;
+  double gamma = 0.0;
   std::vector<double> weights = {0.0, 1e-4, 1e-3, 1e-2};
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--out")) out = argv[i + 1];

@@ -63,7 +63,8 @@ struct LightEstimationOptions {
   double saturation = 0.0;          // observed values >= this are masked (0: no saturation)
   double emitter_factor = 8.0;      // pixels brighter than this x the view's 95th percentile
                                     // luminance are taken for emitters seen directly (masked)
-  double noise_correction = 0.5;    // gamma of NormalEquations::FromCaches, in [0, 1]
+  double noise_correction = 0.0;    // gamma of NormalEquations::FromCaches, in [0, 1]; > 0 can
+                                    // make G indefinite and the solve diverge (experimental)
   double active_fraction = 1e-3;    // voxels with at least this share of the largest power are
                                     // "active" in reports
 
