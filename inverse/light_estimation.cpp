@@ -84,6 +84,9 @@ void LightEstimationOptions::Validate() const {
   RequireRange("resample_voxels", resample_voxels, 1, 1 << 16);
   RequireRange("resample_uniform", resample_uniform, 0.0, 1.0);
   RequireRange("max_iterations", max_iterations, 1, 1 << 20);
+  RequireRange("move_passes", move_passes, 0, 100);
+  RequireRange("move_voxels", move_voxels, 1, 1 << 20);
+  RequireRange("move_iterations", move_iterations, 1, 1 << 20);
   RequireRange("tolerance", tolerance, 0.0, 1.0);
   RequireRange("saturation", saturation, 0.0, 1e30);
   RequireRange("emitter_factor", emitter_factor, 1.0, 1e30);
@@ -677,9 +680,34 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
     return p;
   };
 
-  SolveReport report;
-  double previous = cost.Evaluate(pack());
-  for (int it = 0; it < options.max_iterations; ++it) {
+  // One alternating iteration (dark voxels' faces, the L step, the lambda step).
+  const auto iterate = [&]() {
+    // Dark voxels face where the data pull hardest: lambda = the face k whose products have the
+    // most negative data gradient (G x - b summed over the channels). A dark voxel can then
+    // switch on as a directional light in the L step; with lambda = 1 on every face it could only
+    // switch on as an omnidirectional one, which the data rarely want.
+    {
+      Eigen::VectorXd pull = Eigen::VectorXd::Zero(n);
+      for (int c = 0; c < 3; ++c) {
+        Eigen::VectorXd x(n);
+        for (int i = 0; i < n; ++i) x[i] = light(voxel_of[i], c) * lambda(voxel_of[i], face_of[i]);
+        pull.noalias() += eq.gram[c].selfadjointView<Eigen::Upper>() * x - eq.rhs[c];
+      }
+      std::vector<double> best(static_cast<size_t>(voxels), 0.0);
+      std::vector<int> best_face(static_cast<size_t>(voxels), -1);
+      for (int i = 0; i < n; ++i) {
+        const int j = voxel_of[i];
+        if (light.row(j).sum() > 0.0 || pull[i] >= best[j]) continue;
+        best[j] = pull[i];
+        best_face[j] = face_of[i];
+      }
+      for (int j = 0; j < voxels; ++j) {
+        if (best_face[j] >= 0) {
+          lambda.row(j).setZero();
+          lambda(j, best_face[j]) = 1.0;
+        }
+      }
+    }
     // L step (per channel): x_i = lambda_i L_j(i), so the quadratic in L is S^T D G D S with
     // D = diag(lambda), S the parameter-to-voxel selection; the log penalty is majorised by its
     // tangent at the current s_j: linear weight E w / (eps + s_j) on every L_jc.
@@ -728,12 +756,66 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
       CoordinateDescent(h, g, Eigen::VectorXd::Zero(m), 0.0, 1.0, 5, &x, &hx);
       for (int a = 0; a < m; ++a) lambda(voxel_of[active[a]], face_of[active[a]]) = x[a];
     }
-    const double current = cost.Evaluate(pack(), nullptr, &report.data);
-    report.history.push_back(current);
-    report.iterations = it + 1;
-    const bool done = previous - current <= options.tolerance * std::abs(previous);
-    previous = current;
-    if (done) break;
+  };
+  const auto run = [&](int iterations, SolveReport* out) {
+    double previous = cost.Evaluate(pack());
+    for (int it = 0; it < iterations; ++it) {
+      iterate();
+      const double current = cost.Evaluate(pack(), nullptr, &out->data);
+      out->history.push_back(current);
+      ++out->iterations;
+      const bool done = previous - current <= options.tolerance * std::abs(previous);
+      previous = current;
+      if (done) break;
+    }
+    return previous;
+  };
+
+  SolveReport report;
+  double best = run(options.max_iterations, &report);
+  // Moves: the log penalty's local minima often hold a light one voxel off its place (moving it
+  // means switching a second voxel on first, which the activation charge forbids). Each lit
+  // voxel, strongest first, tries handing its light (L and lambda) to each of its 6 face
+  // neighbours; the solve continues briefly and the move is kept when the cost drops.
+  if (options.penalty_weight > 0.0) {
+    const Eigen::Vector3i dims = grid->dims;
+    for (int pass = 0; pass < options.move_passes; ++pass) {
+      std::vector<std::pair<double, int>> lit;
+      for (int j = 0; j < voxels; ++j) {
+        const double power = light.row(j).sum() * lambda.row(j).sum();
+        if (power > 0.0) lit.emplace_back(-power, j);
+      }
+      std::sort(lit.begin(), lit.end());
+      if (lit.size() > static_cast<size_t>(options.move_voxels)) lit.resize(static_cast<size_t>(options.move_voxels));
+      bool improved = false;
+      for (const auto& [negative_power, j] : lit) {
+        const Eigen::Vector3i at(j % dims.x(), j / dims.x() % dims.y(), j / (dims.x() * dims.y()));
+        for (int axis = 0; axis < 3; ++axis) {
+          for (int step : {-1, 1}) {
+            Eigen::Vector3i to = at;
+            to[axis] += step;
+            if (to[axis] < 0 || to[axis] >= dims[axis] || light.row(j).sum() <= 0.0) continue;
+            const int t = to.x() + dims.x() * (to.y() + dims.y() * to.z());
+            const Eigen::MatrixXd keep_light = light, keep_lambda = lambda;
+            light.row(t) += light.row(j);
+            lambda.row(t) = lambda.row(j);
+            light.row(j).setZero();
+            SolveReport trial;
+            const double after = run(options.move_iterations, &trial);
+            report.iterations += trial.iterations;
+            if (after < best) {
+              best = after;
+              improved = true;
+              ++report.moves;
+            } else {
+              light = keep_light;
+              lambda = keep_lambda;
+            }
+          }
+        }
+      }
+      if (!improved) break;
+    }
   }
   report.cost = cost.Evaluate(pack(), nullptr, &report.data);
   // Each voxel's lambdas scaled to a maximum of 1 (the same products L lambda).
@@ -802,7 +884,9 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     }
     r.gram_seconds = SecondsSince(t);
     t = std::chrono::steady_clock::now();
-    r.solve = SolveLights(total, options, &grid);
+    LightEstimationOptions no_moves = options;  // moves once, at the end
+    no_moves.move_passes = 0;
+    r.solve = SolveLights(total, no_moves, &grid);
     r.solve_seconds = SecondsSince(t);
     r.active_voxels = static_cast<int>(grid.ActiveVoxels(options.active_fraction).size());
     std::vector<double> power(static_cast<size_t>(grid.VoxelCount()));
@@ -818,6 +902,17 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     previous_power = power;
     out.rounds.push_back(r);
     if (round > 0 && r.power_change < options.round_tolerance) break;
+  }
+  if (options.move_passes > 0 && options.penalty_weight > 0.0) {
+    const auto t = std::chrono::steady_clock::now();
+    LightRound& r = out.rounds.back();
+    const SolveReport polish = SolveLights(total, options, &grid);
+    r.solve.iterations += polish.iterations;
+    r.solve.moves = polish.moves;
+    r.solve.cost = polish.cost;
+    r.solve.data = polish.data;
+    r.solve_seconds += SecondsSince(t);
+    r.active_voxels = static_cast<int>(grid.ActiveVoxels(options.active_fraction).size());
   }
   const std::vector<Eigen::Vector3f> predicted = last.Predict(grid);
   double err = 0.0, ref = 0.0;

@@ -59,6 +59,10 @@ struct LightEstimationOptions {
                                     // uniformly in round 0, then by the estimated powers
   double resample_uniform = 0.1;    // share of the uniform distribution in the resampling pmf
   int max_iterations = 300;         // alternating iterations per solve
+  int move_passes = 1;              // passes of moves handing a lit voxel's light to a neighbour
+                                    // (EstimateLights: in a final solve after the rounds)
+  int move_voxels = 4;              // the strongest voxels that try moves
+  int move_iterations = 10;         // alternating iterations after a move
   double tolerance = 1e-7;          // stop when the cost decreases less than this (relative)
   double saturation = 0.0;          // observed values >= this are masked (0: no saturation)
   double emitter_factor = 8.0;      // pixels brighter than this x the view's 95th percentile
@@ -83,6 +87,9 @@ struct LightEstimationOptions {
     v("resample_voxels", resample_voxels, "", "voxels drawn per deeper path vertex (indirect light)");
     v("resample_uniform", resample_uniform, "", "share of uniform voxel sampling when resampling");
     v("max_iterations", max_iterations, "", "alternating L / lambda iterations per solve");
+    v("move_passes", move_passes, "", "passes of moves that hand a lit voxel's light to a neighbour (0: none)");
+    v("move_voxels", move_voxels, "", "the strongest voxels that try moves");
+    v("move_iterations", move_iterations, "", "alternating iterations after a move before it is judged");
     v("tolerance", tolerance, "", "relative cost decrease that ends a solve");
     v("saturation", saturation, "", "observed values at or above this are masked (0: none)");
     v("emitter_factor", emitter_factor, "", "mask pixels brighter than this x the 95th percentile");
@@ -188,6 +195,7 @@ class LightCost {
 
 struct SolveReport {
   int iterations = 0;
+  int moves = 0;                          // light handed to a neighbouring voxel and kept
   double cost = 0.0, data = 0.0;          // final cost and its data part
   std::vector<double> history;            // cost after each iteration
 };

@@ -234,6 +234,49 @@ TEST(EstimateLights, RecoversAVoxelLight) {
   EXPECT_NEAR(total / Luminance(truth.Power(22)), 1.0, 0.25);
   EXPECT_LT(e.train_rmse, 0.35);  // the cache's own paths are noisy (8 per half-pixel)
   EXPECT_LE(e.active_voxels, 6);
+  int strongest = 0;
+  for (int j = 0; j < 27; ++j) {
+    if (Luminance(e.lights.Power(j)) > Luminance(e.lights.Power(strongest))) strongest = j;
+  }
+  EXPECT_EQ(strongest, 22) << "the light is in the wrong voxel";
+}
+
+// The solve's moves: on equations of one voxel light, a start with the light in the neighbouring
+// voxel (a local minimum of the log penalty) ends with it in its own voxel, at the cost of the
+// truth or below.
+TEST(SolveLights, MovesALightIntoItsVoxel) {
+  SmallScene s;
+  Scene lit = s.geometry;
+  VoxelLightGrid truth = s.grid;
+  truth.intensity[4].setZero();
+  lit.voxel_lights = truth;
+  const std::vector<View> all = CornellLightViews(24, 18);
+  const std::vector<TrainingView> views = Render(lit, {all[0], all[1], all[2]}, 64);
+  const NormalEquations eq = SmallEquations(s, views, 0.0);
+  LightEstimationOptions o;
+  o.penalty_weight = 1e-3;
+  const LightCost cost(eq, o.penalty_weight, o.penalty_epsilon);
+  VoxelLightGrid start = truth;
+  std::swap(start.intensity[22], start.intensity[19]);  // one voxel over in y
+  std::swap(start.weights[22], start.weights[19]);
+  o.move_voxels = 8;
+  o.move_iterations = 15;
+  for (int passes : {0, 2}) {
+    o.move_passes = passes;
+    VoxelLightGrid grid = start;
+    const SolveReport r = SolveLights(eq, o, &grid);
+    int strongest = 0;
+    for (int j = 0; j < 27; ++j) {
+      if (Luminance(grid.Power(j)) > Luminance(grid.Power(strongest))) strongest = j;
+    }
+    if (passes == 0) {
+      EXPECT_NE(strongest, 22) << "without moves the start should stay stuck (else this test proves nothing)";
+    } else {
+      EXPECT_EQ(strongest, 22);
+      EXPECT_GE(r.moves, 1);
+      EXPECT_LE(r.cost, cost.Evaluate(LightCost::Pack(truth)) * 1.001);
+    }
+  }
 }
 
 TEST(EstimateLights, PenaltyZeroAndHugeStayFinite) {
