@@ -24,7 +24,21 @@ struct SmallScene {
     grid.intensity[4] = Eigen::Vector3f(0.3f, 0.3f, 0.6f);   // bottom layer, centre
     grid.weights[4] = {1, 1, 1, 1, 1, 1};
   }
+  // The geometry lit by `lights` (default: this scene's grid).
+  Scene Lit(const VoxelLightGrid* lights = nullptr) const {
+    Scene lit = geometry;
+    lit.voxel_lights = lights ? *lights : grid;
+    return lit;
+  }
 };
+
+int StrongestVoxel(const VoxelLightGrid& grid) {
+  int strongest = 0;
+  for (int j = 0; j < grid.VoxelCount(); ++j) {
+    if (Luminance(grid.Power(j)) > Luminance(grid.Power(strongest))) strongest = j;
+  }
+  return strongest;
+}
 
 std::vector<TrainingView> Views(const std::vector<View>& views) {
   std::vector<TrainingView> out;
@@ -62,8 +76,7 @@ TEST(LightCache, PredictionEqualsAFreshRenderWithTheSameSamples) {
 // vertex) are different Monte Carlo estimators of the same pixel: their means agree.
 TEST(LightCache, AgreesWithThePathTracerOnAverage) {
   SmallScene s;
-  Scene lit = s.geometry;
-  lit.voxel_lights = s.grid;
+  const Scene lit = s.Lit();
   const PathTracer tracer(s.geometry), lit_tracer(lit);
   const std::vector<View> all = CornellLightViews(12, 9);
   const std::vector<TrainingView> views = Views({all[0]});
@@ -113,8 +126,7 @@ NormalEquations SmallEquations(const SmallScene& s, const std::vector<TrainingVi
 
 TEST(LightCost, GradientEqualsCentralDifferences) {
   SmallScene s;
-  Scene lit = s.geometry;
-  lit.voxel_lights = s.grid;
+  const Scene lit = s.Lit();
   const std::vector<View> all = CornellLightViews(16, 12);
   const std::vector<TrainingView> views = Render(lit, {all[0], all[1]}, 16);
   const NormalEquations eq = SmallEquations(s, views, 0.5);
@@ -141,8 +153,7 @@ TEST(LightCost, GradientEqualsCentralDifferences) {
 
 TEST(LightCost, GramCostEqualsThePerPixelCost) {
   SmallScene s;
-  Scene lit = s.geometry;
-  lit.voxel_lights = s.grid;
+  const Scene lit = s.Lit();
   const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[2]}, 16);
   const PathTracer tracer(s.geometry);
   LightEstimationOptions o;
@@ -168,8 +179,7 @@ TEST(LightCost, GramCostEqualsThePerPixelCost) {
 
 TEST(NormalEquations, DenseAndSparseRowsAndThreadCountsAgree) {
   SmallScene s;
-  Scene lit = s.geometry;
-  lit.voxel_lights = s.grid;
+  const Scene lit = s.Lit();
   const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 8);
   const PathTracer tracer(s.geometry);
   LightEstimationOptions o;
@@ -180,8 +190,7 @@ TEST(NormalEquations, DenseAndSparseRowsAndThreadCountsAgree) {
   VoxelSplitting sampled;
   sampled.all_until_depth = 0;
   sampled.SetPmf(std::vector<double>(27, 1.0), 1);
-  for (const VoxelSplitting* splitting : {static_cast<const VoxelSplitting*>(&sampled), static_cast<const VoxelSplitting*>(nullptr)}) {
-    const VoxelSplitting split = splitting ? *splitting : VoxelSplitting{};
+  for (const VoxelSplitting& split : {sampled, VoxelSplitting{}}) {
     const LightCache a = TraceLightCache(tracer, s.grid, split, views, pixels, o, 1);
     const LightCache b = TraceLightCache(tracer, s.grid, split, views, pixels, o, 2);
     // Reference: the formula written out densely, in double.
@@ -210,10 +219,9 @@ TEST(NormalEquations, DenseAndSparseRowsAndThreadCountsAgree) {
 // power in the right place and reproduces the training views.
 TEST(EstimateLights, RecoversAVoxelLight) {
   SmallScene s;
-  Scene lit = s.geometry;
   VoxelLightGrid truth = s.grid;
   truth.intensity[4].setZero();  // one light: top centre, mostly facing down
-  lit.voxel_lights = truth;
+  const Scene lit = s.Lit(&truth);
   const std::vector<View> all = CornellLightViews(24, 18);
   const std::vector<TrainingView> views = Render(lit, {all[0], all[1], all[2]}, 64);
   LightEstimationOptions o;
@@ -234,11 +242,7 @@ TEST(EstimateLights, RecoversAVoxelLight) {
   EXPECT_NEAR(total / Luminance(truth.Power(22)), 1.0, 0.25);
   EXPECT_LT(e.train_rmse, 0.35);  // the cache's own paths are noisy (8 per half-pixel)
   EXPECT_LE(e.active_voxels, 6);
-  int strongest = 0;
-  for (int j = 0; j < 27; ++j) {
-    if (Luminance(e.lights.Power(j)) > Luminance(e.lights.Power(strongest))) strongest = j;
-  }
-  EXPECT_EQ(strongest, 22) << "the light is in the wrong voxel";
+  EXPECT_EQ(StrongestVoxel(e.lights), 22) << "the light is in the wrong voxel";
 }
 
 // The solve's moves: on equations of one voxel light, a start with the light in the neighbouring
@@ -246,10 +250,9 @@ TEST(EstimateLights, RecoversAVoxelLight) {
 // truth or below.
 TEST(SolveLights, MovesALightIntoItsVoxel) {
   SmallScene s;
-  Scene lit = s.geometry;
   VoxelLightGrid truth = s.grid;
   truth.intensity[4].setZero();
-  lit.voxel_lights = truth;
+  const Scene lit = s.Lit(&truth);
   const std::vector<View> all = CornellLightViews(24, 18);
   const std::vector<TrainingView> views = Render(lit, {all[0], all[1], all[2]}, 64);
   const NormalEquations eq = SmallEquations(s, views, 0.0);
@@ -265,10 +268,7 @@ TEST(SolveLights, MovesALightIntoItsVoxel) {
     o.move_passes = passes;
     VoxelLightGrid grid = start;
     const SolveReport r = SolveLights(eq, o, &grid);
-    int strongest = 0;
-    for (int j = 0; j < 27; ++j) {
-      if (Luminance(grid.Power(j)) > Luminance(grid.Power(strongest))) strongest = j;
-    }
+    const int strongest = StrongestVoxel(grid);
     if (passes == 0) {
       EXPECT_NE(strongest, 22) << "without moves the start should stay stuck (else this test proves nothing)";
     } else {
@@ -281,8 +281,7 @@ TEST(SolveLights, MovesALightIntoItsVoxel) {
 
 TEST(EstimateLights, PenaltyZeroAndHugeStayFinite) {
   SmallScene s;
-  Scene lit = s.geometry;
-  lit.voxel_lights = s.grid;
+  const Scene lit = s.Lit();
   const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
   LightEstimationOptions o;
   o.grid = 3;
@@ -299,7 +298,9 @@ TEST(EstimateLights, PenaltyZeroAndHugeStayFinite) {
     }
     EXPECT_LE(e.active_voxels, previous_active) << "w " << w;
     previous_active = e.active_voxels;
-    if (w >= 1e6) EXPECT_EQ(e.active_voxels, 0) << "a huge penalty switches every voxel off";
+    if (w >= 1e6) {
+      EXPECT_EQ(e.active_voxels, 0) << "a huge penalty switches every voxel off";
+    }
   }
 }
 
@@ -333,11 +334,10 @@ TEST(EstimateLights, UnreachableVoxelStaysDark) {
 // floor. Its power is still found in the upper half of the room.
 TEST(EstimateLights, FindsALightSeenOnlyThroughBounces) {
   SmallScene s;
-  Scene lit = s.geometry;
   VoxelLightGrid truth = s.grid;
   truth.intensity[4].setZero();
   truth.weights[22] = {0, 0, 0, 0, 1, 0};  // +z only: lights the ceiling
-  lit.voxel_lights = truth;
+  const Scene lit = s.Lit(&truth);
   const CameraIntrinsics k = CameraIntrinsics::FromHorizontalFov(20, 15, 60.0);
   const std::vector<View> floor_views = {{k, LookAt({0.0, -0.9, 1.0}, {0.0, 0.3, 0.0})},
                                          {k, LookAt({0.8, 0.8, 1.0}, {-0.2, -0.2, 0.0})}};
@@ -361,8 +361,7 @@ TEST(EstimateLights, FindsALightSeenOnlyThroughBounces) {
 // direct light, where the prediction is linear in the albedo).
 TEST(EstimateLights, AlbedoFixesTheScaleGauge) {
   SmallScene s;
-  Scene lit = s.geometry;
-  lit.voxel_lights = s.grid;
+  const Scene lit = s.Lit();
   const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0], CornellLightViews(16, 12)[1]}, 32, 2);
   LightEstimationOptions o;
   o.grid = 3;
@@ -376,17 +375,14 @@ TEST(EstimateLights, AlbedoFixesTheScaleGauge) {
     return total;
   };
   Scene half = lit;
-  const TriangleMesh& mesh = half.meshes[0].mesh;
   for (auto& a : half.meshes[0].albedo.values) a *= 0.5f;
   if (half.meshes[0].albedo.kind == SurfaceAlbedo::Kind::kConstant) half.meshes[0].albedo.constant *= 0.5f;
-  (void)mesh;
   EXPECT_NEAR(total_power(half) / total_power(lit), 2.0, 0.1);
 }
 
 TEST(EstimateLights, MasksSaturatedAndEmitterPixels) {
   SmallScene s;
-  Scene lit = s.geometry;
-  lit.voxel_lights = s.grid;
+  const Scene lit = s.Lit();
   std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
   // A burnt-out patch (above the saturation level, which nothing else reaches) and an
   // emitter-bright spot.
