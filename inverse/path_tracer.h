@@ -20,6 +20,8 @@
 
 namespace genscene::inverse {
 
+class LightSampler;
+
 struct RenderOptions {
   static constexpr const char* kSection = "render";
 
@@ -114,7 +116,6 @@ class PathTracer {
  private:
   struct SurfacePoint;
   struct LightSample;
-  class LightSampler;
 
   std::optional<SurfacePoint> Hit(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction) const;
   std::optional<LightSample> SampleLight(const SurfacePoint& at, CounterRng& rng) const;

@@ -51,6 +51,47 @@ std::vector<View> CornellLightViews(int width, int height) {
   return views;
 }
 
+IcosphereBox MakeIcosphereBox(bool smooth_shading) {
+  IcosphereBox box;
+  const Eigen::Vector3f white(0.725f, 0.71f, 0.68f), red(0.63f, 0.065f, 0.05f), green(0.14f, 0.45f, 0.091f);
+  // Quad with corners a, b, c, d counter-clockwise seen from the inside of the box.
+  const auto wall = [&](const std::string& name, const Eigen::Vector3f& a, const Eigen::Vector3f& b,
+                        const Eigen::Vector3f& c, const Eigen::Vector3f& d, const Eigen::Vector3f& albedo) {
+    SceneMesh m;
+    m.name = name;
+    m.mesh.vertices = {a, b, c, d};
+    m.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
+    m.albedo = SurfaceAlbedo::Constant(albedo);
+    box.scene.meshes.push_back(m);
+  };
+  const float h = 0.5f;
+  wall("floor", {-h, -h, 0}, {h, -h, 0}, {h, h, 0}, {-h, h, 0}, white);
+  wall("ceiling", {-h, -h, 1}, {-h, h, 1}, {h, h, 1}, {h, -h, 1}, white);
+  wall("back", {-h, h, 0}, {h, h, 0}, {h, h, 1}, {-h, h, 1}, white);
+  wall("red", {-h, -h, 0}, {-h, h, 0}, {-h, h, 1}, {-h, -h, 1}, red);
+  wall("green", {h, -h, 0}, {h, -h, 1}, {h, h, 1}, {h, h, 0}, green);
+  box.scene.meshes.push_back(CeilingLight("light", {0.0f, 0.0f, 0.998f}, 0.25f, {30.0f, 24.0f, 18.0f}));
+
+  SceneMesh sphere;
+  sphere.name = "icosphere";
+  const UnitIcosphere unit = MakeUnitIcosphere(1);
+  for (const Eigen::Vector3d& v : unit.vertices) sphere.mesh.vertices.push_back((box.center + box.radius * v).cast<float>());
+  sphere.mesh.faces = unit.faces;
+  sphere.mesh.ComputeVertexNormals();
+  sphere.smooth_shading = smooth_shading;
+  sphere.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.8f));
+  box.sphere = static_cast<int>(box.scene.meshes.size());
+  box.scene.meshes.push_back(sphere);
+
+  // icosphere_flat/intrinsics.txt and pose.txt (world_from_camera, OpenCV camera frame).
+  box.view.intrinsics = CameraIntrinsics{150.0, 150.0, 52.5, 39.5, 106, 80};
+  const Eigen::Quaterniond q(0.596890437, -0.802001294, -0.018217897, 0.013558692);  // w, x, y, z
+  box.view.world_from_camera = Eigen::Isometry3d::Identity();
+  box.view.world_from_camera.linear() = q.normalized().toRotationMatrix();
+  box.view.world_from_camera.translation() = Eigen::Vector3d(0.05, -1.1, 0.55);
+  return box;
+}
+
 Scene MakeRoomScene() {
   SyntheticScene room;
   const Eigen::Vector3f wall(0.78f, 0.76f, 0.72f), floor(0.35f, 0.3f, 0.27f), wood(0.45f, 0.3f, 0.18f);

@@ -19,4 +19,19 @@ Scene MakeRoomScene();
 // are the training views, the last two the novel views.
 std::vector<View> CornellLightViews(int width, int height);
 
+// The vertex-refinement replica of the paper's Fig. 4 (issue 8), the scene of
+// ../shared/data/cbox-cycles/icosphere_flat (and _smooth) built in code: the 1 m Cornell box
+// (interior x, y in [-0.5, 0.5], z in [0, 1], open towards -y; red wall at x = -0.5, green at
+// x = +0.5) lit by a 0.25 m square light under the ceiling (radiance (30, 24, 18)), with an
+// icosphere (42 vertices, 80 faces, radius 0.2 m, albedo 0.8) standing on the floor, seen by one
+// 106 x 80 view. The sphere's vertices are MakeUnitIcosphere(1)'s, not Blender's.
+struct IcosphereBox {
+  Scene scene;
+  View view;
+  int sphere = -1;  // index of the icosphere in scene.meshes
+  double radius = 0.2;
+  Eigen::Vector3d center{0.0, 0.0, 0.201};
+};
+IcosphereBox MakeIcosphereBox(bool smooth_shading = false);
+
 }  // namespace genscene::inverse

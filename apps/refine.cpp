@@ -1,0 +1,167 @@
+#include "apps/refine.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <optional>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "core/check.h"
+#include "core/file_util.h"
+#include "core/image_io.h"
+#include "core/light_set.h"
+#include "core/options_json.h"
+#include "core/ply_io.h"
+
+namespace genscene::apps {
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace genscene::inverse;
+
+std::vector<bool> ChooseMeshes(const Scene& scene, const std::vector<std::string>& names,
+                               std::vector<std::string>* chosen) {
+  std::vector<bool> refined(scene.meshes.size(), false);
+  for (size_t m = 0; m < scene.meshes.size(); ++m) {
+    const SceneMesh& mesh = scene.meshes[m];
+    if (mesh.IsEmitter()) continue;
+    const bool named = std::find(names.begin(), names.end(), mesh.name) != names.end();
+    if (names.empty() || named) {
+      refined[m] = true;
+      chosen->push_back(mesh.name);
+    }
+  }
+  for (const std::string& name : names) {
+    if (std::find(chosen->begin(), chosen->end(), name) == chosen->end()) {
+      std::string known;
+      for (const SceneMesh& m : scene.meshes) known += (known.empty() ? "" : ", ") + m.name;
+      throw Error(Format("--refine ", name, ": no such non-emitting mesh in the scene (meshes: ", known, ")"));
+    }
+  }
+  return refined;
+}
+
+// The refined meshes as one mesh (vertices in parameter order), normals area-weighted.
+TriangleMesh RefinedMesh(const Scene& scene, const std::vector<bool>& refined) {
+  TriangleMesh out;
+  for (size_t m = 0; m < scene.meshes.size(); ++m) {
+    if (!refined[m]) continue;
+    const TriangleMesh& mesh = scene.meshes[m].mesh;
+    const int offset = static_cast<int>(out.vertices.size());
+    out.vertices.insert(out.vertices.end(), mesh.vertices.begin(), mesh.vertices.end());
+    for (const Eigen::Vector3i& f : mesh.faces) out.faces.push_back(f + Eigen::Vector3i::Constant(offset));
+  }
+  out.ComputeVertexNormals();
+  return out;
+}
+
+// The scene with every albedo grey 0.8: the shading alone.
+Scene Grey(const Scene& scene) {
+  Scene grey = scene;
+  for (SceneMesh& m : grey.meshes) {
+    if (!m.IsEmitter()) m.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.8f));
+  }
+  return grey;
+}
+
+}  // namespace
+
+RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& options, uint64_t seed, const Workspace& ws) {
+  options.Validate();
+  RefineSummary out;
+  Scene scene = LoadGeometry(in.geometry, ws, &out.warnings);
+  const fs::path lights = !in.lights.empty() ? in.lights
+                          : (in.geometry.scene.empty() && fs::exists(ws.Lights())) ? ws.Lights() : fs::path();
+  if (!lights.empty()) scene.voxel_lights = ReadLightsJson(lights);
+  const bool lit = scene.voxel_lights || !scene.point_lights.empty() ||
+                   std::any_of(scene.meshes.begin(), scene.meshes.end(), [](const SceneMesh& m) { return m.IsEmitter(); });
+  if (!lit) {
+    throw Error(in.geometry.scene.empty()
+                    ? Format(ws.Lights().string(), ": no lights (run genscene-lights, or give --lights)")
+                    : Format(in.geometry.scene.string(), ": the scene has no lights (give --lights)"));
+  }
+  const std::vector<TrainingView> views = ReadViews(in.views.empty() ? ws.Keyframes() : in.views);
+  std::vector<RefineTarget> targets;
+  for (const TrainingView& v : views) targets.push_back({v.view, v.image});
+  const std::vector<bool> refined = ChooseMeshes(scene, in.refine, &out.refined);
+
+  DifferentiablePathTracer tracer(scene, refined);
+  out.vertices = tracer.VertexCount();
+  std::optional<Eigen::VectorXd> truth;
+  if (!in.truth.empty()) {
+    const TriangleMesh t = ReadPly(in.truth);
+    if (static_cast<int>(t.vertices.size()) != tracer.VertexCount()) {
+      throw Error(Format(in.truth.string(), ": ", t.vertices.size(), " vertices, but the refined meshes have ",
+                         tracer.VertexCount()));
+    }
+    truth = Eigen::VectorXd(3 * t.vertices.size());
+    for (size_t v = 0; v < t.vertices.size(); ++v) truth->segment<3>(3 * v) = t.vertices[v].cast<double>();
+  }
+  const TriangleMesh start = RefinedMesh(scene, refined);
+  const fs::path dir = ws.root() / "refine";
+  fs::create_directories(dir);
+  RenderOptions render = options.Render();
+  render.spp = std::max(1, in.render_spp);
+
+  const auto progress = [&](const RefineIteration& it, const DifferentiablePathTracer& at) {
+    std::printf("genscene-refine: iteration %d: cost %.6g, image RMSE %.4f, step %.2e m%s (%.1f s)\n", it.iteration,
+                it.cost, it.data_rmse, it.step_rms, it.accepted ? "" : ", rejected", it.seconds);
+    std::fflush(stdout);
+    if (truth) {
+      const Eigen::VectorXd d = at.Positions() - *truth;
+      double max = 0.0;
+      for (int v = 0; v < at.VertexCount(); ++v) max = std::max(max, d.segment<3>(3 * v).norm());
+      out.vertex_rms.push_back(std::sqrt(d.squaredNorm() / at.VertexCount()));
+      out.vertex_max.push_back(max);
+    }
+    if (in.render_spp > 0) {
+      char name[32];
+      std::snprintf(name, sizeof(name), "iter_%02d", it.iteration);
+      const View& view = targets.front().view;
+      WritePng(dir / (std::string(name) + ".png"), PathTracer(at.scene()).Render(view, render, 1).radiance);
+      WritePng(dir / (std::string(name) + "_shading.png"), PathTracer(Grey(at.scene())).Render(view, render, 1).radiance);
+    }
+  };
+  out.result = RefineVertices(tracer, targets, options, seed, progress);
+  const TriangleMesh final_mesh = RefinedMesh(tracer.scene(), refined);
+  out.flipped_faces = FlippedFaces(start, final_mesh);
+
+  nlohmann::ordered_json report;
+  report["options"] = nlohmann::ordered_json::parse(OptionsToJson(options).dump());
+  report["seed"] = seed;
+  report["refined_meshes"] = out.refined;
+  report["vertices"] = out.vertices;
+  report["pixels"] = out.result.pixels;
+  report["flipped_faces"] = out.flipped_faces;
+  nlohmann::ordered_json iterations = nlohmann::ordered_json::array();
+  for (size_t i = 0; i < out.result.history.size(); ++i) {
+    const RefineIteration& it = out.result.history[i];
+    nlohmann::ordered_json j = {{"iteration", it.iteration}, {"cost", it.cost}, {"image_rmse", it.data_rmse},
+                                {"step_rms_m", it.step_rms}, {"accepted", it.accepted}, {"rejected", it.rejected},
+                                {"damping", it.damping}, {"seconds", it.seconds},
+                                {"jacobian_nonzeros_per_pixel", it.jacobian_nonzeros_per_pixel},
+                                {"rays", it.rays.total()}};
+    if (i < out.vertex_rms.size()) j["vertex_rms_m"] = out.vertex_rms[i], j["vertex_max_m"] = out.vertex_max[i];
+    iterations.push_back(j);
+  }
+  report["iterations"] = iterations;
+  WriteTextFileAtomically(dir / "report.json", report.dump(1) + "\n");
+  // The mesh last: its presence means the stage is complete.
+  WritePly(ws.RefinedMesh(), final_mesh);
+  return out;
+}
+
+std::string ToString(const RefineSummary& s) {
+  std::ostringstream o;
+  const auto& h = s.result.history;
+  o << s.vertices << " vertices of " << s.refined.size() << " mesh(es), " << s.result.pixels << " pixels, "
+    << (h.size() - 1) << " iterations; image RMSE " << Format(h.front().data_rmse) << " -> " << Format(h.back().data_rmse);
+  if (!s.vertex_rms.empty()) {
+    o << "; vertex RMS error " << Format(s.vertex_rms.front()) << " -> " << Format(s.vertex_rms.back()) << " m";
+  }
+  o << "; " << s.flipped_faces << " flipped faces";
+  return o.str();
+}
+
+}  // namespace genscene::apps

@@ -1,0 +1,353 @@
+#include "inverse/vertex_refinement.h"
+
+#include <Eigen/Sparse>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <numeric>
+
+#include "core/check.h"
+#include "core/options.h"
+#include "core/parallel.h"
+#include "core/rng.h"
+
+namespace genscene::inverse {
+
+void RefineOptions::Validate() const {
+  RequireRange("iterations", iterations, 0, 1000);
+  RequireRange("spp", spp, 1, 1 << 16);
+  RequireRange("pixels_per_view", pixels_per_view, 0, 1 << 26);
+  if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
+  RequireRange("rr_depth", rr_depth, 1, 1 << 20);
+  RequireRange("noise", noise, 1e-6, 10.0);
+  RequireRange("prior_sigma", prior_sigma, 1e-9, 1e6);
+  RequireRange("damping", damping, 0.0, 1e12);
+  RequireRange("max_step", max_step, 1e-6, 100.0);
+  RequireRange("max_retries", max_retries, 0, 100);
+  RequireRange("tolerance", tolerance, 0.0, 1.0);
+  RequireRange("robust", robust, 0.0, 1e6);
+  RequireRange("edge_margin", edge_margin, 0, 100);
+}
+
+RenderOptions RefineOptions::Render() const {
+  RenderOptions r;
+  r.spp = spp;
+  r.max_depth = max_depth;
+  r.rr_depth = rr_depth;
+  return r;
+}
+
+namespace {
+
+struct PixelRef {
+  int target = 0, u = 0, v = 0;
+};
+
+// The sampled pixels: every pixel, or `per_view` drawn without replacement per view, leaving out
+// pixels within `margin` pixels of a silhouette (where the object seen through the pixel centre
+// changes, in the starting geometry): their residuals come from visibility, which the derivatives
+// do not see, and would pull the vertices the wrong way.
+std::vector<PixelRef> SamplePixels(const DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+                                   int per_view, int margin, uint64_t seed) {
+  std::vector<PixelRef> pixels;
+  const PathTracer ids(tracer.scene());
+  RenderOptions one;
+  one.spp = 1;
+  for (size_t t = 0; t < targets.size(); ++t) {
+    const int w = targets[t].image.width(), h = targets[t].image.height();
+    const Image<int> object = ids.Render(targets[t].view, one, 1).object;
+    const auto near_edge = [&](int u, int v) {
+      for (int dv = -margin; dv <= margin; ++dv) {
+        for (int du = -margin; du <= margin; ++du) {
+          const int x = std::clamp(u + du, 0, w - 1), y = std::clamp(v + dv, 0, h - 1);
+          if (object(x, y) != object(u, v)) return true;
+        }
+      }
+      return false;
+    };
+    std::vector<int> order;
+    for (int p = 0; p < w * h; ++p) {
+      if (margin <= 0 || !near_edge(p % w, p / w)) order.push_back(p);
+    }
+    if (per_view > 0 && per_view < static_cast<int>(order.size())) {
+      CounterRng rng(seed, 0x5e1ec7, t);
+      for (int i = 0; i < per_view; ++i) {  // partial Fisher-Yates
+        std::swap(order[i], order[i + rng.UniformInt(static_cast<uint32_t>(order.size() - i))]);
+      }
+      order.resize(per_view);
+      std::sort(order.begin(), order.end());
+    }
+    for (int p : order) pixels.push_back({static_cast<int>(t), p % w, p / w});
+  }
+  if (pixels.empty()) throw Error("vertex refinement: no pixels to fit (every pixel is near a silhouette)");
+  return pixels;
+}
+
+// Huber's loss of a residual r (in noise units) with threshold k: r^2 / 2 inside, linear outside,
+// so that pixels whose visibility differs from the reference (a silhouette or shadow edge in the
+// wrong place, residuals of many noise units that no smooth move explains) do not dominate the
+// step. k = 0: plain least squares.
+double HuberCost(double r, double k) {
+  const double a = std::abs(r);
+  return k <= 0.0 || a <= k ? 0.5 * r * r : k * (a - 0.5 * k);
+}
+// IRLS weight of a residual under Huber's loss: the normal equations use w J^T J and w J^T r.
+double HuberWeight(double r, double k) {
+  const double a = std::abs(r);
+  return k <= 0.0 || a <= k ? 1.0 : k / a;
+}
+
+// RMS of the reference over the sampled pixels and channels (> 0).
+double ReferenceRms(const std::vector<RefineTarget>& targets, const std::vector<PixelRef>& pixels) {
+  double sum = 0.0;
+  for (const PixelRef& p : pixels) sum += targets[p.target].image(p.u, p.v).cast<double>().squaredNorm();
+  const double rms = std::sqrt(sum / (3.0 * pixels.size()));
+  if (!(rms > 0.0)) throw Error("vertex refinement: the reference images are black where sampled");
+  return rms;
+}
+
+// One trace of every sampled pixel: residual rows (r_c = (I_c - I*_c) / (noise s), with their
+// derivatives when asked) and the data cost.
+struct Evaluation {
+  std::vector<DualRgb> rows;  // per pixel
+  double data_cost = 0.0;
+  double sum_squared = 0.0;   // of I - I*, for the RMSE
+  RayCounts rays;
+};
+
+Evaluation Evaluate(const DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+                    const std::vector<PixelRef>& pixels, const RefineOptions& options, uint64_t seed, double scale,
+                    bool derivatives) {
+  Evaluation e;
+  e.rows.resize(pixels.size());
+  std::vector<RayCounts> rays(pixels.size());
+  const RenderOptions render = options.Render();
+  ParallelFor(0, pixels.size(), [&](size_t i) {
+    const PixelRef& p = pixels[i];
+    const RefineTarget& t = targets[p.target];
+    DualRgb row = tracer.Pixel(t.view, p.u, p.v, render, seed, derivatives, &rays[i]);
+    for (int c = 0; c < 3; ++c) row[c] = (std::move(row[c]) - t.image(p.u, p.v)[c]) * (1.0 / scale);
+    e.rows[i] = std::move(row);
+  }, 8);
+  for (size_t i = 0; i < pixels.size(); ++i) {  // fixed order: the same sums with any thread count
+    for (int c = 0; c < 3; ++c) {
+      const double r = e.rows[i][c].value();
+      e.sum_squared += r * r * scale * scale;
+      e.data_cost += HuberCost(r, options.robust);
+    }
+    e.rays.intersect += rays[i].intersect;
+    e.rays.occluded += rays[i].occluded;
+  }
+  return e;
+}
+
+// The normal equations J^T J and J^T r of the data term, assembled from the sparse rows as 3 x 3
+// blocks per pair of vertices, in row order.
+struct NormalEquations {
+  std::map<std::pair<int, int>, Eigen::Matrix3d> blocks;  // (i, j) with i <= j
+  Eigen::VectorXd gradient;
+  double nonzeros = 0.0;  // scalar Jacobian entries
+};
+
+// Adds w r J^T and w J J^T of one residual row.
+void AddRow(const SparseDual& r, double w, NormalEquations* n) {
+  const auto& d = r.partials();
+  for (size_t a = 0; a < d.size(); ++a) {
+    n->gradient.segment<3>(3 * d[a].vertex) += (w * r.value()) * d[a].d;
+    for (size_t b = a; b < d.size(); ++b) {
+      auto [it, fresh] = n->blocks.try_emplace({d[a].vertex, d[b].vertex}, Eigen::Matrix3d::Zero());
+      it->second += w * d[a].d * d[b].d.transpose();
+    }
+  }
+}
+
+NormalEquations Assemble(const Evaluation& e, int vertices, double robust) {
+  NormalEquations n;
+  n.gradient = Eigen::VectorXd::Zero(3 * vertices);
+  for (const DualRgb& row : e.rows) {
+    for (const SparseDual& r : row) {
+      n.nonzeros += 3.0 * r.partials().size();
+      AddRow(r, HuberWeight(r.value(), robust), &n);
+    }
+  }
+  return n;
+}
+
+// Solves (H + mu diag(H)) dx = -g with H = J^T J + I / sigma^2 and g = J^T r + (x - x0) / sigma^2.
+Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior_gradient, double prior_weight,
+                          double mu) {
+  const int size = static_cast<int>(n.gradient.size());
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(n.blocks.size() * 18 + size);
+  Eigen::VectorXd diagonal = Eigen::VectorXd::Constant(size, prior_weight);
+  for (const auto& [ij, block] : n.blocks) {
+    const auto [i, j] = ij;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {
+        if (i == j && r == c) {
+          diagonal[3 * i + r] += block(r, c);
+          continue;
+        }
+        triplets.emplace_back(3 * i + r, 3 * j + c, block(r, c));
+        if (i != j) triplets.emplace_back(3 * j + c, 3 * i + r, block(r, c));
+      }
+    }
+  }
+  for (int k = 0; k < size; ++k) triplets.emplace_back(k, k, diagonal[k] * (1.0 + mu));
+  Eigen::SparseMatrix<double> h(size, size);
+  h.setFromTriplets(triplets.begin(), triplets.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(h);
+  if (solver.info() != Eigen::Success) throw Error("vertex refinement: the normal equations could not be factorised");
+  const Eigen::VectorXd step = solver.solve(-(n.gradient + prior_gradient));
+  if (!step.allFinite()) throw Error("vertex refinement: the step is not finite");
+  return step;
+}
+
+// Mean edge length of the refined meshes (each edge counted once per face side).
+double MeanEdgeLength(const DifferentiablePathTracer& tracer) {
+  double sum = 0.0;
+  size_t count = 0;
+  for (size_t m = 0; m < tracer.scene().meshes.size(); ++m) {
+    if (tracer.ParameterVertex(static_cast<int>(m), 0) < 0) continue;
+    const TriangleMesh& mesh = tracer.scene().meshes[m].mesh;
+    for (const Eigen::Vector3i& f : mesh.faces) {
+      for (int k = 0; k < 3; ++k) sum += (mesh.vertices[f[k]] - mesh.vertices[f[(k + 1) % 3]]).norm(), ++count;
+    }
+  }
+  return count > 0 ? sum / count : 1.0;
+}
+
+}  // namespace
+
+RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+                                        const RefineOptions& options, uint64_t seed, const Eigen::VectorXd* direction) {
+  const std::vector<PixelRef> pixels = SamplePixels(tracer, targets, options.pixels_per_view, options.edge_margin, seed);
+  const double scale = options.noise * ReferenceRms(targets, pixels);
+  const Evaluation e = Evaluate(tracer, targets, pixels, options, seed, scale, true);
+  RefineLinearization l;
+  l.cost = e.data_cost;
+  l.gradient = Assemble(e, tracer.VertexCount(), options.robust).gradient;
+  if (direction) {
+    for (const DualRgb& row : e.rows) {
+      for (const SparseDual& r : row) {
+        double jd = 0.0;
+        for (const auto& p : r.partials()) jd += p.d.dot(direction->segment<3>(3 * p.vertex));
+        l.curvature += HuberWeight(r.value(), options.robust) * jd * jd;
+      }
+    }
+  }
+  return l;
+}
+
+RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+                            const RefineOptions& options, uint64_t seed, const RefineProgress& progress) {
+  options.Validate();
+  if (targets.empty()) throw Error("vertex refinement: no reference images");
+  for (size_t t = 0; t < targets.size(); ++t) {
+    const auto& k = targets[t].view.intrinsics;
+    const ImageRgb& image = targets[t].image;
+    if (image.width() != k.width || image.height() != k.height) {
+      throw Error(Format("vertex refinement: reference image ", t, " is ", image.width(), "x", image.height(),
+                         " but its view is ", k.width, "x", k.height));
+    }
+    for (int v = 0; v < image.height(); ++v) {
+      for (int u = 0; u < image.width(); ++u) {
+        if (!image(u, v).allFinite()) {
+          throw Error(Format("vertex refinement: reference image ", t, " pixel (", u, ", ", v, ") is not finite"));
+        }
+      }
+    }
+  }
+  if (tracer.VertexCount() == 0) throw Error("vertex refinement: no vertices to refine");
+
+  const std::vector<PixelRef> pixels = SamplePixels(tracer, targets, options.pixels_per_view, options.edge_margin, seed);
+  const double rms = ReferenceRms(targets, pixels);
+  const double scale = options.noise * rms;
+  const double prior_weight = 1.0 / (options.prior_sigma * options.prior_sigma);
+  const double channels = 3.0 * pixels.size();
+
+  RefineResult result;
+  result.initial = tracer.Positions();
+  result.pixels = static_cast<int>(pixels.size());
+  Eigen::VectorXd x = result.initial;
+  const auto prior_cost = [&](const Eigen::VectorXd& at) { return 0.5 * prior_weight * (at - result.initial).squaredNorm(); };
+  const auto now = [] { return std::chrono::steady_clock::now(); };
+  const auto seconds = [](auto since) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count(); };
+
+  auto start = now();
+  Evaluation current = Evaluate(tracer, targets, pixels, options, seed, scale, true);
+  RefineIteration first;
+  first.cost = current.data_cost + prior_cost(x);
+  first.data_rmse = std::sqrt(current.sum_squared / channels) / rms;
+  first.damping = options.damping;
+  first.accepted = true;
+  first.seconds = seconds(start);
+  first.rays = current.rays;
+  result.history.push_back(first);
+  if (progress) progress(first, tracer);
+
+  double mu = options.damping;
+  const double max_radius = options.max_step * MeanEdgeLength(tracer);
+  double radius = max_radius;
+  for (int it = 1; it <= options.iterations; ++it) {
+    start = now();
+    RefineIteration record;
+    record.iteration = it;
+    const NormalEquations equations = Assemble(current, tracer.VertexCount(), options.robust);
+    record.jacobian_nonzeros_per_pixel = equations.nonzeros / pixels.size();
+    const Eigen::VectorXd prior_gradient = prior_weight * (x - result.initial);
+    const double cost = current.data_cost + prior_cost(x);
+    record.cost = cost;
+    for (int attempt = 0; attempt <= options.max_retries; ++attempt) {
+      Eigen::VectorXd step = SolveStep(equations, prior_gradient, prior_weight, mu);
+      // Trust region on the largest vertex move: the linear model holds over a fraction of an edge.
+      double largest = 0.0;
+      for (int v = 0; v < tracer.VertexCount(); ++v) largest = std::max(largest, step.segment<3>(3 * v).norm());
+      if (largest > radius) step *= radius / largest;
+      const Eigen::VectorXd trial = x + step;
+      tracer.SetPositions(trial, it < options.iterations);
+      // Most steps are kept: trace the trial with derivatives, they are the next iteration's.
+      Evaluation evaluation = Evaluate(tracer, targets, pixels, options, seed, scale, it < options.iterations);
+      record.rays.intersect += evaluation.rays.intersect;
+      record.rays.occluded += evaluation.rays.occluded;
+      const double trial_cost = evaluation.data_cost + prior_cost(trial);
+      if (trial_cost < cost) {
+        x = trial;
+        current = std::move(evaluation);
+        record.accepted = true;
+        record.cost = trial_cost;
+        record.step_rms = std::sqrt(step.squaredNorm() / tracer.VertexCount());
+        mu = std::max(mu / 3.0, 1e-9);
+        radius = std::min(2.0 * radius, max_radius);
+        break;
+      }
+      ++record.rejected;
+      mu = std::max(mu * 4.0, 1e-6);
+      radius *= 0.5;
+    }
+    if (!record.accepted) tracer.SetPositions(x);
+    record.data_rmse = std::sqrt(current.sum_squared / channels) / rms;
+    record.damping = mu;
+    record.seconds = seconds(start);
+    result.history.push_back(record);
+    if (progress) progress(record, tracer);
+    if (!record.accepted) break;
+    if (cost - record.cost < options.tolerance * cost) break;
+  }
+  result.positions = x;
+  return result;
+}
+
+int FlippedFaces(const TriangleMesh& before, const TriangleMesh& after) {
+  GS_CHECK_EQ(before.faces.size(), after.faces.size());
+  int flipped = 0;
+  for (size_t f = 0; f < before.faces.size(); ++f) {
+    const Eigen::Vector3f a = before.FaceNormalScaled(f), b = after.FaceNormalScaled(f);
+    if (b.squaredNorm() == 0.0f || a.dot(b) <= 0.0f) ++flipped;
+  }
+  return flipped;
+}
+
+}  // namespace genscene::inverse

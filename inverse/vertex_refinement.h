@@ -1,0 +1,111 @@
+// Vertex refinement (issue 8, the paper's section IV): vertex positions estimated from images
+// through the differentiable path tracer, by Levenberg-Marquardt on
+//
+//   E(x) = 1/2 sum_pixels sum_c ((I_c(x) - I*_c) / (noise * s))^2 + 1/2 |x - x0|^2 / sigma^2
+//
+// where I(x) is the path-traced pixel (options.spp samples with fixed random numbers, so E is a
+// deterministic function of x between visibility changes), I* the reference image, s the RMS of
+// the reference over the sampled pixels, and the second term the weak prior on the starting
+// positions x0 that removes the null spaces of sparse sampling (vertices no sample sees).
+// Each iteration traces every sampled pixel with derivatives (a sparse Jacobian row per channel),
+// forms the block-sparse normal equations (3 x 3 blocks per vertex pair) and solves the damped
+// system with a sparse Cholesky factorisation (Eigen's SimplicialLDLT); a step is kept only when a
+// value-only trace shows a lower E. Visibility changes are not differentiated (as in the paper).
+#pragma once
+
+#include <functional>
+#include <vector>
+
+#include "core/image.h"
+#include "inverse/differentiable_tracer.h"
+
+namespace genscene::inverse {
+
+struct RefineOptions {
+  static constexpr const char* kSection = "refine";
+
+  int iterations = 5;           // Levenberg-Marquardt iterations (accepted or not)
+  int spp = 16;                 // path samples per pixel and evaluation
+  int pixels_per_view = 0;      // pixels sampled per view (0 = every pixel)
+  int edge_margin = 1;          // pixels within this distance of a silhouette are left out
+  int max_depth = -1;           // longest path, Mitsuba convention (-1 = Russian roulette)
+  int rr_depth = 5;             // depth at which Russian roulette starts
+  double noise = 0.05;          // relative pixel noise that weighs the data term
+  double robust = 3.0;          // Huber threshold of the residuals, in noise units (0 = none)
+  double prior_sigma = 0.01;    // standard deviation of the prior on vertex positions, m
+  double damping = 1e-3;        // initial Levenberg-Marquardt damping (times diag of J^T J)
+  double max_step = 0.25;       // largest vertex move per step, in mean edge lengths (trust region)
+  int max_retries = 6;          // rejected steps per iteration before giving up
+  double tolerance = 1e-5;      // stop when an accepted step lowers E by less than this fraction
+
+  template <typename V>
+  void Visit(V&& v) {
+    v("iterations", iterations, "", "Levenberg-Marquardt iterations");
+    v("spp", spp, "", "path samples per pixel and evaluation");
+    v("pixels_per_view", pixels_per_view, "", "pixels sampled per view (0 = every pixel)");
+    v("edge_margin", edge_margin, "px", "pixels this close to a silhouette are left out (0 = none)");
+    v("max_depth", max_depth, "segments", "longest path (Mitsuba convention; -1 = unlimited)");
+    v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
+    v("noise", noise, "", "relative pixel noise that weighs the data term");
+    v("robust", robust, "", "Huber threshold of the residuals in noise units (0 = plain least squares)");
+    v("prior_sigma", prior_sigma, "m", "standard deviation of the prior on the starting vertex positions");
+    v("damping", damping, "", "initial Levenberg-Marquardt damping");
+    v("max_step", max_step, "edges", "largest vertex move per step, in mean edge lengths");
+    v("max_retries", max_retries, "", "rejected steps per iteration before stopping");
+    v("tolerance", tolerance, "", "stop when a step lowers the cost by less than this fraction");
+  }
+  void Validate() const;
+  RenderOptions Render() const;  // the trace settings as path tracer options
+};
+
+// A reference image and the view it was taken from.
+struct RefineTarget {
+  View view;
+  ImageRgb image;  // linear RGB, the view's size
+};
+
+struct RefineIteration {
+  int iteration = 0;           // 0: the start
+  double cost = 0.0;           // E at the positions after this iteration
+  double data_rmse = 0.0;      // RMS of (I - I*) / RMS of I* over the sampled pixels and channels
+  double step_rms = 0.0;       // RMS vertex move of this iteration's step, m (0 when rejected)
+  double damping = 0.0;        // damping after this iteration
+  int rejected = 0;            // steps rejected in this iteration
+  bool accepted = false;
+  double seconds = 0.0;        // wall time of the iteration
+  double jacobian_nonzeros_per_pixel = 0.0;  // non-zero scalar entries of the 3 rows of a pixel
+  RayCounts rays;
+};
+
+struct RefineResult {
+  Eigen::VectorXd initial;     // x0
+  Eigen::VectorXd positions;   // final x (also set in the tracer)
+  int pixels = 0;              // sampled pixels (each gives 3 residuals)
+  std::vector<RefineIteration> history;
+};
+
+using RefineProgress = std::function<void(const RefineIteration&, const DifferentiablePathTracer&)>;
+
+// Refines the tracer's parameter vertices so that its renders match the targets; leaves the
+// tracer at the final positions. `seed` keys the random numbers of the traces and of the pixel
+// sample. `progress` is called after the start and after every iteration.
+// Throws Error when a target's size does not match its view or the image is not finite.
+RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+                            const RefineOptions& options, uint64_t seed = 1, const RefineProgress& progress = {});
+
+// The data term of E at the tracer's positions and its gradient J^T r (3 per parameter vertex),
+// for checks of the objective against finite differences.
+struct RefineLinearization {
+  double cost = 0.0;
+  Eigen::VectorXd gradient;
+  double curvature = 0.0;  // d^T J^T W J d along the given direction d (Gauss-Newton model)
+};
+RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+                                        const RefineOptions& options, uint64_t seed = 1,
+                                        const Eigen::VectorXd* direction = nullptr);
+
+// Faces whose normal turned by more than 90 degrees between `before` and `after` (same faces),
+// plus faces that lost all their area: the tangles a refinement must not create.
+int FlippedFaces(const TriangleMesh& before, const TriangleMesh& after);
+
+}  // namespace genscene::inverse
