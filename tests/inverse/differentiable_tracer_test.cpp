@@ -116,11 +116,12 @@ struct GradientCheck {
 // the same estimator (same random numbers) for every coordinate of every refined vertex the sample
 // depends on, and for a few it does not depend on. A sample whose differences at steps h and h/2
 // disagree sits on a visibility change (a ray switches triangles): it is counted as skipped.
-GradientCheck CheckGradients(const Scene& scene, const RenderOptions& options, int width, int height) {
+// Mesh 1 of `scene` is refined.
+GradientCheck CheckGradients(const Scene& scene, const RenderOptions& options, const View& view) {
   std::vector<bool> refined(scene.meshes.size(), false);
-  refined[1] = true;  // the sphere
+  refined[1] = true;
   DifferentiablePathTracer tracer(scene, refined);
-  const View view = SphereView(width, height);
+  const int width = view.intrinsics.width, height = view.intrinsics.height;
   const Eigen::VectorXd x0 = tracer.Positions();
   const Eigen::Matrix3d rotation = view.world_from_camera.rotation();
   const Eigen::Vector3d eye = view.world_from_camera.translation();
@@ -143,7 +144,7 @@ GradientCheck CheckGradients(const Scene& scene, const RenderOptions& options, i
       }
       if (vertices.empty()) continue;
       // Plus three vertices the sample should not depend on (zero derivative expected).
-      for (int extra : {0, 17, 41}) vertices.emplace(extra, 0);
+      for (int extra : {0, tracer.VertexCount() / 2, tracer.VertexCount() - 1}) vertices.emplace(extra, 0);
       const auto difference = [&](int vertex, int axis, double h) {
         Eigen::VectorXd x = x0;
         x[3 * vertex + axis] = x0[3 * vertex + axis] + h;
@@ -212,7 +213,7 @@ TEST_P(DifferentiableTracerGradient, MatchesCentralDifferencesAwayFromVisibility
   RenderOptions options;
   options.max_depth = c.max_depth;
   options.rr_depth = 100;
-  const GradientCheck check = CheckGradients(SphereOnFloor(c.light, c.smooth), options, 16, 12);
+  const GradientCheck check = CheckGradients(SphereOnFloor(c.light, c.smooth), options, SphereView(16, 12));
   // The view is filled with sphere and floor: most samples carry derivatives, few sit on edges.
   std::printf("%d samples with derivatives, %d skipped at visibility edges, max relative error %.2e\n", check.samples,
               check.skipped, check.max_error);
@@ -233,6 +234,70 @@ INSTANTIATE_TEST_SUITE_P(Lights, DifferentiableTracerGradient,
                                            Case{LightKind::kArea, true, 2}, Case{LightKind::kArea, true, 3},
                                            Case{LightKind::kVoxel, false, 2}, Case{LightKind::kVoxel, true, 3}),
                          CaseName);
+
+// Hard cases (issue 8, acceptance 5): a smooth fan of `n` triangles around a raised centre vertex
+// (valence n) on the floor, lit by a point light; the fan is refined.
+Scene Fan(int n, double height, const Eigen::Vector3d& light) {
+  Scene scene = SphereOnFloor(LightKind::kPoint, true);
+  scene.point_lights[0].position = light;
+  SceneMesh& fan = scene.meshes[1];
+  fan.name = "fan";
+  fan.mesh = TriangleMesh();
+  fan.mesh.vertices.push_back(Eigen::Vector3f(0.0f, 0.0f, static_cast<float>(height)));
+  for (int i = 0; i < n; ++i) {
+    const double a = 2.0 * M_PI * (i + 0.3) / n;
+    fan.mesh.vertices.push_back(Eigen::Vector3d(0.3 * std::cos(a), 0.3 * std::sin(a), 0.02).cast<float>());
+  }
+  for (int i = 0; i < n; ++i) fan.mesh.faces.push_back({0, 1 + i, 1 + (i + 1) % n});
+  fan.mesh.ComputeVertexNormals();
+  return scene;
+}
+
+View FanView(int width, int height) {
+  return {CameraIntrinsics::FromHorizontalFov(width, height, 45.0), LookAt({0.2, -0.7, 0.6}, {0.0, 0.0, 0.05})};
+}
+
+void ExpectGradientsMatch(const Scene& scene, const View& view, int max_depth = 3) {
+  RenderOptions options;
+  options.max_depth = max_depth;
+  options.rr_depth = 100;
+  const GradientCheck check = CheckGradients(scene, options, view);
+  std::printf("%d samples with derivatives, %d skipped at visibility edges, max relative error %.2e\n", check.samples,
+              check.skipped, check.max_error);
+  EXPECT_GT(check.samples, 30);
+  EXPECT_LT(check.skipped, check.samples / 5);
+  EXPECT_LE(check.max_error, 1e-3);
+}
+
+TEST(DifferentiableTracerHardCases, VertexOfValenceThree) {
+  ExpectGradientsMatch(Fan(3, 0.15, {0.3, -0.3, 0.8}), FanView(16, 12));
+}
+
+TEST(DifferentiableTracerHardCases, VertexOfValenceTwelve) {
+  ExpectGradientsMatch(Fan(12, 0.15, {0.3, -0.3, 0.8}), FanView(16, 12));
+}
+
+TEST(DifferentiableTracerHardCases, ZeroAreaFaceInTheOneRing) {
+  Scene scene = Fan(6, 0.15, {0.3, -0.3, 0.8});
+  TriangleMesh& mesh = scene.meshes[1].mesh;
+  mesh.vertices[3] = mesh.vertices[2];  // face (0, 2, 3) has no area; it stays in the centre's ring
+  mesh.ComputeVertexNormals();
+  ASSERT_EQ(mesh.FaceNormalScaled(1).norm(), 0.0f);
+  ExpectGradientsMatch(scene, FanView(16, 12));
+}
+
+TEST(DifferentiableTracerHardCases, GrazingAngleHits) {
+  // The fan almost flat (2 cm rise over 30 cm, slopes of 4 degrees) seen from 1 degree above the
+  // floor: the rays meet the near slopes 5 degrees off their plane.
+  const Scene scene = Fan(8, 0.04, {0.0, 0.3, 0.5});
+  const View view{CameraIntrinsics::FromHorizontalFov(16, 12, 12.0), LookAt({0.0, -0.9, 0.045}, {0.0, 0.0, 0.03})};
+  ExpectGradientsMatch(scene, view, 2);
+}
+
+TEST(DifferentiableTracerHardCases, LightVeryCloseToTheSurface) {
+  // A point light 5 mm above the fan's centre vertex: 1 / r^2 varies by orders of magnitude.
+  ExpectGradientsMatch(Fan(6, 0.15, {0.0, 0.0, 0.155}), FanView(16, 12), 2);
+}
 
 TEST(DifferentiableTracer, PixelsMatchThePathTracersRenderWithTheSameSeed) {
   const Scene scene = SphereOnFloor(LightKind::kArea, true);
