@@ -295,6 +295,15 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
     start = now();
     RefineIteration record;
     record.iteration = it;
+    // Fresh random numbers each iteration (the same for its trials): a fixed sample would let
+    // the vertices fit its noise.
+    const uint64_t it_seed = options.resample ? seed + 7919 * static_cast<uint64_t>(it) : seed;
+    if (options.resample) {
+      tracer.SetPositions(x, true);
+      current = Evaluate(tracer, targets, pixels, options, it_seed, scale, true);
+      record.rays.intersect += current.rays.intersect;
+      record.rays.occluded += current.rays.occluded;
+    }
     const NormalEquations equations = Assemble(current, tracer.VertexCount(), options.robust);
     record.jacobian_nonzeros_per_pixel = equations.nonzeros / pixels.size();
     const Eigen::VectorXd prior_gradient = prior_weight * (x - result.initial);
@@ -307,9 +316,11 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
       for (int v = 0; v < tracer.VertexCount(); ++v) largest = std::max(largest, step.segment<3>(3 * v).norm());
       if (largest > radius) step *= radius / largest;
       const Eigen::VectorXd trial = x + step;
-      tracer.SetPositions(trial, it < options.iterations);
-      // Most steps are kept: trace the trial with derivatives, they are the next iteration's.
-      Evaluation evaluation = Evaluate(tracer, targets, pixels, options, seed, scale, it < options.iterations);
+      const bool derivatives = it < options.iterations && !options.resample;
+      tracer.SetPositions(trial, derivatives);
+      // Most steps are kept: trace the trial with derivatives, they are the next iteration's
+      // (unless the next iteration draws new random numbers).
+      Evaluation evaluation = Evaluate(tracer, targets, pixels, options, it_seed, scale, derivatives);
       record.rays.intersect += evaluation.rays.intersect;
       record.rays.occluded += evaluation.rays.occluded;
       const double trial_cost = evaluation.data_cost + prior_cost(trial);

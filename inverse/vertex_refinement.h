@@ -32,9 +32,10 @@ struct RefineOptions {
   int rr_depth = 5;             // depth at which Russian roulette starts
   double noise = 0.05;          // relative pixel noise that weighs the data term
   double robust = 3.0;          // Huber threshold of the residuals, in noise units (0 = none)
-  double prior_sigma = 0.01;    // standard deviation of the prior on vertex positions, m
+  double prior_sigma = 0.003;   // standard deviation of the prior on vertex positions, m
   double damping = 1e-3;        // initial Levenberg-Marquardt damping (times diag of J^T J)
   double max_step = 0.25;       // largest vertex move per step, in mean edge lengths (trust region)
+  bool resample = true;         // fresh random numbers every iteration (same within one)
   int max_retries = 6;          // rejected steps per iteration before giving up
   double tolerance = 1e-5;      // stop when an accepted step lowers E by less than this fraction
 
@@ -51,6 +52,7 @@ struct RefineOptions {
     v("prior_sigma", prior_sigma, "m", "standard deviation of the prior on the starting vertex positions");
     v("damping", damping, "", "initial Levenberg-Marquardt damping");
     v("max_step", max_step, "edges", "largest vertex move per step, in mean edge lengths");
+    v("resample", resample, "", "fresh random numbers every iteration (the same for its trial steps)");
     v("max_retries", max_retries, "", "rejected steps per iteration before stopping");
     v("tolerance", tolerance, "", "stop when a step lowers the cost by less than this fraction");
   }

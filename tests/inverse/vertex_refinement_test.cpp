@@ -45,10 +45,10 @@ struct Replica {
 };
 
 // The replica of the paper's Fig. 4 at test size (direct light, 16 samples per pixel, 3000 pixels,
-// 3 iterations). What holds here: the image error falls, the spike comes back most of the way, the
-// dent does not get worse, no face flips and the vertices the view does not see stay put. The
-// acceptance figure (both within 10 % of their perturbation) is not reached: the dent near the top
-// of the sphere barely moves (see bench_refine and inverse/README.md).
+// 3 iterations). What holds here: the image error falls, the spike and the dent come back more than
+// half way (measured: 36 % and 32 % of the perturbation left), no face flips and the vertices the
+// view does not see stay put. The acceptance figure (both within 10 % after 5 iterations) is not
+// reached yet: see bench_refine and the README.
 TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   Replica replica(256, 2);
   const auto [a, b] = FacingVertices(replica.box);
@@ -72,8 +72,8 @@ TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   EXPECT_LT(result.history.back().data_rmse, 0.9 * result.history.front().data_rmse);
   const auto error = [&](int v) { return (result.positions.segment<3>(3 * v) - truth.segment<3>(3 * v)).norm(); };
   std::printf("spike: error %.4f m, dent: error %.4f m, of %.4f m perturbations\n", error(a), error(b), size);
-  EXPECT_LT(error(a), 0.4 * size);
-  EXPECT_LT(error(b), 1.0 * size);
+  EXPECT_LT(error(a), 0.5 * size);
+  EXPECT_LT(error(b), 0.5 * size);
   EXPECT_EQ(FlippedFaces(start_mesh, tracer.scene().meshes[replica.box.sphere].mesh), 0);
   // Vertices on the far side, which no pixel sees, stay where the prior holds them.
   const Eigen::Vector3d eye = replica.box.view.world_from_camera.translation();
