@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "../test_util.h"
+#include "core/parallel.h"
 #include "inverse/procedural.h"
 #include "inverse/vertex_refinement.h"
 
@@ -83,6 +84,28 @@ TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
       EXPECT_LT((result.positions - start).segment<3>(3 * v).norm(), 0.05 * size) << "hidden vertex " << v << " moved";
     }
   }
+}
+
+TEST(VertexRefinement, SameSeedSameVerticesWithOneOrTwoThreads) {
+  Replica replica(16, 2);
+  const auto [a, b] = FacingVertices(replica.box);
+  RefineOptions options;
+  options.spp = 4;
+  options.max_depth = 2;
+  options.iterations = 2;
+  options.pixels_per_view = 500;
+  std::vector<Eigen::VectorXd> results;
+  for (int threads : {1, 2}) {
+    SetThreadCount(threads);
+    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
+    Eigen::VectorXd start = tracer.Positions();
+    start.segment<3>(3 * a) *= 1.1;
+    tracer.SetPositions(start);
+    results.push_back(RefineVertices(tracer, replica.targets, options, 9).positions);
+  }
+  SetThreadCount(0);
+  EXPECT_GT((results[0] - DifferentiablePathTracer(replica.box.scene, replica.refined).Positions()).norm(), 0.0);
+  EXPECT_EQ(results[0], results[1]);  // bit for bit
 }
 
 TEST(VertexRefinement, BadTargetsAreClearErrors) {
