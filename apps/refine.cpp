@@ -56,15 +56,6 @@ TriangleMesh RefinedMesh(const Scene& scene, const std::vector<bool>& refined) {
   return out;
 }
 
-// The scene with every albedo grey 0.8: the shading alone.
-Scene Grey(const Scene& scene) {
-  Scene grey = scene;
-  for (SceneMesh& m : grey.meshes) {
-    if (!m.IsEmitter()) m.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.8f));
-  }
-  return grey;
-}
-
 }  // namespace
 
 RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& options, uint64_t seed, const Workspace& ws) {
@@ -81,9 +72,7 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
                     ? Format(ws.Lights().string(), ": no lights (run genscene-lights, or give --lights)")
                     : Format(in.geometry.scene.string(), ": the scene has no lights (give --lights)"));
   }
-  const std::vector<TrainingView> views = ReadViews(in.views.empty() ? ws.Keyframes() : in.views);
-  std::vector<RefineTarget> targets;
-  for (const TrainingView& v : views) targets.push_back({v.view, v.image});
+  const std::vector<TrainingView> targets = ReadViews(in.views.empty() ? ws.Keyframes() : in.views);
   const std::vector<bool> refined = ChooseMeshes(scene, in.refine, &out.refined);
 
   DifferentiablePathTracer tracer(scene, refined);
@@ -120,7 +109,7 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
       std::snprintf(name, sizeof(name), "iter_%02d", it.iteration);
       const View& view = targets.front().view;
       WritePng(dir / (std::string(name) + ".png"), PathTracer(at.scene()).Render(view, render, 1).radiance);
-      WritePng(dir / (std::string(name) + "_shading.png"), PathTracer(Grey(at.scene())).Render(view, render, 1).radiance);
+      WritePng(dir / (std::string(name) + "_shading.png"), PathTracer(ShadingOnly(at.scene())).Render(view, render, 1).radiance);
     }
   };
   out.result = RefineVertices(tracer, targets, options, seed, progress);

@@ -40,28 +40,6 @@ struct Settings {
   std::string sections = "123";
 };
 
-// The two vertices of `mesh` that face the eye most squarely and are not neighbours.
-std::pair<int, int> FacingVertices(const TriangleMesh& mesh, const Eigen::Vector3d& center, double radius,
-                                   const Eigen::Vector3d& eye) {
-  std::vector<std::pair<double, int>> facing;
-  for (size_t v = 0; v < mesh.vertices.size(); ++v) {
-    const Eigen::Vector3d p = mesh.vertices[v].cast<double>();
-    facing.push_back({-(p - center).normalized().dot((eye - p).normalized()), static_cast<int>(v)});
-  }
-  std::sort(facing.begin(), facing.end());
-  for (const auto& f : facing) {
-    if ((mesh.vertices[f.second] - mesh.vertices[facing[0].second]).norm() > 0.75 * radius) return {facing[0].second, f.second};
-  }
-  return {facing[0].second, facing[1].second};
-}
-
-Scene Grey(Scene scene) {
-  for (SceneMesh& m : scene.meshes) {
-    if (!m.IsEmitter()) m.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.8f));
-  }
-  return scene;
-}
-
 void Paste(ImageRgb& canvas, const ImageRgb& image, int x0) {
   for (int v = 0; v < image.height(); ++v) {
     for (int u = 0; u < image.width(); ++u) canvas(x0 + u, v) = image(u, v);
@@ -80,7 +58,7 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
   options.iterations = s.iterations;
   options.max_depth = s.max_depth;
   options.prior_sigma = s.prior_sigma;
-  const std::vector<RefineTarget> targets = {{view, reference}};
+  const std::vector<TrainingView> targets = {{view, reference}};
   DifferentiablePathTracer at_truth(scene, refined);
   RefineOptions none = options;
   none.iterations = 0;
@@ -130,20 +108,12 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
                 std::sqrt(d.squaredNorm() / at.VertexCount()), watched_max, watched_max / perturbation,
                 it.jacobian_nonzeros_per_pixel, FlippedFaces(start_mesh, at.scene().meshes[sphere].mesh));
     std::fflush(stdout);
-    shading.push_back(PathTracer(Grey(at.scene())).Render(view, render, 3).radiance);
+    shading.push_back(PathTracer(ShadingOnly(at.scene())).Render(view, render, 3).radiance);
   };
   const RefineResult result = RefineVertices(tracer, targets, options, 1, progress);
   std::printf("total %.1f s for %zu iterations (%.2f s per iteration)\n", total, result.history.size() - 1,
               (total - result.history[0].seconds) / std::max<size_t>(1, result.history.size() - 1));
   return shading;
-}
-
-// A spike out at a and a dent in at b, `size` along the normals (as the paper's Fig. 4).
-Eigen::VectorXd Perturb(const Eigen::VectorXd& truth, const Eigen::Vector3d& center, int a, int b, double size) {
-  Eigen::VectorXd start = truth;
-  start.segment<3>(3 * a) += size * (truth.segment<3>(3 * a) - center).normalized();
-  start.segment<3>(3 * b) -= size * (truth.segment<3>(3 * b) - center).normalized();
-  return start;
 }
 
 // The replica's reference image (our path tracer, s.ref_spp) and its true sphere vertices.
@@ -160,12 +130,11 @@ std::pair<ImageRgb, Eigen::VectorXd> ReferenceAndTruth(const IcosphereBox& box, 
 void Replica(const Settings& s) {
   const IcosphereBox box = MakeIcosphereBox(s.smooth);
   const auto [reference, truth] = ReferenceAndTruth(box, s);
-  const auto [a, b] = FacingVertices(box.scene.meshes[box.sphere].mesh, box.center, box.radius,
-                                     box.view.world_from_camera.translation());
-  const Eigen::VectorXd start = Perturb(truth, box.center, a, b, s.perturbation * box.radius);
+  const SpikeAndDent start = PerturbFacingVertices(box.scene.meshes[box.sphere].mesh, box.center, box.radius,
+                                                   box.view.world_from_camera.translation(), s.perturbation * box.radius);
   const std::vector<ImageRgb> shading =
       RunCase("1. Replica (our renderer, two vertices +-20 % of r)", box.scene, box.sphere, box.view, reference, truth,
-              start, {a, b}, s);
+              start.positions, {start.spike, start.dent}, s);
   ImageRgb canvas(reference.width() * (1 + static_cast<int>(shading.size())), reference.height());
   Paste(canvas, reference, 0);
   for (size_t i = 0; i < shading.size(); ++i) Paste(canvas, shading[i], reference.width() * (1 + static_cast<int>(i)));
@@ -193,10 +162,10 @@ void Cycles(const fs::path& data, const Settings& s) {
     refined[sphere] = true;
     const Eigen::VectorXd truth = DifferentiablePathTracer(scene, refined).Positions();
     const Eigen::Vector3d center(0.0, 0.0, 0.201);
-    const auto [a, b] = FacingVertices(scene.meshes[sphere].mesh, center, 0.2, view.world_from_camera.translation());
-    const Eigen::VectorXd start = Perturb(truth, center, a, b, 0.04);
+    const SpikeAndDent start =
+        PerturbFacingVertices(scene.meshes[sphere].mesh, center, 0.2, view.world_from_camera.translation(), 0.04);
     const std::string name = std::string("2. Cycles ") + variant + " (two vertices +-20 % of r)";
-    RunCase(name.c_str(), scene, sphere, view, frame->color, truth, start, {a, b}, s);
+    RunCase(name.c_str(), scene, sphere, view, frame->color, truth, start.positions, {start.spike, start.dent}, s);
   }
 }
 

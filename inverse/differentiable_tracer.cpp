@@ -253,10 +253,7 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin, const 
       switch (e.kind) {
         case LightSampler::Kind::kTriangle: {
           const SceneMesh& m = scene_.meshes[e.mesh];
-          const Eigen::Vector3i& f = m.mesh.faces[e.index];
-          const float su = std::sqrt(u1);
-          light_point = ((1.0f - su) * m.mesh.vertices[f[0]] + su * (1.0f - u2) * m.mesh.vertices[f[1]] +
-                         su * u2 * m.mesh.vertices[f[2]]).cast<double>();
+          light_point = UniformPointOnTriangle(m.mesh, e.index, u1, u2).cast<double>();
           rgb = m.emission.cast<double>();
           break;
         }

@@ -100,12 +100,6 @@ struct LightEstimationOptions {
   RenderOptions Paths() const;  // the path settings as render options
 };
 
-// A training view: camera and its linear RGB image (same size as the intrinsics).
-struct TrainingView {
-  View view;
-  ImageRgb image;
-};
-
 struct SampledPixel {
   int view = 0;
   int u = 0, v = 0;

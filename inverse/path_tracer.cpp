@@ -127,12 +127,8 @@ std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoin
   LightSample s;
   switch (e.kind) {
     case LightSampler::Kind::kTriangle: {
-      // Uniform point on the triangle: b = (1 - sqrt(u1), sqrt(u1)(1 - u2), sqrt(u1) u2).
       const SceneMesh& m = scene_.meshes[e.mesh];
-      const Eigen::Vector3i& f = m.mesh.faces[e.index];
-      const float su = std::sqrt(u1);
-      const Eigen::Vector3f q = (1.0f - su) * m.mesh.vertices[f[0]] + su * (1.0f - u2) * m.mesh.vertices[f[1]] +
-                                su * u2 * m.mesh.vertices[f[2]];
+      const Eigen::Vector3f q = UniformPointOnTriangle(m.mesh, e.index, u1, u2);
       const Eigen::Vector3f to_light = q - at.p;
       const float d2 = to_light.squaredNorm();
       if (d2 <= 0.0f) return std::nullopt;

@@ -1,5 +1,7 @@
 #include "inverse/procedural.h"
 
+#include <algorithm>
+
 #include "core/synthetic.h"
 
 namespace genscene::inverse {
@@ -90,6 +92,31 @@ IcosphereBox MakeIcosphereBox(bool smooth_shading) {
   box.view.world_from_camera.linear() = q.normalized().toRotationMatrix();
   box.view.world_from_camera.translation() = Eigen::Vector3d(0.05, -1.1, 0.55);
   return box;
+}
+
+SpikeAndDent PerturbFacingVertices(const TriangleMesh& mesh, const Eigen::Vector3d& center, double radius,
+                                   const Eigen::Vector3d& eye, double size) {
+  SpikeAndDent out;
+  out.positions.resize(3 * mesh.vertices.size());
+  std::vector<std::pair<double, int>> facing;  // (-cos of the angle to the eye, vertex)
+  for (size_t v = 0; v < mesh.vertices.size(); ++v) {
+    const Eigen::Vector3d p = mesh.vertices[v].cast<double>();
+    out.positions.segment<3>(3 * v) = p;
+    facing.push_back({-(p - center).normalized().dot((eye - p).normalized()), static_cast<int>(v)});
+  }
+  std::sort(facing.begin(), facing.end());
+  out.spike = facing.at(0).second;
+  out.dent = facing.at(1).second;
+  for (const auto& [score, v] : facing) {
+    if ((mesh.vertices[v] - mesh.vertices[out.spike]).norm() > 0.75 * radius) {
+      out.dent = v;
+      break;
+    }
+  }
+  const auto outwards = [&](int v) { return Eigen::Vector3d((out.positions.segment<3>(3 * v) - center).normalized()); };
+  out.positions.segment<3>(3 * out.spike) += size * outwards(out.spike);
+  out.positions.segment<3>(3 * out.dent) -= size * outwards(out.dent);
+  return out;
 }
 
 Scene MakeRoomScene() {

@@ -34,4 +34,15 @@ struct IcosphereBox {
 };
 IcosphereBox MakeIcosphereBox(bool smooth_shading = false);
 
+// The replica's perturbation: the vertex of `mesh` that faces `eye` most squarely is pushed out
+// by `size` along its direction from `center` (a spike), and the next most facing vertex beyond
+// the first one's one-ring (more than 0.75 `radius` away; icosphere edges are ~0.55 r) is pushed
+// in by `size` (a dent). `positions` holds every vertex, (x, y, z) each, the two moved.
+struct SpikeAndDent {
+  Eigen::VectorXd positions;
+  int spike = -1, dent = -1;
+};
+SpikeAndDent PerturbFacingVertices(const TriangleMesh& mesh, const Eigen::Vector3d& center, double radius,
+                                   const Eigen::Vector3d& eye, double size);
+
 }  // namespace genscene::inverse

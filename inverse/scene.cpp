@@ -125,4 +125,11 @@ Eigen::AlignedBox3d Scene::Bounds() const {
   return box;
 }
 
+Scene ShadingOnly(Scene scene) {
+  for (SceneMesh& m : scene.meshes) {
+    if (!m.IsEmitter()) m.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.8f));
+  }
+  return scene;
+}
+
 }  // namespace genscene::inverse

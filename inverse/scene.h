@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "core/image.h"
 #include "core/light_set.h"
 #include "core/mesh.h"
 #include "core/view_set.h"
@@ -66,6 +67,10 @@ struct PointLight {
 // side `grid.cube_size`, radiance L * lambda_k / cube_size^2.
 std::vector<SceneMesh> VoxelCubeFaces(const VoxelLightGrid& grid);
 
+struct Scene;
+// The scene with every non-emitting mesh's albedo grey 0.8: renders of the shading alone.
+Scene ShadingOnly(Scene scene);
+
 struct Scene {
   std::vector<SceneMesh> meshes;
   std::vector<PointLight> point_lights;
@@ -79,5 +84,12 @@ struct Scene {
 
 // A pinhole view: OpenCV intrinsics and world_from_camera pose (DESIGN.md §1).
 using View = PosedView;
+
+// A posed image the inverse stages fit (light estimation's training views, vertex refinement's
+// references): the camera and its linear RGB image, the intrinsics' size.
+struct TrainingView {
+  View view;
+  ImageRgb image;
+};
 
 }  // namespace genscene::inverse

@@ -49,7 +49,7 @@ struct PixelRef {
 // pixels within `margin` pixels of a silhouette (where the object seen through the pixel centre
 // changes, in the starting geometry): their residuals come from visibility, which the derivatives
 // do not see, and would pull the vertices the wrong way.
-std::vector<PixelRef> SamplePixels(const DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+std::vector<PixelRef> SamplePixels(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
                                    int per_view, int margin, uint64_t seed) {
   std::vector<PixelRef> pixels;
   const PathTracer ids(tracer.scene());
@@ -100,7 +100,7 @@ double HuberWeight(double r, double k) {
 }
 
 // RMS of the reference over the sampled pixels and channels (> 0).
-double ReferenceRms(const std::vector<RefineTarget>& targets, const std::vector<PixelRef>& pixels) {
+double ReferenceRms(const std::vector<TrainingView>& targets, const std::vector<PixelRef>& pixels) {
   double sum = 0.0;
   for (const PixelRef& p : pixels) sum += targets[p.target].image(p.u, p.v).cast<double>().squaredNorm();
   const double rms = std::sqrt(sum / (3.0 * pixels.size()));
@@ -117,7 +117,7 @@ struct Evaluation {
   RayCounts rays;
 };
 
-Evaluation Evaluate(const DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+Evaluation Evaluate(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
                     const std::vector<PixelRef>& pixels, const RefineOptions& options, uint64_t seed, double scale,
                     bool derivatives) {
   Evaluation e;
@@ -126,7 +126,7 @@ Evaluation Evaluate(const DifferentiablePathTracer& tracer, const std::vector<Re
   const RenderOptions render = options.Render();
   ParallelFor(0, pixels.size(), [&](size_t i) {
     const PixelRef& p = pixels[i];
-    const RefineTarget& t = targets[p.target];
+    const TrainingView& t = targets[p.target];
     DualRgb row = tracer.Pixel(t.view, p.u, p.v, render, seed, derivatives, &rays[i]);
     for (int c = 0; c < 3; ++c) row[c] = (std::move(row[c]) - t.image(p.u, p.v)[c]) * (1.0 / scale);
     e.rows[i] = std::move(row);
@@ -221,7 +221,7 @@ double MeanEdgeLength(const DifferentiablePathTracer& tracer) {
 
 }  // namespace
 
-RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
                                         const RefineOptions& options, uint64_t seed, const Eigen::VectorXd* direction) {
   const std::vector<PixelRef> pixels = SamplePixels(tracer, targets, options.pixels_per_view, options.edge_margin, seed);
   const double scale = options.noise * ReferenceRms(targets, pixels);
@@ -241,7 +241,7 @@ RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, 
   return l;
 }
 
-RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
                             const RefineOptions& options, uint64_t seed, const RefineProgress& progress) {
   options.Validate();
   if (targets.empty()) throw Error("vertex refinement: no reference images");
@@ -277,7 +277,8 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   const auto seconds = [](auto since) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count(); };
 
   auto start = now();
-  Evaluation current = Evaluate(tracer, targets, pixels, options, seed, scale, true);
+  // With resampling every iteration traces its own linearisation: the start needs values only.
+  Evaluation current = Evaluate(tracer, targets, pixels, options, seed, scale, !options.resample);
   RefineIteration first;
   first.cost = current.data_cost + prior_cost(x);
   first.data_rmse = std::sqrt(current.sum_squared / channels) / rms;

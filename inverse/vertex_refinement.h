@@ -60,12 +60,6 @@ struct RefineOptions {
   RenderOptions Render() const;  // the trace settings as path tracer options
 };
 
-// A reference image and the view it was taken from.
-struct RefineTarget {
-  View view;
-  ImageRgb image;  // linear RGB, the view's size
-};
-
 struct RefineIteration {
   int iteration = 0;           // 0: the start
   double cost = 0.0;           // E at the positions after this iteration
@@ -92,7 +86,7 @@ using RefineProgress = std::function<void(const RefineIteration&, const Differen
 // tracer at the final positions. `seed` keys the random numbers of the traces and of the pixel
 // sample. `progress` is called after the start and after every iteration.
 // Throws Error when a target's size does not match its view or the image is not finite.
-RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
                             const RefineOptions& options, uint64_t seed = 1, const RefineProgress& progress = {});
 
 // The data term of E at the tracer's positions and its gradient J^T r (3 per parameter vertex),
@@ -102,7 +96,7 @@ struct RefineLinearization {
   Eigen::VectorXd gradient;
   double curvature = 0.0;  // d^T J^T W J d along the given direction d (Gauss-Newton model)
 };
-RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, const std::vector<RefineTarget>& targets,
+RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
                                         const RefineOptions& options, uint64_t seed = 1,
                                         const Eigen::VectorXd* direction = nullptr);
 

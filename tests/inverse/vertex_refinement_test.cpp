@@ -13,27 +13,10 @@
 namespace genscene::inverse {
 namespace {
 
-// The two sphere vertices that face the camera most squarely and are not neighbours.
-std::pair<int, int> FacingVertices(const IcosphereBox& box) {
-  const TriangleMesh& mesh = box.scene.meshes[box.sphere].mesh;
-  const Eigen::Vector3d eye = box.view.world_from_camera.translation();
-  std::vector<std::pair<double, int>> facing;
-  for (size_t v = 0; v < mesh.vertices.size(); ++v) {
-    const Eigen::Vector3d p = mesh.vertices[v].cast<double>();
-    facing.push_back({-(p - box.center).normalized().dot((eye - p).normalized()), static_cast<int>(v)});
-  }
-  std::sort(facing.begin(), facing.end());
-  const int a = facing[0].second;
-  for (const auto& [score, v] : facing) {
-    const double gap = (mesh.vertices[v] - mesh.vertices[a]).norm();
-    if (gap > 0.75 * box.radius) return {a, v};  // beyond the first ring (edges are ~0.55 r)
-  }
-  return {a, facing[1].second};
-}
-
 struct Replica {
   IcosphereBox box = MakeIcosphereBox(true);
-  std::vector<RefineTarget> targets;
+  Eigen::Vector3d eye = box.view.world_from_camera.translation();
+  std::vector<TrainingView> targets;
   std::vector<bool> refined;
   Replica(int reference_spp, int max_depth) {
     RenderOptions render;
@@ -52,14 +35,14 @@ struct Replica {
 // reached yet: see bench_refine and the README.
 TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   Replica replica(256, 2);
-  const auto [a, b] = FacingVertices(replica.box);
   DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
   const Eigen::VectorXd truth = tracer.Positions();
   // 20 % of the radius along the normals: a spike out at a, a dent in at b.
   const double size = 0.2 * replica.box.radius;
-  Eigen::VectorXd start = truth;
-  start.segment<3>(3 * a) += size * (truth.segment<3>(3 * a) - replica.box.center).normalized();
-  start.segment<3>(3 * b) -= size * (truth.segment<3>(3 * b) - replica.box.center).normalized();
+  const SpikeAndDent perturbed = PerturbFacingVertices(replica.box.scene.meshes[replica.box.sphere].mesh,
+                                                       replica.box.center, replica.box.radius, replica.eye, size);
+  const int a = perturbed.spike, b = perturbed.dent;
+  const Eigen::VectorXd& start = perturbed.positions;
   tracer.SetPositions(start);
   const TriangleMesh start_mesh = tracer.scene().meshes[replica.box.sphere].mesh;
 
@@ -77,10 +60,9 @@ TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   EXPECT_LT(error(b), 0.5 * size);
   EXPECT_EQ(FlippedFaces(start_mesh, tracer.scene().meshes[replica.box.sphere].mesh), 0);
   // Vertices on the far side, which no pixel sees, stay where the prior holds them.
-  const Eigen::Vector3d eye = replica.box.view.world_from_camera.translation();
   for (int v = 0; v < tracer.VertexCount(); ++v) {
     const Eigen::Vector3d p = truth.segment<3>(3 * v);
-    if ((p - replica.box.center).normalized().dot((eye - p).normalized()) < -0.7) {
+    if ((p - replica.box.center).normalized().dot((replica.eye - p).normalized()) < -0.7) {
       EXPECT_LT((result.positions - start).segment<3>(3 * v).norm(), 0.05 * size) << "hidden vertex " << v << " moved";
     }
   }
@@ -88,7 +70,8 @@ TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
 
 TEST(VertexRefinement, SameSeedSameVerticesWithOneOrTwoThreads) {
   Replica replica(16, 2);
-  const auto [a, b] = FacingVertices(replica.box);
+  const SpikeAndDent start = PerturbFacingVertices(replica.box.scene.meshes[replica.box.sphere].mesh,
+                                                   replica.box.center, replica.box.radius, replica.eye, 0.04);
   RefineOptions options;
   options.spp = 4;
   options.max_depth = 2;
@@ -98,9 +81,7 @@ TEST(VertexRefinement, SameSeedSameVerticesWithOneOrTwoThreads) {
   for (int threads : {1, 2}) {
     SetThreadCount(threads);
     DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
-    Eigen::VectorXd start = tracer.Positions();
-    start.segment<3>(3 * a) *= 1.1;
-    tracer.SetPositions(start);
+    tracer.SetPositions(start.positions);
     results.push_back(RefineVertices(tracer, replica.targets, options, 9).positions);
   }
   SetThreadCount(0);
@@ -113,10 +94,10 @@ TEST(VertexRefinement, BadTargetsAreClearErrors) {
   DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
   RefineOptions options;
   options.spp = 1;
-  std::vector<RefineTarget> wrong_size = {{replica.box.view, ImageRgb(10, 10)}};
+  std::vector<TrainingView> wrong_size = {{replica.box.view, ImageRgb(10, 10)}};
   EXPECT_NE(test::ErrorOf([&] { RefineVertices(tracer, wrong_size, options); }).find("is 10x10 but its view is 106x80"),
             std::string::npos);
-  std::vector<RefineTarget> nan = replica.targets;
+  std::vector<TrainingView> nan = replica.targets;
   nan[0].image(3, 4) = Eigen::Vector3f(NAN, 0, 0);
   EXPECT_NE(test::ErrorOf([&] { RefineVertices(tracer, nan, options); }).find("pixel (3, 4) is not finite"),
             std::string::npos);
