@@ -29,6 +29,7 @@ void RefineOptions::Validate() const {
   RequireRange("tolerance", tolerance, 0.0, 1.0);
   RequireRange("robust", robust, 0.0, 1e6);
   RequireRange("edge_margin", edge_margin, 0, 100);
+  RequireRange("direct_max_vertices", direct_max_vertices, 0, 1 << 30);
 }
 
 RenderOptions RefineOptions::Render() const {
@@ -143,64 +144,137 @@ Evaluation Evaluate(const DifferentiablePathTracer& tracer, const std::vector<Tr
   return e;
 }
 
-// The normal equations J^T J and J^T r of the data term, assembled from the sparse rows as 3 x 3
-// blocks per pair of vertices, in row order.
+// The normal equations of the data term, J^T W J and J^T W r. Small problems keep J^T W J as 3 x 3
+// blocks per pair of vertices for a sparse Cholesky factorisation; large ones keep the Jacobian
+// rows themselves (compressed) for conjugate gradients, which only need products J^T W J v: a
+// path-traced pixel depends on vertices all over the scene, so the factor of a large J^T W J
+// fills in (87k vertices: minutes and gigabytes), while a product costs O(non-zeros).
 struct NormalEquations {
-  std::map<std::pair<int, int>, Eigen::Matrix3d> blocks;  // (i, j) with i <= j
+  bool blocks_kept = false;
+  std::map<std::pair<int, int>, Eigen::Matrix3d> blocks;  // (i, j) with i <= j, when kept
+  std::vector<Eigen::Matrix3d> diagonal;                  // (i, i) blocks, always
+  std::vector<size_t> row_start;                          // compressed rows, when not kept
+  std::vector<int> row_vertex;
+  std::vector<Eigen::Vector3d> row_d;
+  std::vector<double> row_weight;
   Eigen::VectorXd gradient;
   double nonzeros = 0.0;  // scalar Jacobian entries
-};
 
-// Adds w r J^T and w J J^T of one residual row.
-void AddRow(const SparseDual& r, double w, NormalEquations* n) {
-  const auto& d = r.partials();
-  for (size_t a = 0; a < d.size(); ++a) {
-    n->gradient.segment<3>(3 * d[a].vertex) += (w * r.value()) * d[a].d;
-    for (size_t b = a; b < d.size(); ++b) {
-      auto [it, fresh] = n->blocks.try_emplace({d[a].vertex, d[b].vertex}, Eigen::Matrix3d::Zero());
-      it->second += w * d[a].d * d[b].d.transpose();
+  // out = J^T W J v
+  void Multiply(const Eigen::VectorXd& v, Eigen::VectorXd* out) const {
+    out->setZero(v.size());
+    for (size_t r = 0; r + 1 < row_start.size(); ++r) {
+      double s = 0.0;
+      for (size_t k = row_start[r]; k < row_start[r + 1]; ++k) s += row_d[k].dot(v.segment<3>(3 * row_vertex[k]));
+      s *= row_weight[r];
+      for (size_t k = row_start[r]; k < row_start[r + 1]; ++k) out->segment<3>(3 * row_vertex[k]) += s * row_d[k];
     }
   }
-}
+};
 
-NormalEquations Assemble(const Evaluation& e, int vertices, double robust) {
+NormalEquations Assemble(const Evaluation& e, int vertices, double robust, bool keep_blocks) {
   NormalEquations n;
+  n.blocks_kept = keep_blocks;
   n.gradient = Eigen::VectorXd::Zero(3 * vertices);
+  n.diagonal.assign(vertices, Eigen::Matrix3d::Zero());
+  if (!keep_blocks) n.row_start.push_back(0);
   for (const DualRgb& row : e.rows) {
     for (const SparseDual& r : row) {
-      n.nonzeros += 3.0 * r.partials().size();
-      AddRow(r, HuberWeight(r.value(), robust), &n);
+      const auto& d = r.partials();
+      const double w = HuberWeight(r.value(), robust);
+      n.nonzeros += 3.0 * d.size();
+      for (size_t a = 0; a < d.size(); ++a) {
+        n.gradient.segment<3>(3 * d[a].vertex) += (w * r.value()) * d[a].d;
+        n.diagonal[d[a].vertex] += w * d[a].d * d[a].d.transpose();
+        if (keep_blocks) {
+          for (size_t b = a + 1; b < d.size(); ++b) {
+            auto [it, fresh] = n.blocks.try_emplace({d[a].vertex, d[b].vertex}, Eigen::Matrix3d::Zero());
+            it->second += w * d[a].d * d[b].d.transpose();
+          }
+        } else {
+          n.row_vertex.push_back(d[a].vertex);
+          n.row_d.push_back(d[a].d);
+        }
+      }
+      if (!keep_blocks) {
+        n.row_weight.push_back(w);
+        n.row_start.push_back(n.row_vertex.size());
+      }
     }
   }
   return n;
 }
 
-// Solves (H + mu diag(H)) dx = -g with H = J^T J + I / sigma^2 and g = J^T r + (x - x0) / sigma^2.
+// Solves (H + mu diag(H)) dx = -g with H = J^T W J + I / sigma^2 and g = J^T W r + (x - x0) / sigma^2:
+// by sparse Cholesky (Eigen's SimplicialLDLT) when the blocks are kept, else by conjugate
+// gradients preconditioned with the inverse 3 x 3 diagonal blocks, to a relative residual of
+// 1e-10 (at most 1000 iterations; serial, so the same with any thread count).
 Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior_gradient, double prior_weight,
                           double mu) {
   const int size = static_cast<int>(n.gradient.size());
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(n.blocks.size() * 18 + size);
-  Eigen::VectorXd diagonal = Eigen::VectorXd::Constant(size, prior_weight);
-  for (const auto& [ij, block] : n.blocks) {
-    const auto [i, j] = ij;
-    for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) {
-        if (i == j && r == c) {
-          diagonal[3 * i + r] += block(r, c);
-          continue;
+  const int vertices = size / 3;
+  Eigen::VectorXd diagonal(size);  // diag(H)
+  for (int i = 0; i < vertices; ++i) diagonal.segment<3>(3 * i) = n.diagonal[i].diagonal().array() + prior_weight;
+  const Eigen::VectorXd rhs = -(n.gradient + prior_gradient);
+  Eigen::VectorXd step;
+  if (n.blocks_kept) {
+    std::vector<Eigen::Triplet<double>> triplets;
+    triplets.reserve(n.blocks.size() * 18 + 9 * vertices);
+    for (int i = 0; i < vertices; ++i) {
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+          const double value = r == c ? diagonal[3 * i + r] * (1.0 + mu) : n.diagonal[i](r, c);
+          triplets.emplace_back(3 * i + r, 3 * i + c, value);
         }
-        triplets.emplace_back(3 * i + r, 3 * j + c, block(r, c));
-        if (i != j) triplets.emplace_back(3 * j + c, 3 * i + r, block(r, c));
       }
     }
+    for (const auto& [ij, block] : n.blocks) {
+      const auto [i, j] = ij;
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+          triplets.emplace_back(3 * i + r, 3 * j + c, block(r, c));
+          triplets.emplace_back(3 * j + c, 3 * i + r, block(r, c));
+        }
+      }
+    }
+    Eigen::SparseMatrix<double> h(size, size);
+    h.setFromTriplets(triplets.begin(), triplets.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(h);
+    if (solver.info() != Eigen::Success) throw Error("vertex refinement: the normal equations could not be factorised");
+    step = solver.solve(rhs);
+  } else {
+    std::vector<Eigen::Matrix3d> preconditioner(vertices);
+    for (int i = 0; i < vertices; ++i) {
+      Eigen::Matrix3d m = n.diagonal[i];
+      m.diagonal() = diagonal.segment<3>(3 * i) * (1.0 + mu);
+      preconditioner[i] = m.inverse();
+    }
+    const auto apply = [&](const Eigen::VectorXd& v, Eigen::VectorXd* out) {
+      n.Multiply(v, out);
+      *out += prior_weight * v + mu * diagonal.cwiseProduct(v);
+    };
+    const auto precondition = [&](const Eigen::VectorXd& r) {
+      Eigen::VectorXd z(size);
+      for (int i = 0; i < vertices; ++i) z.segment<3>(3 * i) = preconditioner[i] * r.segment<3>(3 * i);
+      return z;
+    };
+    step = Eigen::VectorXd::Zero(size);
+    Eigen::VectorXd residual = rhs, z = precondition(residual), direction = z, product(size);
+    double rz = residual.dot(z);
+    const double stop = 1e-20 * rhs.squaredNorm();
+    for (int k = 0; k < 1000 && residual.squaredNorm() > stop; ++k) {
+      apply(direction, &product);
+      const double curvature = direction.dot(product);
+      if (!(curvature > 0.0)) break;
+      const double alpha = rz / curvature;
+      step += alpha * direction;
+      residual -= alpha * product;
+      z = precondition(residual);
+      const double rz_next = residual.dot(z);
+      direction = z + (rz_next / rz) * direction;
+      rz = rz_next;
+    }
   }
-  for (int k = 0; k < size; ++k) triplets.emplace_back(k, k, diagonal[k] * (1.0 + mu));
-  Eigen::SparseMatrix<double> h(size, size);
-  h.setFromTriplets(triplets.begin(), triplets.end());
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(h);
-  if (solver.info() != Eigen::Success) throw Error("vertex refinement: the normal equations could not be factorised");
-  const Eigen::VectorXd step = solver.solve(-(n.gradient + prior_gradient));
   if (!step.allFinite()) throw Error("vertex refinement: the step is not finite");
   return step;
 }
@@ -228,7 +302,7 @@ RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, 
   const Evaluation e = Evaluate(tracer, targets, pixels, options, seed, scale, true);
   RefineLinearization l;
   l.cost = e.data_cost;
-  l.gradient = Assemble(e, tracer.VertexCount(), options.robust).gradient;
+  l.gradient = Assemble(e, tracer.VertexCount(), options.robust, false).gradient;
   if (direction) {
     for (const DualRgb& row : e.rows) {
       for (const SparseDual& r : row) {
@@ -305,7 +379,8 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
       record.rays.intersect += current.rays.intersect;
       record.rays.occluded += current.rays.occluded;
     }
-    const NormalEquations equations = Assemble(current, tracer.VertexCount(), options.robust);
+    const NormalEquations equations =
+        Assemble(current, tracer.VertexCount(), options.robust, tracer.VertexCount() <= options.direct_max_vertices);
     record.jacobian_nonzeros_per_pixel = equations.nonzeros / pixels.size();
     const Eigen::VectorXd prior_gradient = prior_weight * (x - result.initial);
     const double cost = current.data_cost + prior_cost(x);

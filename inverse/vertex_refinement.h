@@ -8,8 +8,10 @@
 // the reference over the sampled pixels, and the second term the weak prior on the starting
 // positions x0 that removes the null spaces of sparse sampling (vertices no sample sees).
 // Each iteration traces every sampled pixel with derivatives (a sparse Jacobian row per channel),
-// forms the block-sparse normal equations (3 x 3 blocks per vertex pair) and solves the damped
-// system with a sparse Cholesky factorisation (Eigen's SimplicialLDLT); a step is kept only when a
+// forms the normal equations and solves the damped system, by sparse Cholesky factorisation of
+// 3 x 3 blocks per vertex pair (Eigen's SimplicialLDLT) up to `direct_max_vertices` refined
+// vertices, else by block-Jacobi preconditioned conjugate gradients on the Jacobian rows (a pixel
+// depends on vertices all over the scene, so a large factor fills in); a step is kept only when a
 // value-only trace shows a lower E. Visibility changes are not differentiated (as in the paper).
 #pragma once
 
@@ -38,6 +40,7 @@ struct RefineOptions {
   bool resample = true;         // fresh random numbers every iteration (same within one)
   int max_retries = 6;          // rejected steps per iteration before giving up
   double tolerance = 1e-5;      // stop when an accepted step lowers E by less than this fraction
+  int direct_max_vertices = 3000;  // larger problems are solved by conjugate gradients
 
   template <typename V>
   void Visit(V&& v) {
@@ -55,6 +58,8 @@ struct RefineOptions {
     v("resample", resample, "", "fresh random numbers every iteration (the same for its trial steps)");
     v("max_retries", max_retries, "", "rejected steps per iteration before stopping");
     v("tolerance", tolerance, "", "stop when a step lowers the cost by less than this fraction");
+    v("direct_max_vertices", direct_max_vertices, "vertices",
+      "largest problem solved by sparse Cholesky; larger ones by conjugate gradients");
   }
   void Validate() const;
   RenderOptions Render() const;  // the trace settings as path tracer options

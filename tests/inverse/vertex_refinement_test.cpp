@@ -89,6 +89,33 @@ TEST(VertexRefinement, SameSeedSameVerticesWithOneOrTwoThreads) {
   EXPECT_EQ(results[0], results[1]);  // bit for bit
 }
 
+// Large problems are solved by conjugate gradients instead of a sparse Cholesky factor: on the
+// same problem both give the same steps, so the same vertices (to the CG tolerance), and CG is
+// deterministic across thread counts as well.
+TEST(VertexRefinement, ConjugateGradientsGiveTheCholeskySteps) {
+  Replica replica(16, 2);
+  const SpikeAndDent start = PerturbFacingVertices(replica.box.scene.meshes[replica.box.sphere].mesh,
+                                                   replica.box.center, replica.box.radius, replica.eye, 0.04);
+  RefineOptions options;
+  options.spp = 4;
+  options.max_depth = 2;
+  options.iterations = 2;
+  options.pixels_per_view = 500;
+  std::vector<Eigen::VectorXd> results;
+  for (int direct_max : {1 << 20, 0, 0}) {
+    options.direct_max_vertices = direct_max;
+    SetThreadCount(results.size() == 2 ? 1 : 0);
+    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
+    tracer.SetPositions(start.positions);
+    results.push_back(RefineVertices(tracer, replica.targets, options, 9).positions);
+  }
+  SetThreadCount(0);
+  const double moved = (results[0] - start.positions).cwiseAbs().maxCoeff();
+  EXPECT_GT(moved, 1e-4);
+  EXPECT_LT((results[1] - results[0]).cwiseAbs().maxCoeff(), 1e-6 * moved + 1e-12);
+  EXPECT_EQ(results[1], results[2]);  // bit for bit with 2 and 1 threads
+}
+
 TEST(VertexRefinement, BadTargetsAreClearErrors) {
   Replica replica(1, 2);
   DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
