@@ -25,9 +25,12 @@ class CommandLine {
   // Adds --config, --threads and --seed to `app`.
   explicit CommandLine(CLI::App& app);
 
-  // Registers one flag per field of `options` (help text "<help> [unit]", default shown).
+  // Registers one flag per field of `options` (help text "<help> [unit]", default shown). With a
+  // `prefix`, flags are --<prefix>-<key> (for apps that take two stages with the same keys); the
+  // config file's keys stay as they are, in the stage's section.
   template <typename Options>
-  void Add(Options& options, const std::string& group) {
+  void Add(Options& options, const std::string& group, const std::string& prefix = "") {
+    const auto flag = [prefix](const char* key) { return FlagName(prefix.empty() ? key : prefix + "_" + key); };
     options.Visit([&](const char* key, auto& value, const char* unit, const char* help) {
       using T = std::decay_t<decltype(value)>;
       std::string text = help;
@@ -35,10 +38,10 @@ class CommandLine {
       CLI::Option* opt = nullptr;
       if constexpr (std::is_same_v<T, bool>) {
         // Unbound options (no variable): values are copied in after the config is applied.
-        opt = app_.add_flag(FlagName(key))->description(text);
+        opt = app_.add_flag(flag(key))->description(text);
         opt->default_str(value ? "true" : "false");
       } else {
-        opt = app_.add_option(FlagName(key))->description(text);
+        opt = app_.add_option(flag(key))->description(text);
         std::ostringstream def;
         def << value;
         opt->default_str(def.str());
@@ -47,15 +50,15 @@ class CommandLine {
       }
       opt->group(group);
     });
-    appliers_.push_back([this, &options](ConfigFile* config) {
+    appliers_.push_back([this, &options, flag](ConfigFile* config) {
       if (config) config->Apply(options);
       options.Visit([&](const char* key, auto& value, const char*, const char*) {
-        CLI::Option* opt = app_.get_option_no_throw(FlagName(key));
+        CLI::Option* opt = app_.get_option_no_throw(flag(key));
         if (!opt || opt->count() == 0) return;
         try {
           opt->results(value);
         } catch (const CLI::Error&) {
-          throw Error(Format(FlagName(key), ": '", opt->as<std::string>(), "' is not a valid value"));
+          throw Error(Format(flag(key), ": '", opt->as<std::string>(), "' is not a valid value"));
         }
       });
       options.Validate();
