@@ -2,175 +2,131 @@
 //   genscene demo [--out WS]            synthesise a Cornell-box sequence and run the chain on it
 //   genscene run --input SRC --out WS   run the chain on a recording
 //   genscene inspect --input SRC        read and check a recording, print what it holds
-// Stages land one by one (lights and refinement to come); today the chain reads and checks the
-// input (ingest, sequence.json), fuses it (fusion), extracts the mesh (meshing), back-projects the
-// keyframes onto it (texturing) and clusters the observed colour into albedo (albedo).
+// The chain (apps/chain.h): ingest -> fusion -> meshing -> texturing -> albedo -> lights -> refine
+// -> export (-> evaluate, when the input carries a synthetic ground truth). Stages whose outputs
+// are up to date are skipped, so a run that was stopped resumes where it stopped.
 #include <chrono>
 #include <cstdio>
+#include <fstream>
 #include <iostream>
 
-#include "apps/fuse.h"
+#include "apps/chain.h"
 #include "apps/ingest.h"
+#include "apps/report.h"
 #include "apps/synth.h"
-#include "apps/texture.h"
 #include "core/cli.h"
 #include "core/ply_io.h"
-#include "core/tsdf_volume.h"
-#include "meshing/marching_cubes.h"
 #include "core/workspace.h"
 
 namespace {
 
-using genscene::apps::IngestSummary;
+using genscene::apps::StageRow;
 
-struct StageRow {
-  std::string stage;
-  double seconds;
-  std::string result;
-};
-
-void PrintSummary(const std::vector<StageRow>& rows) {
-  std::printf("\n%-10s %9s  %s\n", "stage", "seconds", "result");
-  for (const auto& r : rows) std::printf("%-10s %9.2f  %s\n", r.stage.c_str(), r.seconds, r.result.c_str());
-}
-
-template <typename F>
-auto Timed(double* seconds, F&& f) {
-  const auto start = std::chrono::steady_clock::now();
-  auto result = f();
-  *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return result;
-}
-
-std::string Describe(const IngestSummary& s) {
-  return genscene::Format(s.frames, " frames ", s.width, "x", s.height, ", depth ", s.min_depth, "-",
-                          s.max_depth, " m, ", 100.0 * s.valid_depth_fraction, "% valid, ",
-                          s.frames_with_pose, " with pose");
-}
-
-// The stages' options, as flags and config sections of `genscene run` and `genscene demo`.
-struct ChainOptions {
-  genscene::fusion::FusionOptions fusion;
-  genscene::meshing::MeshingOptions meshing;
-  genscene::texturing::TexturingOptions texturing;
-  genscene::texturing::AlbedoOptions albedo;
-  void AddTo(genscene::CommandLine& cli) {
-    cli.Add(fusion, "Fusion");
-    cli.Add(meshing, "Meshing");
-    cli.Add(texturing, "Texturing");
-    cli.Add(albedo, "Albedo");
+// Runs the chain with the workspace's log open (appended), then prints and logs the summary.
+void RunLogged(const std::string& input, const genscene::SourceOptions& source,
+               const genscene::apps::ChainOptions& chain, uint64_t seed, const genscene::Workspace& ws, bool redo,
+               const std::string& until, std::vector<StageRow>& rows) {
+  const bool fresh_log = !std::filesystem::exists(ws.Log());
+  std::ofstream log(ws.Log(), std::ios::app);
+  if (!log) throw genscene::Error(ws.Log().string() + ": cannot open the log for writing");
+  log << "== genscene on " << input << " (seed " << seed << ")\n" << std::flush;
+  try {
+    genscene::apps::RunChain(input, source, chain, seed, ws, redo, log, rows, until);
+  } catch (...) {
+    // Bad input found before any stage finished leaves no file behind (the error is on stderr).
+    bool finished = false;
+    for (const StageRow& r : rows) finished = finished || (!r.skipped && r.stage != "synth");
+    if (fresh_log && !finished) {
+      log.close();
+      std::filesystem::remove(ws.Log());
+    }
+    throw;
   }
-};
-
-// Runs the stages that exist on `input` into workspace `ws`, appending to `rows`. A stage whose
-// outputs are newer than its inputs is skipped unless `redo`.
-void RunChain(const std::string& input, const genscene::SourceOptions& source, const ChainOptions& options,
-              const genscene::Workspace& ws, bool redo, std::vector<StageRow>& rows) {
-  using genscene::Format;
-  using genscene::Workspace;
-  const auto summary_path = ws.root() / "sequence.json";
-  double seconds = 0.0;
-  if (!redo && Workspace::IsFresh({summary_path}, {input})) {
-    rows.push_back({"ingest", 0.0, "up to date (" + summary_path.string() + "), skipped"});
-  } else {
-    const auto s = Timed(&seconds, [&] { return genscene::apps::IngestSequence(input, source, summary_path); });
-    rows.push_back({"ingest", seconds, Describe(s)});
-  }
-
-  const std::vector<std::filesystem::path> fused = {ws.Trajectory(), ws.Tsdf(), ws.root() / "fusion.json"};
-  if (!redo && Workspace::IsFresh(fused, {input})) {
-    rows.push_back({"fusion", 0.0, "up to date (" + ws.Tsdf().string() + "), skipped"});
-  } else {
-    const auto s = Timed(&seconds, [&] { return genscene::apps::FuseSequence(input, source, options.fusion, ws); });
-    std::string result = Format(s.fused, "/", s.frames, " frames fused (", s.lost, " lost, ", s.degenerate,
-                                " degenerate, ", s.blank, " blank), ", s.blocks, " blocks (", s.megabytes,
-                                " MB), ", s.keyframes, " keyframes");
-    if (s.ate) result += Format(", ATE ", 100.0 * s.ate->rmse, " cm");
-    rows.push_back({"fusion", seconds, result});
-  }
-
-  if (!redo && Workspace::IsFresh({ws.Mesh()}, {ws.Tsdf()})) {
-    rows.push_back({"meshing", 0.0, "up to date (" + ws.Mesh().string() + "), skipped"});
-  } else {
-    const auto result = Timed(&seconds, [&] {
-      const genscene::TsdfVolume volume = genscene::ReadTsdfVolume(ws.Tsdf());
-      auto r = genscene::meshing::ExtractMesh(volume, options.meshing);
-      if (r.mesh.empty()) throw genscene::Error(Format(ws.Tsdf().string(), ": the volume holds no surface; no mesh written"));
-      genscene::WritePly(ws.Mesh(), r.mesh);
-      return r;
-    });
-    rows.push_back({"meshing", seconds, Format(result.stats.vertices, " vertices, ", result.stats.triangles,
-                                               " triangles (", ws.Mesh().string(), ")")});
-  }
-
-  if (!redo && Workspace::IsFresh({ws.Texture(), ws.TexturePly()}, {ws.Mesh(), ws.Keyframes()})) {
-    rows.push_back({"texturing", 0.0, "up to date (" + ws.Texture().string() + "), skipped"});
-  } else {
-    genscene::SourceOptions keyframes;
-    keyframes.camera_response = source.camera_response;
-    const auto s = Timed(&seconds, [&] {
-      return genscene::apps::TextureWorkspace({}, keyframes, options.texturing, ws);
-    });
-    rows.push_back({"texturing", seconds, genscene::apps::ToString(s)});
-  }
-
-  if (!redo && Workspace::IsFresh({ws.Albedo(), ws.AlbedoPly()}, {ws.Mesh(), ws.Texture()})) {
-    rows.push_back({"albedo", 0.0, "up to date (" + ws.Albedo().string() + "), skipped"});
-  } else {
-    const auto s = Timed(&seconds, [&] { return genscene::apps::AlbedoWorkspace({}, options.albedo, ws); });
-    rows.push_back({"albedo", seconds, genscene::apps::ToString(s)});
-  }
+  genscene::apps::WriteSummaryJson(ws, input, seed, rows);
+  const std::string table = genscene::apps::SummaryTable(rows);
+  log << table << std::flush;
+  std::cout << "\n" << table << "\nworkspace: " << ws.root().string() << " (log: " << ws.Log().string() << ")\n";
 }
 
 int Demo(int argc, char** argv) {
-  CLI::App app{"genscene demo: synthesise a Cornell-box RGB-D sequence with ground truth and run "
-               "the chain on it"};
+  CLI::App app{"genscene demo: synthesise a Cornell-box RGB-D sequence with ground truth, run the whole "
+               "chain on it and judge the model on novel views against the truth"};
   genscene::CommandLine cli(app);
   genscene::apps::SynthOptions synth;
   synth.frames = 20;
   cli.Add(synth, "Synthetic scene");
-  ChainOptions chain;
+  genscene::apps::ChainOptions chain = genscene::apps::DemoChainOptions();
   chain.AddTo(cli);
   std::string out = "genscene-demo";
-  bool redo = false;
+  bool redo = false, report = true;
   app.add_option("out,--out", out, "workspace folder")->capture_default_str();
+  app.add_flag("!--no-report", report, "do not write the report (WS/report/report.md) at the end");
+  std::string until;
+  app.add_option("--until", until, "last stage to run: ingest, fusion, meshing, texturing, albedo, lights, refine, export, evaluate");
   app.add_flag("--redo", redo, "re-run stages whose outputs are up to date");
   if (auto code = cli.Parse(argc, argv)) return *code;
 
   const genscene::Workspace ws(out);
   std::vector<StageRow> rows;
   if (!redo && std::filesystem::exists(ws.Input())) {
-    rows.push_back({"synth", 0.0, "up to date (" + ws.Input().string() + "), skipped"});
+    rows.push_back({"synth", 0.0, genscene::apps::PeakMegabytes(), true,
+                    "up to date (" + ws.Input().string() + "), skipped"});
   } else {
-    double seconds = 0.0;
-    const auto s = Timed(&seconds, [&] { return genscene::apps::Synthesize(synth, cli.seed(), ws.Input()); });
-    rows.push_back({"synth", seconds, genscene::Format(s.frames, " frames ", s.width, "x", s.height,
-                                                       ", ground-truth mesh ", s.mesh_faces, " triangles")});
+    std::fprintf(stderr, "[0/%zu] synth\n", genscene::apps::ChainStages().size());
+    const auto start = std::chrono::steady_clock::now();
+    const auto s = genscene::apps::Synthesize(synth, cli.seed(), ws.Input());
+    rows.push_back({"synth", std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                    genscene::apps::PeakMegabytes(), false,
+                    genscene::Format(s.frames, " frames ", s.width, "x", s.height, ", ground-truth mesh ",
+                                     s.mesh_faces, " triangles")});
   }
-  RunChain(ws.Input().string(), genscene::SourceOptions(), chain, ws, redo, rows);
-  PrintSummary(rows);
-  std::cout << "\nworkspace: " << ws.root().string() << "\n";
+  RunLogged(ws.Input().string(), genscene::SourceOptions(), chain, cli.seed(), ws, redo, until, rows);
+  if (report && until.empty()) {
+    genscene::apps::ReportOptions options;
+    options.sweep = true;
+    std::fprintf(stderr, "report (with the light penalty sweep)\n");
+    std::cout << "report: " << genscene::apps::WriteReport(ws, options, cli.seed()).string() << "\n";
+  }
+  return 0;
+}
+
+int Report(int argc, char** argv) {
+  CLI::App app{"genscene report: a Markdown report with PNG figures of speed against error for every stage a "
+               "workspace holds, written to WORKSPACE/report/report.md"};
+  genscene::CommandLine cli(app);
+  std::string workspace;
+  genscene::apps::ReportOptions options;
+  app.add_option("workspace", workspace, "workspace folder (of genscene run or genscene demo)")->required();
+  app.add_flag("--sweep", options.sweep, "re-estimate the lights over penalty weights 1e-5 to 1e-1 (the paper's Fig. 3)");
+  app.add_option("--sweep-spp", options.sweep_spp, "samples per pixel of the sweep's renders")->capture_default_str()
+      ->check(CLI::Range(2, 65536));
+  if (auto code = cli.Parse(argc, argv)) return *code;
+  if (!std::filesystem::is_directory(workspace)) throw genscene::Error(workspace + ": no such workspace folder");
+  const genscene::Workspace ws(workspace);
+  std::cout << "report: " << genscene::apps::WriteReport(ws, options, cli.seed()).string() << "\n";
   return 0;
 }
 
 int Run(int argc, char** argv) {
-  CLI::App app{"genscene run: run the chain on a recording into a workspace"};
+  CLI::App app{"genscene run: run the whole chain on a recording into a workspace: ingest, fusion, meshing, "
+               "texturing, albedo, lights, refine, export (stages whose outputs are up to date are skipped)"};
   genscene::CommandLine cli(app);
   genscene::SourceOptions source;
   cli.Add(source, "Input");
-  ChainOptions chain;
+  genscene::apps::ChainOptions chain;
   chain.AddTo(cli);
   std::string input, out;
   bool redo = false;
   app.add_option("--input", input, "TUM folder, view set, Redwood folder, .oni recording or openni2[:URI]")->required();
   app.add_option("out,--out", out, "workspace folder")->required();
   app.add_flag("--redo", redo, "re-run stages whose outputs are up to date");
+  std::string until;
+  app.add_option("--until", until, "last stage to run: ingest, fusion, meshing, texturing, albedo, lights, refine, export, evaluate");
   if (auto code = cli.Parse(argc, argv)) return *code;
 
   const genscene::Workspace ws(out);
   std::vector<StageRow> rows;
-  RunChain(input, source, chain, ws, redo, rows);
-  PrintSummary(rows);
+  RunLogged(input, source, chain, cli.seed(), ws, redo, until, rows);
   return 0;
 }
 
@@ -192,7 +148,7 @@ int Inspect(int argc, char** argv) {
     return 0;
   }
   const auto s = genscene::apps::IngestSequence(input, source, {});
-  std::cout << s.description << "\n" << Describe(s) << "\n";
+  std::cout << s.description << "\n" << genscene::apps::Describe(s) << "\n";
   return 0;
 }
 
@@ -202,6 +158,7 @@ void PrintUsage() {
                "commands:\n"
                "  demo      synthesise a Cornell-box sequence and run the chain on it\n"
                "  run       run the chain on a recording: --input SRC --out WORKSPACE\n"
+               "  report    write WORKSPACE/report/report.md: speed against error of every stage, with figures\n"
                "  inspect   read and check a recording (or a PLY mesh) and print what it holds\n";
 }
 
@@ -226,6 +183,7 @@ int main(int argc, char** argv) {
     if (command == "demo") return Demo(n, args.data());
     if (command == "run") return Run(n, args.data());
     if (command == "inspect") return Inspect(n, args.data());
+    if (command == "report") return Report(n, args.data());
     std::cerr << "genscene: error: unknown command '" << command << "'\n";
     PrintUsage();
     return 2;

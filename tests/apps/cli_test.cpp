@@ -71,7 +71,9 @@ TEST_F(Apps, HelpDocumentsFlagsWithUnitsAndDefaults) {
 
 TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
   const fs::path ws = dir_ / "ws";
-  const std::string demo = AppPath("genscene") + " demo --frames 3 --size 32x24 --out " + ws.string();
+  const std::string demo = AppPath("genscene") + " demo --frames 3 --size 32x24 --lights-grid 3 --lights-pixels-per-view 200 "
+                           "--lights-rounds 1 --refine-iterations 1 --refine-spp 2 --refine-pixels-per-view 100 "
+                           "--evaluate-views 1 --evaluate-truth-spp 4 --evaluate-model-spp 4 --out " + ws.string();
   auto r = RunCommand(demo);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(fs::exists(ws / "input/rgb.txt"));
@@ -83,10 +85,23 @@ TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
   EXPECT_TRUE(fs::exists(ws / "mesh.ply"));
   EXPECT_NE(r.output.find("3 frames 32x24"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("frames fused"), std::string::npos) << r.output;
+  for (const char* output : {"lights.json", "mesh_refined.ply", "export/model.ply", "export/model.xml",
+                             "export/trajectory.txt", "evaluation/evaluation.json", "summary.json", "genscene.log",
+                             "report/report.md", "report/tracking_time.png", "report/lights_penalty_error.png"}) {
+    EXPECT_TRUE(fs::exists(ws / output)) << output;
+  }
+  EXPECT_NE(r.output.find("peak MB"), std::string::npos) << r.output;
   r = RunCommand(demo);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("up to date"), std::string::npos) << r.output;
   EXPECT_EQ(test::CountFilesContaining(ws, ".tmp-"), 0);
+}
+
+TEST_F(Apps, ReportNeedsAWorkspaceWithOutputs) {
+  ExpectFailure(AppPath("genscene") + " report " + (dir_ / "nope").string(), {"nope", "no such workspace folder"});
+  fs::create_directories(dir_ / "empty");
+  ExpectFailure(AppPath("genscene") + " report " + (dir_ / "empty").string(), {"empty", "no stage outputs"},
+                dir_ / "empty");
 }
 
 TEST_F(Apps, MissingInput) {
@@ -136,7 +151,7 @@ TEST_F(Apps, NanInfNegativeDepth) {
 
 TEST_F(Apps, TruncatedPly) {
   const fs::path ws = dir_ / "ws";
-  ASSERT_EQ(RunCommand(AppPath("genscene") + " demo --frames 2 --size 16x12 --out " + ws.string()).exit_code, 0);
+  ASSERT_EQ(RunCommand(AppPath("genscene-synth") + " --frames 2 --size 16x12 --out " + (ws / "input").string()).exit_code, 0);
   std::ifstream in(ws / "input/mesh_gt.ply", std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), {});
   std::ofstream(dir_ / "cut.ply", std::ios::binary) << bytes.substr(0, bytes.size() / 2);

@@ -153,7 +153,7 @@ TEST_F(SynthOni, OniToTumFolderAndTheChainRunOnIt) {
   EXPECT_EQ(rgb.size(), 5u);
   // `genscene run` reads the recording unchanged.
   r = RunCommand(AppPath("genscene") + " run --input " + (dir_ / "seq.oni").string() + " --out " +
-                 (dir_ / "ws").string() + " --voxel-size 0.02 --truncation 0.08");
+                 (dir_ / "ws").string() + " --voxel-size 0.02 --truncation 0.08 --until fusion");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(ReadTumTrajectory(dir_ / "ws" / "trajectory.txt").size(), 12u);
 }

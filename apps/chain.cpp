@@ -1,0 +1,328 @@
+#include "apps/chain.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "apps/fuse.h"
+#include "apps/ingest.h"
+#include "apps/lights.h"
+#include "apps/refine.h"
+#include "apps/scene_inputs.h"
+#include "apps/texture.h"
+#include "core/check.h"
+#include "core/options.h"
+#include "core/image_io.h"
+#include "core/light_set.h"
+#include "inverse/path_tracer.h"
+#include "inverse/scene_io.h"
+#include "core/file_util.h"
+#include "core/mesh_colors.h"
+#include "core/ply_io.h"
+#include "core/trajectory.h"
+#include "core/tsdf_volume.h"
+#include "inverse/mitsuba_xml.h"
+#include "inverse/scene.h"
+
+namespace genscene::apps {
+
+namespace fs = std::filesystem;
+
+void ChainOptions::AddTo(CommandLine& cli) {
+  cli.Add(fusion, "Fusion");
+  cli.Add(meshing, "Meshing");
+  cli.Add(texturing, "Texturing");
+  cli.Add(albedo, "Albedo");
+  cli.Add(lights, "Light estimation (flags --lights-*)", "lights");
+  cli.Add(refine, "Vertex refinement (flags --refine-*)", "refine");
+  cli.Add(evaluate, "Evaluation against a synthetic ground truth (flags --evaluate-*)", "evaluate");
+}
+
+ChainOptions DemoChainOptions() {
+  ChainOptions o;
+  o.meshing.decimate_max_error = 0.003;
+  o.lights.grid = 5;
+  o.lights.pixels_per_view = 1500;
+  o.lights.penalty_weight = 1e-5;  // novel views 0.079 (1e-4: 0.096, 1e-3: 0.145), see the report's sweep
+  o.refine.iterations = 3;
+  o.refine.spp = 8;
+  o.refine.pixels_per_view = 1000;
+  return o;
+}
+
+const std::vector<std::string>& ChainStages() {
+  static const std::vector<std::string> stages = {"ingest", "fusion", "meshing", "texturing",
+                                                  "albedo", "lights", "refine",  "export", "evaluate"};
+  return stages;
+}
+
+double PeakMegabytes() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;  // kilobytes on Linux
+}
+
+std::string Describe(const IngestSummary& s) {
+  return Format(s.frames, " frames ", s.width, "x", s.height, ", depth ", s.min_depth, "-", s.max_depth, " m, ",
+                100.0 * s.valid_depth_fraction, "% valid, ", s.frames_with_pose, " with pose");
+}
+
+namespace {
+
+std::string Now() {
+  const std::time_t t = std::time(nullptr);
+  char text[32];
+  std::strftime(text, sizeof(text), "%Y-%m-%d %H:%M:%S", std::localtime(&t));
+  return text;
+}
+
+// Runs one stage: skipped when its outputs are fresh, else timed, logged and summarised.
+class StageRunner {
+ public:
+  StageRunner(bool redo, std::ostream& log, std::vector<StageRow>& rows, std::string until)
+      : redo_(redo), log_(log), rows_(rows), until_(std::move(until)) {}
+
+  template <typename F>
+  void Run(const std::string& stage, const std::vector<fs::path>& outputs, const std::vector<fs::path>& inputs, F&& body) {
+    if (done_) return;
+    done_ = stage == until_;
+    const auto& stages = ChainStages();
+    const size_t index = std::find(stages.begin(), stages.end(), stage) - stages.begin() + 1;
+    if (!redo_ && Workspace::IsFresh(outputs, inputs)) {
+      StageRow row{stage, 0.0, PeakMegabytes(), true, "up to date (" + outputs.front().string() + "), skipped"};
+      log_ << Now() << " " << stage << ": " << row.result << "\n" << std::flush;
+      rows_.push_back(row);
+      return;
+    }
+    std::fprintf(stderr, "[%zu/%zu] %s\n", index, stages.size(), stage.c_str());
+    log_ << Now() << " " << stage << ": start\n" << std::flush;
+    const auto start = std::chrono::steady_clock::now();
+    std::string result;
+    try {
+      result = body();
+    } catch (const std::exception& e) {
+      log_ << Now() << " " << stage << ": error: " << e.what() << "\n" << std::flush;
+      throw;
+    }
+    StageRow row{stage, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                 PeakMegabytes(), false, result};
+    log_ << Now() << " " << stage << ": done in " << Format(row.seconds) << " s: " << result << "\n" << std::flush;
+    rows_.push_back(row);
+  }
+
+ private:
+  bool redo_;
+  std::ostream& log_;
+  std::vector<StageRow>& rows_;
+  std::string until_;
+  bool done_ = false;  // the `until` stage has run
+};
+
+// WS/export/: model.ply, model.xml (+ model_meshes/), trajectory.txt. model.xml is written last.
+std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings) {
+  const fs::path dir = ws.root() / "export";
+  fs::create_directories(dir);
+  const fs::path mesh_path = fs::exists(ws.RefinedMesh()) ? ws.RefinedMesh() : ws.Mesh();
+  const TriangleMesh mesh = ReadPly(mesh_path);
+  const MeshColors albedo = ReadMeshColors(ws.Albedo(), mesh);
+  const TriangleMesh colored = albedo.ToSubdividedMesh(mesh);
+  WritePly(dir / "model.ply", colored);
+  WriteTumTrajectory(dir / "trajectory.txt", ReadTumTrajectory(ws.Trajectory()));
+
+  inverse::Scene scene = LoadGeometry({{}, mesh_path, ws.Albedo()}, ws, warnings);
+  scene.meshes.front().name = "model";
+  scene.voxel_lights = ReadLightsJson(ws.Lights());
+  std::vector<inverse::View> views;  // the keyframe cameras as sensors
+  for (const inverse::TrainingView& v : ReadViews(ws.Keyframes())) views.push_back(v.view);
+  try {
+    for (std::string& w : inverse::ExportMitsubaXml(dir / "model.xml", scene, views)) warnings->push_back(std::move(w));
+  } catch (const Error& e) {  // cameras Mitsuba cannot express (fx != fy, distortion): none
+    warnings->push_back(Format("keyframe cameras left out of model.xml: ", e.what()));
+    for (std::string& w : inverse::ExportMitsubaXml(dir / "model.xml", scene, {})) warnings->push_back(std::move(w));
+  }
+  return Format(colored.vertices.size(), " coloured vertices (", (dir / "model.ply").string(), "), ",
+                scene.voxel_lights->ActiveVoxels().size(), " voxel lights as emissive cube faces (", (dir / "model.xml").string(),
+                "), trajectory (", (dir / "trajectory.txt").string(), ")");
+}
+
+}  // namespace
+
+void RunChain(const std::string& input, const SourceOptions& source, const ChainOptions& options, uint64_t seed,
+              const Workspace& ws, bool redo, std::ostream& log, std::vector<StageRow>& rows, const std::string& until) {
+  const auto& names = ChainStages();
+  if (!until.empty() && std::find(names.begin(), names.end(), until) == names.end()) {
+    std::string known;
+    for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
+    throw Error(Format("--until ", until, ": no such stage (stages: ", known, ")"));
+  }
+  StageRunner stage(redo, log, rows, until);
+  const fs::path summary_path = ws.root() / "sequence.json";
+  stage.Run("ingest", {summary_path}, {input}, [&] { return Describe(IngestSequence(input, source, summary_path)); });
+
+  stage.Run("fusion", {ws.Trajectory(), ws.Tsdf(), ws.root() / "fusion.json"}, {input}, [&] {
+    const FuseSummary s = FuseSequence(input, source, options.fusion, ws);
+    std::string result = Format(s.fused, "/", s.frames, " frames fused (", s.lost, " lost, ", s.degenerate,
+                                " degenerate, ", s.blank, " blank), ", s.blocks, " blocks (", s.megabytes, " MB), ",
+                                s.keyframes, " keyframes");
+    if (s.ate) result += Format(", ATE ", 100.0 * s.ate->rmse, " cm");
+    return result;
+  });
+
+  stage.Run("meshing", {ws.Mesh()}, {ws.Tsdf()}, [&] {
+    const TsdfVolume volume = ReadTsdfVolume(ws.Tsdf());
+    const auto r = meshing::ExtractMesh(volume, options.meshing);
+    if (r.mesh.empty()) throw Error(Format(ws.Tsdf().string(), ": the volume holds no surface; no mesh written"));
+    WritePly(ws.Mesh(), r.mesh);
+    return Format(r.stats.vertices, " vertices, ", r.stats.triangles, " triangles (", ws.Mesh().string(), ")");
+  });
+
+  stage.Run("texturing", {ws.Texture(), ws.TexturePly()}, {ws.Mesh(), ws.Keyframes()}, [&] {
+    SourceOptions keyframes;
+    keyframes.camera_response = source.camera_response;
+    return ToString(TextureWorkspace({}, keyframes, options.texturing, ws));
+  });
+
+  stage.Run("albedo", {ws.Albedo(), ws.AlbedoPly()}, {ws.Mesh(), ws.Texture()},
+            [&] { return ToString(AlbedoWorkspace({}, options.albedo, ws)); });
+
+  stage.Run("lights", {ws.Lights()}, {ws.Mesh(), ws.Albedo(), ws.Keyframes()}, [&] {
+    const LightsSummary s = LightsWorkspace({}, options.lights, seed, ws);
+    for (const std::string& w : s.warnings) log << "lights: warning: " << w << "\n";
+    return ToString(s);
+  });
+
+  stage.Run("refine", {ws.RefinedMesh()}, {ws.Mesh(), ws.Albedo(), ws.Lights(), ws.Keyframes()}, [&] {
+    RefineInputs in;
+    in.render_spp = 16;
+    const RefineSummary s = RefineWorkspace(in, options.refine, seed, ws);
+    for (const std::string& w : s.warnings) log << "refine: warning: " << w << "\n";
+    return ToString(s);
+  });
+
+  const fs::path exported = ws.root() / "export";
+  stage.Run("export", {exported / "model.xml", exported / "model.ply", exported / "trajectory.txt"},
+            {ws.RefinedMesh(), ws.Albedo(), ws.Lights(), ws.Trajectory()}, [&] {
+              std::vector<std::string> warnings;
+              std::string result = ExportModel(ws, &warnings);
+              for (const std::string& w : warnings) log << "export: warning: " << w << "\n";
+              return result;
+            });
+
+  // Synthetic sequences (genscene-synth, the demo) carry their ground truth: judge the model.
+  if (fs::exists(fs::path(input) / "scene.json")) {
+    const fs::path judged = ws.root() / "evaluation" / "evaluation.json";
+    stage.Run("evaluate", {judged}, {ws.RefinedMesh(), ws.Albedo(), ws.Lights()}, [&] {
+      const DemoEvaluation e = EvaluateAgainstTruth(ws, input, options.lights, options.evaluate, seed);
+      return Format(e.views.size(), " novel views against the ground truth: relative RMSE ", e.relative_rmse,
+                    " (noise taken out) (", judged.string(), ")");
+    });
+  }
+}
+
+void EvaluationOptions::Validate() const {
+  RequireRange("views", views, 1, 1000);
+  RequireRange("truth_spp", truth_spp, 2, 1 << 16);
+  RequireRange("model_spp", model_spp, 2, 1 << 16);
+}
+
+DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
+                                    const inverse::LightEstimationOptions& lights, const EvaluationOptions& eval,
+                                    uint64_t seed) {
+  const int views = eval.views, truth_spp = eval.truth_spp, model_spp = eval.model_spp;
+  using namespace inverse;
+  const fs::path dir = ws.root() / "evaluation";
+  fs::create_directories(dir);
+  const Scene truth = LoadScene(input / "scene.json").scene;
+  const std::vector<TrainingView> all = ReadViews(input);
+  if (all.empty()) throw Error(Format(input.string(), ": no frames to take novel views from"));
+
+  std::vector<std::string> warnings;
+  Scene model = LoadGeometry({{}, ws.RefinedMesh(), ws.Albedo()}, ws, &warnings);
+  model.voxel_lights = ReadLightsJson(ws.Lights());
+  const PathTracer truth_tracer(truth), model_tracer(model);
+
+  DemoEvaluation out;
+  nlohmann::ordered_json list = nlohmann::ordered_json::array();
+  for (int k = 0; k < views; ++k) {
+    // Frames between the keyframes (every 5th frame from the first is a keyframe in the demo).
+    const size_t index = std::min(all.size() - 1, (2 * k + 1) * all.size() / (2 * views));
+    TrainingView reference{all[index].view, {}};
+    RenderOptions half;
+    half.spp = std::max(1, truth_spp / 2);
+    const ImageRgb a = truth_tracer.Render(reference.view, half, seed + 1000 + k).radiance;
+    const ImageRgb b = truth_tracer.Render(reference.view, half, (seed + 1000 + k) ^ 0x9E3779B97F4A7C15ull).radiance;
+    reference.image = ImageRgb(a.width(), a.height());
+    double noise = 0.0;
+    for (size_t i = 0; i < a.size(); ++i) {
+      reference.image.data()[i] = 0.5f * (a.data()[i] + b.data()[i]);
+      noise += 0.25 * (a.data()[i] - b.data()[i]).cast<double>().squaredNorm();
+    }
+    const double noise_rms = std::sqrt(noise / (3.0 * a.size()));
+    ImageRgb render;
+    const ViewError e = CompareRender(model_tracer, reference, lights, model_spp, seed + 2000 + k, noise_rms, &render);
+    char name[32];
+    std::snprintf(name, sizeof(name), "novel_%02d", k);
+    WritePng(dir / (std::string(name) + "_truth.png"), reference.image);
+    WritePng(dir / (std::string(name) + "_model.png"), render);
+    out.views.push_back(e);
+    out.relative_rmse += e.rmse_bias / views;
+    list.push_back({{"frame", index}, {"pixels", e.pixels}, {"relative_rmse", e.rmse}, {"noise", e.noise},
+                    {"relative_rmse_bias", e.rmse_bias}});
+  }
+  nlohmann::ordered_json report;
+  report["truth_spp"] = truth_spp;
+  report["model_spp"] = model_spp;
+  report["relative_rmse"] = out.relative_rmse;
+  report["views"] = list;
+  WriteTextFileAtomically(dir / "evaluation.json", report.dump(1) + "\n");
+  return out;
+}
+
+void WriteSummaryJson(const Workspace& ws, const std::string& input, uint64_t seed, const std::vector<StageRow>& rows) {
+  const fs::path path = ws.root() / "summary.json";
+  nlohmann::ordered_json previous;
+  if (fs::exists(path)) {
+    try {
+      previous = nlohmann::ordered_json::parse(ReadTextFile(path));
+    } catch (const std::exception&) {  // rewritten below
+    }
+  }
+  nlohmann::ordered_json stages = nlohmann::ordered_json::array();
+  for (const StageRow& r : rows) {
+    nlohmann::ordered_json row = {{"stage", r.stage}, {"seconds", r.seconds}, {"peak_megabytes", r.peak_megabytes},
+                                  {"skipped", r.skipped}, {"result", r.result}};
+    // A skipped stage keeps the figures of the run that made its outputs.
+    if (r.skipped && previous.contains("stages")) {
+      for (const auto& old : previous["stages"]) {
+        if (old.value("stage", "") == r.stage) row = old;
+      }
+    }
+    stages.push_back(row);
+  }
+  nlohmann::ordered_json summary = {{"input", input}, {"seed", seed}, {"stages", stages}};
+  WriteTextFileAtomically(path, summary.dump(1) + "\n");
+}
+
+std::string SummaryTable(const std::vector<StageRow>& rows) {
+  std::ostringstream o;
+  char line[96];
+  std::snprintf(line, sizeof(line), "%-10s %9s %9s  %s\n", "stage", "seconds", "peak MB", "result");
+  o << line;
+  double total = 0.0;
+  for (const StageRow& r : rows) {
+    std::snprintf(line, sizeof(line), "%-10s %9.2f %9.0f  ", r.stage.c_str(), r.seconds, r.peak_megabytes);
+    o << line << r.result << "\n";
+    total += r.seconds;
+  }
+  std::snprintf(line, sizeof(line), "%-10s %9.2f\n", "total", total);
+  o << line;
+  return o.str();
+}
+
+}  // namespace genscene::apps

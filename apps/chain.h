@@ -1,0 +1,106 @@
+// The whole chain of `genscene run` and `genscene demo` (issue 11): ingest -> fusion -> meshing ->
+// texturing -> albedo -> lights -> refine -> export, on one workspace (DESIGN.md §2). Each stage
+// is skipped when its outputs exist and are newer than its inputs; every output is written
+// atomically and the stage's completion marker last, so a run killed in any stage and started
+// again finishes with the same files.
+//
+// Export (WS/export/): model.ply (the refined mesh subdivided to its Mesh Colors texels, albedo as
+// 8-bit sRGB vertex colours: MeshLab, Open3D, Blender), model.xml (Mitsuba 3: the refined mesh,
+// albedo per face, the voxel lights as emissive cube faces, the keyframe cameras), trajectory.txt
+// (TUM format: timestamp tx ty tz qx qy qz qw).
+#pragma once
+
+#include <filesystem>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "apps/ingest.h"
+#include "core/cli.h"
+#include "core/frame_source.h"
+#include "core/workspace.h"
+#include "fusion/kinect_fusion.h"
+#include "inverse/light_estimation.h"
+#include "inverse/vertex_refinement.h"
+#include "meshing/marching_cubes.h"
+#include "texturing/albedo.h"
+#include "texturing/backproject.h"
+
+namespace genscene::apps {
+
+// How the "evaluate" stage judges a model against a synthetic ground truth.
+struct EvaluationOptions {
+  static constexpr const char* kSection = "evaluate";
+  int views = 3;        // novel views, between the keyframes
+  int truth_spp = 128;  // samples per pixel of the ground-truth renders
+  int model_spp = 64;   // samples per pixel of the model's renders
+  template <typename V>
+  void Visit(V&& v) {
+    v("views", views, "", "novel views judged against the synthetic ground truth");
+    v("truth_spp", truth_spp, "", "samples per pixel of the ground-truth renders");
+    v("model_spp", model_spp, "", "samples per pixel of the model's renders (two halves: the noise is measured)");
+  }
+  void Validate() const;
+};
+
+// The stages' options, as flags and config sections of `genscene run` and `genscene demo`.
+struct ChainOptions {
+  fusion::FusionOptions fusion;
+  meshing::MeshingOptions meshing;
+  texturing::TexturingOptions texturing;
+  texturing::AlbedoOptions albedo;
+  inverse::LightEstimationOptions lights;
+  inverse::RefineOptions refine;
+  EvaluationOptions evaluate;
+  void AddTo(CommandLine& cli);
+};
+
+// The options `genscene demo` starts from: a decimated mesh (the Cornell box is planar), a 5^3
+// light grid and small pixel samples, so that the whole chain takes about a minute on 2 cores.
+ChainOptions DemoChainOptions();
+
+struct StageRow {
+  std::string stage;
+  double seconds = 0.0;
+  double peak_megabytes = 0.0;  // the process's peak resident memory after the stage
+  bool skipped = false;
+  std::string result;           // the stage's own figures
+};
+
+// The chain's stages in order, for --help texts and the kill-and-resume test.
+const std::vector<std::string>& ChainStages();
+
+// Runs the chain on `input` into `ws`, appending one row per stage to `rows` and a line per event to
+// `log` (the workspace's genscene.log). `redo`: run stages whose outputs are up to date. When
+// `input` holds a ground truth (scene.json of genscene-synth), an "evaluate" stage follows.
+// `until`: the last stage to run (empty: all); throws Error when it names no stage.
+void RunChain(const std::string& input, const SourceOptions& source, const ChainOptions& options, uint64_t seed,
+              const Workspace& ws, bool redo, std::ostream& log, std::vector<StageRow>& rows,
+              const std::string& until = "");
+
+// The demo's judge: novel views between the keyframes rendered from the synthetic ground truth
+// (input/scene.json, `truth_spp`) and from the model (refined mesh, albedo, voxel lights,
+// `model_spp`); relative RMSE with the Monte Carlo noise of both renders taken out (CompareRender).
+// Writes WS/evaluation/: novel_NN_truth.png, novel_NN_model.png, evaluation.json.
+struct DemoEvaluation {
+  std::vector<inverse::ViewError> views;
+  double relative_rmse = 0.0;  // mean over the views, noise taken out
+};
+DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const std::filesystem::path& input,
+                                    const inverse::LightEstimationOptions& lights, const EvaluationOptions& options,
+                                    uint64_t seed);
+
+// WS/summary.json: the input, the seed and a row per stage (a skipped stage keeps the row of the
+// run that made its outputs), for `genscene report`.
+void WriteSummaryJson(const Workspace& ws, const std::string& input, uint64_t seed, const std::vector<StageRow>& rows);
+
+// The summary table printed at the end of a run.
+std::string SummaryTable(const std::vector<StageRow>& rows);
+
+// One line on an ingested sequence.
+std::string Describe(const IngestSummary& summary);
+
+// Peak resident memory of this process so far, in MB.
+double PeakMegabytes();
+
+}  // namespace genscene::apps

@@ -1,0 +1,267 @@
+#include "apps/report.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "apps/plot.h"
+#include "apps/scene_inputs.h"
+#include "core/check.h"
+#include "core/file_util.h"
+#include "core/trajectory.h"
+#include "core/trajectory_metrics.h"
+#include "inverse/light_estimation.h"
+#include "inverse/path_tracer.h"
+
+namespace genscene::apps {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::json;
+
+namespace {
+
+std::optional<Json> ReadJson(const fs::path& path) {
+  if (!fs::exists(path)) return std::nullopt;
+  try {
+    return Json::parse(ReadTextFile(path));
+  } catch (const std::exception& e) {
+    throw Error(Format(path.string(), ": not valid JSON (", e.what(), ")"));
+  }
+}
+
+std::string Fixed(double v, int digits = 3) {
+  char text[48];
+  std::snprintf(text, sizeof(text), "%.*f", digits, v);
+  return text;
+}
+
+// Copies `from` into the report's img/ folder; returns the Markdown link target (relative).
+std::string CopyImage(const fs::path& from, const fs::path& report_dir, const std::string& name) {
+  fs::create_directories(report_dir / "img");
+  fs::copy_file(from, report_dir / "img" / name, fs::copy_options::overwrite_existing);
+  return "img/" + name;
+}
+
+// A Markdown row of images with captions.
+std::string ImageRow(const std::vector<std::pair<std::string, std::string>>& images) {
+  std::ostringstream o;
+  o << "|";
+  for (const auto& [caption, link] : images) o << " " << caption << " |";
+  o << "\n|";
+  for (size_t i = 0; i < images.size(); ++i) o << "---|";
+  o << "\n|";
+  for (const auto& [caption, link] : images) o << " ![" << caption << "](" << link << ") |";
+  o << "\n\n";
+  return o.str();
+}
+
+void Summary(const Workspace& ws, std::ostream& md) {
+  const auto summary = ReadJson(ws.root() / "summary.json");
+  if (!summary) return;
+  md << "## Summary\n\nInput: `" << (*summary)["input"].get<std::string>() << "`, seed "
+     << (*summary)["seed"].get<uint64_t>() << ".\n\n| stage | seconds | peak MB | result |\n|---|---:|---:|---|\n";
+  for (const Json& row : (*summary)["stages"]) {
+    md << "| " << row["stage"].get<std::string>() << " | " << Fixed(row["seconds"].get<double>(), 2) << " | "
+       << Fixed(row["peak_megabytes"].get<double>(), 0) << " | " << row["result"].get<std::string>() << " |\n";
+  }
+  md << "\n";
+}
+
+// The input folder of the run (for its ground truth), from summary.json or the demo's input/.
+std::optional<fs::path> InputFolder(const Workspace& ws) {
+  if (const auto summary = ReadJson(ws.root() / "summary.json")) {
+    const fs::path input = (*summary)["input"].get<std::string>();
+    if (fs::is_directory(input)) return input;
+  }
+  if (fs::is_directory(ws.Input())) return ws.Input();
+  return std::nullopt;
+}
+
+void Tracking(const Workspace& ws, const fs::path& dir, std::ostream& md) {
+  const auto fusion = ReadJson(ws.root() / "fusion.json");
+  if (!fusion) return;
+  md << "## Tracking and fusion\n\n";
+  PlotSeries total{"track + integrate + raycast", {}, {}}, track{"track (ICP)", {}, {}};
+  for (const Json& f : (*fusion)["frames"]) {
+    const double i = f["index"].get<double>();
+    total.x.push_back(i);
+    total.y.push_back(f["ms_preprocess"].get<double>() + f["ms_track"].get<double>() + f["ms_integrate"].get<double>() +
+                      f["ms_raycast"].get<double>());
+    track.x.push_back(i);
+    track.y.push_back(f["ms_track"].get<double>());
+  }
+  WritePlot(dir / "tracking_time.png", {"Per-frame time", "frame", "ms"}, {total, track});
+  double mean = 0.0;
+  for (double v : total.y) mean += v / std::max<size_t>(1, total.y.size());
+  md << total.x.size() << " frames, " << Fixed(mean, 1) << " ms per frame on average (" << Fixed(1000.0 / mean, 1)
+     << " fps).\n\n![per-frame time](tracking_time.png)\n\n";
+
+  const auto input = InputFolder(ws);
+  if (!input || !fs::exists(*input / "groundtruth.txt") || !fs::exists(ws.Trajectory())) return;
+  const Trajectory estimated = ReadTumTrajectory(ws.Trajectory()), truth = ReadTumTrajectory(*input / "groundtruth.txt");
+  AteResult ate;
+  try {
+    ate = ComputeAte(estimated, truth);
+  } catch (const Error& e) {
+    md << "No trajectory error: " << e.what() << ".\n\n";
+    return;
+  }
+  PlotSeries error{"position error after alignment", {}, {}};
+  for (size_t i = 0; i < estimated.size(); ++i) {
+    const auto& p = estimated.poses()[i];
+    const auto gt = truth.Nearest(p.timestamp, 0.02);
+    if (!gt) continue;
+    error.x.push_back(static_cast<double>(i));
+    error.y.push_back(100.0 * ((ate.alignment * p.world_from_camera).translation() - gt->world_from_camera.translation()).norm());
+  }
+  WritePlot(dir / "tracking_error.png", {"Per-frame position error against the ground truth", "frame", "cm"}, {error});
+  md << "Absolute trajectory error (TUM, " << ate.pairs << " poses): RMSE **" << Fixed(100.0 * ate.rmse, 3)
+     << " cm**, max " << Fixed(100.0 * ate.max, 3) << " cm.\n\n![per-frame error](tracking_error.png)\n\n";
+}
+
+void Texturing(const Workspace& ws, std::ostream& md) {
+  const auto texture = ReadJson(ws.root() / "texture.json");
+  const auto albedo = ReadJson(ws.root() / "albedo.json");
+  if (!texture && !albedo) return;
+  md << "## Texturing and albedo\n\n";
+  if (texture && texture->contains("summary")) md << "Texturing: " << (*texture)["summary"].dump() << "\n\n";
+  if (albedo && albedo->contains("clusters")) {
+    md << "| albedo cluster | linear RGB | texels |\n|---|---|---:|\n";
+    for (const Json& c : (*albedo)["clusters"]) {
+      const auto& a = c["albedo"];
+      md << "| " << c["id"].get<int>() << " | (" << Fixed(a[0].get<double>()) << ", " << Fixed(a[1].get<double>())
+         << ", " << Fixed(a[2].get<double>()) << ") | " << c["texels"].get<long long>() << " |\n";
+    }
+    md << "\n";
+  }
+}
+
+void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& options, uint64_t seed, std::ostream& md) {
+  const auto lights = ReadJson(ws.Lights());
+  if (!lights) return;
+  const Json& e = (*lights)["estimate"];
+  md << "## Light estimation\n\n" << e["pixels"].get<long long>() << " sampled pixels, "
+     << e["active_voxels"].get<int>() << " active voxels, " << Fixed(e["seconds"].get<double>(), 2) << " s.\n\n";
+  md << "| round | cache non-zeros | rays | trace s | solve s | cost | active voxels |\n|---:|---:|---:|---:|---:|---:|---:|\n";
+  for (const Json& r : e["rounds"]) {
+    md << "| " << r["round"].get<int>() << " | " << r["nonzeros"].get<long long>() << " | " << r["rays"].get<long long>()
+       << " | " << Fixed(r["trace_seconds"].get<double>(), 2) << " | " << Fixed(r["solve_seconds"].get<double>(), 2)
+       << " | " << r["cost"].get<double>() << " | " << r["active_voxels"].get<int>() << " |\n";
+  }
+  md << "\n";
+  std::vector<std::pair<std::string, std::string>> row;
+  const auto keyframes = ReadDataLines(ws.Keyframes() / "rgb.txt");
+  for (size_t i = 0; i < e["train_views"].size() && i < 4; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "train_%02zu.png", i);
+    const fs::path render = ws.root() / "lights" / name;
+    if (!fs::exists(render)) continue;
+    if (i < keyframes.size()) {
+      const auto fields = SplitWhitespace(keyframes[i].text);
+      if (fields.size() >= 2 && fs::exists(ws.Keyframes() / fields[1])) {
+        row.push_back({Format("keyframe ", i), CopyImage(ws.Keyframes() / fields[1], dir, Format("keyframe_", i, ".png"))});
+      }
+    }
+    row.push_back({Format("render ", i, " (RMSE ", Fixed(e["train_views"][i]["relative_rmse_bias"].get<double>()), ")"),
+                   CopyImage(render, dir, name)});
+  }
+  if (!row.empty()) md << "Keyframes and the model rendered with the estimated lights (relative RMSE with the render noise taken out):\n\n" << ImageRow(row);
+
+  if (!options.sweep) return;
+  // Fig. 3: light error against the penalty weight, and the time it takes.
+  std::vector<std::string> warnings;
+  const inverse::Scene scene = LoadGeometry({{}, ws.Mesh(), ws.Albedo()}, ws, &warnings);
+  const std::vector<inverse::TrainingView> views = ReadViews(ws.Keyframes());
+  inverse::LightEstimationOptions base;
+  base.grid = (*lights)["voxel_lights"]["dims"][0].get<int>();
+  base.pixels_per_view = static_cast<int>(e["pixels"].get<long long>() / std::max<size_t>(1, views.size()));
+  PlotSeries error{"relative RMSE (training views)", {}, {}}, seconds{"seconds", {}, {}}, active{"active voxels", {}, {}};
+  md << "### Penalty weight sweep (the paper's Fig. 3)\n\n| penalty weight | relative RMSE | active voxels | seconds |\n|---:|---:|---:|---:|\n";
+  for (double weight : {1e-5, 1e-4, 1e-3, 1e-2, 1e-1}) {
+    inverse::LightEstimationOptions o = base;
+    o.penalty_weight = weight;
+    std::fprintf(stderr, "report: sweep: penalty weight %g\n", weight);
+    const inverse::LightEstimate estimate = inverse::EstimateLights(scene, views, o, seed);
+    inverse::Scene lit = inverse::WithoutLights(scene);
+    lit.voxel_lights = estimate.lights;
+    const inverse::PathTracer tracer(lit);
+    double rmse = 0.0;
+    for (size_t i = 0; i < views.size(); ++i) {
+      rmse += inverse::CompareRender(tracer, views[i], o, options.sweep_spp, seed + i).rmse_bias / views.size();
+    }
+    error.x.push_back(weight), error.y.push_back(rmse);
+    seconds.x.push_back(weight), seconds.y.push_back(estimate.seconds);
+    active.x.push_back(weight), active.y.push_back(estimate.active_voxels);
+    md << "| " << weight << " | " << Fixed(rmse) << " | " << estimate.active_voxels << " | " << Fixed(estimate.seconds, 2) << " |\n";
+  }
+  WritePlot(dir / "lights_penalty_error.png", {"Light error against the penalty weight", "penalty weight", "relative RMSE", true}, {error});
+  WritePlot(dir / "lights_penalty_cost.png", {"Active voxels and time against the penalty weight", "penalty weight", "count / s", true},
+            {active, seconds});
+  md << "\n![error](lights_penalty_error.png) ![active voxels and time](lights_penalty_cost.png)\n\n";
+}
+
+void Refinement(const Workspace& ws, const fs::path& dir, std::ostream& md) {
+  const auto report = ReadJson(ws.root() / "refine" / "report.json");
+  if (!report) return;
+  md << "## Vertex refinement\n\n" << (*report)["vertices"].get<int>() << " vertices, " << (*report)["pixels"].get<int>()
+     << " pixels, " << (*report)["flipped_faces"].get<int>() << " flipped faces.\n\n";
+  PlotSeries image{"image RMSE / RMS of the reference", {}, {}};
+  std::vector<std::pair<std::string, std::string>> row;
+  double seconds = 0.0;
+  for (const Json& it : (*report)["iterations"]) {
+    const int i = it["iteration"].get<int>();
+    image.x.push_back(i);
+    image.y.push_back(it["image_rmse"].get<double>());
+    seconds += it["seconds"].get<double>();
+    char name[32];
+    std::snprintf(name, sizeof(name), "iter_%02d_shading.png", i);
+    if (fs::exists(ws.root() / "refine" / name)) row.push_back({Format("iteration ", i), CopyImage(ws.root() / "refine" / name, dir, name)});
+  }
+  WritePlot(dir / "refine_error.png", {"Image error per iteration", "iteration", "relative RMSE"}, {image});
+  md << Fixed(seconds, 1) << " s in all.\n\n![image error per iteration](refine_error.png)\n\nShading after each iteration (every albedo grey, the paper's Fig. 4):\n\n" << ImageRow(row);
+}
+
+void Evaluation(const Workspace& ws, const fs::path& dir, std::ostream& md) {
+  const auto eval = ReadJson(ws.root() / "evaluation" / "evaluation.json");
+  if (!eval) return;
+  md << "## Novel views against the ground truth\n\nMean relative RMSE (noise of both renders taken out): **"
+     << Fixed((*eval)["relative_rmse"].get<double>()) << "**.\n\n";
+  std::vector<std::pair<std::string, std::string>> row;
+  for (size_t k = 0; k < (*eval)["views"].size(); ++k) {
+    const Json& v = (*eval)["views"][k];
+    char truth[32], model[32];
+    std::snprintf(truth, sizeof(truth), "novel_%02zu_truth.png", k);
+    std::snprintf(model, sizeof(model), "novel_%02zu_model.png", k);
+    row.push_back({Format("truth, frame ", v["frame"].get<int>()), CopyImage(ws.root() / "evaluation" / truth, dir, truth)});
+    row.push_back({Format("model (", Fixed(v["relative_rmse_bias"].get<double>()), ")"), CopyImage(ws.root() / "evaluation" / model, dir, model)});
+  }
+  md << ImageRow(row);
+}
+
+}  // namespace
+
+fs::path WriteReport(const Workspace& ws, const ReportOptions& options, uint64_t seed) {
+  if (!fs::exists(ws.root() / "summary.json") && !fs::exists(ws.root() / "fusion.json") && !fs::exists(ws.Lights())) {
+    throw Error(Format(ws.root().string(), ": no stage outputs to report on (run genscene run or genscene demo first)"));
+  }
+  const fs::path dir = ws.Report();
+  fs::create_directories(dir);
+  std::ostringstream md;
+  md << "# genscene report\n\nWorkspace `" << ws.root().string() << "`.\n\n";
+  Summary(ws, md);
+  Tracking(ws, dir, md);
+  Texturing(ws, md);
+  Lights(ws, dir, options, seed, md);
+  Refinement(ws, dir, md);
+  Evaluation(ws, dir, md);
+  md << "Not in this report yet: surface error against voxel size and texel error against texel spacing (see "
+        "bench_fusion, bench_marching_cubes and bench_texturing).\n";
+  const fs::path path = dir / "report.md";
+  WriteTextFileAtomically(path, md.str());
+  return path;
+}
+
+}  // namespace genscene::apps

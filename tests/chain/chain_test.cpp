@@ -1,0 +1,217 @@
+// The whole chain (issue 11): `genscene demo` killed in every stage and started again gives the
+// model of an uninterrupted run; the exported Mitsuba XML re-imports and renders the same image;
+// the demo's model against its synthetic ground truth. Labelled "slow" (Release pass only).
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <thread>
+
+#include "../test_util.h"
+#include "apps/chain.h"
+#include "apps/scene_inputs.h"
+#include "core/file_util.h"
+#include "core/light_set.h"
+#include "core/mesh_colors.h"
+#include "core/ply_io.h"
+#include "core/trajectory.h"
+#include "core/trajectory_metrics.h"
+#include "inverse/path_tracer.h"
+#include "inverse/scene_io.h"
+
+namespace genscene {
+namespace {
+
+namespace fs = std::filesystem;
+using test::AppPath;
+
+// A small demo: 12 frames of 80 x 60, no decimation, few pixels and samples (about 15 s).
+const std::vector<std::string> kSmallDemo = {
+    "--frames", "12", "--size", "80x60", "--decimate-max-error", "0", "--lights-grid", "3",
+    "--lights-pixels-per-view", "300", "--lights-rounds", "2", "--refine-iterations", "1",
+    "--refine-pixels-per-view", "200", "--refine-spp", "4", "--evaluate-views", "1",
+    "--evaluate-truth-spp", "16", "--evaluate-model-spp", "8", "--no-report", "--seed", "3"};
+
+std::vector<std::string> DemoArgs(const fs::path& out) {
+  std::vector<std::string> args = {AppPath("genscene"), "demo", "--out", out.string()};
+  args.insert(args.end(), kSmallDemo.begin(), kSmallDemo.end());
+  return args;
+}
+
+pid_t Start(const std::vector<std::string>& args, const fs::path& stderr_path) {
+  std::fflush(stdout);  // the child would flush a copy of pending output
+  std::fflush(stderr);
+  const pid_t pid = fork();
+  if (pid == 0) {
+    if (!std::freopen(stderr_path.c_str(), "w", stderr) || !std::freopen("/dev/null", "w", stdout)) _exit(126);
+    std::vector<char*> argv;
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(argv[0], argv.data());
+    _exit(127);
+  }
+  return pid;
+}
+
+// Waits for the child; returns its exit code, or 128 + signal.
+int Wait(pid_t pid) {
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+int RunToEnd(const std::vector<std::string>& args, const fs::path& stderr_path) {
+  return Wait(Start(args, stderr_path));
+}
+
+std::string Bytes(const fs::path& path) { return fs::exists(path) ? ReadTextFile(path) : std::string("<missing>"); }
+
+std::map<std::string, double> StageSeconds(const fs::path& ws) {
+  std::map<std::string, double> seconds;
+  const auto summary = nlohmann::json::parse(ReadTextFile(ws / "summary.json"));
+  for (const auto& row : summary["stages"]) seconds[row["stage"].get<std::string>()] = row["seconds"].get<double>();
+  return seconds;
+}
+
+// Every output present in the workspace reads back (a kill never leaves a half-written one).
+void ExpectOutputsReadable(const Workspace& ws, const std::string& when) {
+  if (fs::exists(ws.Mesh())) {
+    const TriangleMesh mesh = ReadPly(ws.Mesh());
+    EXPECT_GT(mesh.faces.size(), 0u) << when;
+    if (fs::exists(ws.Texture())) EXPECT_NO_THROW(ReadMeshColors(ws.Texture(), mesh)) << when;
+    if (fs::exists(ws.Albedo())) EXPECT_NO_THROW(ReadMeshColors(ws.Albedo(), mesh)) << when;
+  }
+  for (const fs::path& ply : {ws.RefinedMesh(), ws.TexturePly(), ws.AlbedoPly(), ws.root() / "export" / "model.ply"}) {
+    if (fs::exists(ply)) EXPECT_NO_THROW(ReadPly(ply)) << when << ": " << ply;
+  }
+  if (fs::exists(ws.Lights())) EXPECT_NO_THROW(ReadLightsJson(ws.Lights())) << when;
+  for (const fs::path& json : {ws.root() / "fusion.json", ws.root() / "sequence.json", ws.root() / "summary.json",
+                               ws.root() / "refine" / "report.json", ws.root() / "evaluation" / "evaluation.json"}) {
+    if (fs::exists(json)) EXPECT_NO_THROW((void)nlohmann::json::parse(ReadTextFile(json))) << when << ": " << json;
+  }
+  if (fs::exists(ws.root() / "export" / "model.xml")) EXPECT_NO_THROW(inverse::LoadScene(ws.root() / "export" / "model.xml")) << when;
+}
+
+// One uninterrupted small demo, shared by the tests (its run is the costly part).
+class GensceneChain : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = new test::TempDir();
+    exit_code_ = RunToEnd(DemoArgs(*dir_ / "reference"), *dir_ / "reference.err");
+  }
+  static void TearDownTestSuite() {
+    delete dir_;
+    dir_ = nullptr;
+  }
+  void SetUp() override {
+    ASSERT_EQ(exit_code_, 0) << Bytes(*dir_ / "reference.err");
+  }
+  static Workspace Reference() { return Workspace(*dir_ / "reference"); }
+  static test::TempDir* dir_;
+  static int exit_code_;
+};
+test::TempDir* GensceneChain::dir_ = nullptr;
+int GensceneChain::exit_code_ = -1;
+
+TEST_F(GensceneChain, KilledInEveryStageAndRestartedGivesTheUninterruptedModel) {
+  test::TempDir tmp;
+  const Workspace reference = Reference();
+  const auto seconds = StageSeconds(reference.root());
+
+  const Workspace ws(tmp / "killed");
+  std::vector<std::string> stages = {"synth"};
+  for (const std::string& s : apps::ChainStages()) stages.push_back(s);
+  int kills = 0;
+  for (const std::string& stage : stages) {
+    const fs::path err = tmp / ("run_" + stage + ".err");
+    const pid_t pid = Start(DemoArgs(ws.root()), err);
+    // Wait until the stage starts ("[k/n] stage" on stderr), then kill it half way through.
+    bool started = false, exited = false;
+    for (int i = 0; i < 60000 && !started && !exited; ++i) {
+      started = Bytes(err).find("] " + stage + "\n") != std::string::npos;
+      int status = 0;
+      exited = !started && waitpid(pid, &status, WNOHANG) == pid;
+      if (!started && !exited) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    }
+    ASSERT_FALSE(exited) << stage << ": the run ended before the stage started\n" << Bytes(err);
+    ASSERT_TRUE(started) << stage;
+    std::this_thread::sleep_for(std::chrono::duration<double>(0.5 * seconds.at(stage)));
+    kill(pid, SIGKILL);
+    if (Wait(pid) == 128 + SIGKILL) ++kills;
+    ExpectOutputsReadable(ws, "after the kill in " + stage);
+  }
+  std::printf("%d of %zu runs killed inside their stage\n", kills, stages.size());
+  EXPECT_GE(kills, 8) << "most stages must really be interrupted";
+  ASSERT_EQ(RunToEnd(DemoArgs(ws.root()), tmp / "final.err"), 0) << Bytes(tmp / "final.err");
+  ExpectOutputsReadable(ws, "at the end");
+
+  // The same model as the uninterrupted run, file for file.
+  for (const char* file : {"trajectory.txt", "mesh.ply", "texture.mcol", "albedo.mcol", "mesh_refined.ply",
+                           "export/model.ply", "export/model.xml", "export/trajectory.txt"}) {
+    EXPECT_TRUE(fs::exists(ws.root() / file)) << file;
+    EXPECT_TRUE(Bytes(ws.root() / file) == Bytes(reference.root() / file)) << file << " differs";
+  }
+  const VoxelLightGrid a = ReadLightsJson(reference.Lights()), b = ReadLightsJson(ws.Lights());
+  EXPECT_EQ(a.intensity, b.intensity);
+  EXPECT_EQ(a.weights, b.weights);
+  EXPECT_EQ(nlohmann::json::parse(ReadTextFile(reference.root() / "evaluation" / "evaluation.json"))["relative_rmse"],
+            nlohmann::json::parse(ReadTextFile(ws.root() / "evaluation" / "evaluation.json"))["relative_rmse"]);
+}
+
+// The exported model.xml re-imports and renders the image of the model it was written from (the
+// refined mesh with its albedo per face and the voxel lights as emissive cube faces).
+TEST_F(GensceneChain, ExportedMitsubaXmlRendersTheSameImage) {
+  const Workspace ws = Reference();
+  const inverse::LoadedScene loaded = inverse::LoadScene(ws.root() / "export" / "model.xml");
+  ASSERT_FALSE(loaded.views.empty()) << "the keyframe cameras are exported as sensors";
+
+  std::vector<std::string> warnings;
+  inverse::Scene model = apps::LoadGeometry({{}, ws.RefinedMesh(), ws.Albedo()}, ws, &warnings);
+  inverse::SceneMesh& mesh = model.meshes.front();
+  inverse::SurfaceAlbedo per_face;  // what the export holds: the albedo at each face's centroid
+  per_face.kind = inverse::SurfaceAlbedo::Kind::kPerFace;
+  for (int f = 0; f < static_cast<int>(mesh.mesh.faces.size()); ++f) {
+    per_face.values.push_back(mesh.albedo.Eval(mesh.mesh, f, 1.0f / 3.0f, 1.0f / 3.0f));
+  }
+  mesh.albedo = per_face;
+  for (inverse::SceneMesh& cube : inverse::VoxelCubeFaces(ReadLightsJson(ws.Lights()))) model.meshes.push_back(std::move(cube));
+
+  inverse::RenderOptions render;
+  render.spp = 16;
+  const inverse::View& view = loaded.views.front();
+  const ImageRgb expected = inverse::PathTracer(model).Render(view, render, 5).radiance;
+  const ImageRgb actual = inverse::PathTracer(loaded.scene).Render(view, render, 5).radiance;
+  double diff = 0.0, norm = 0.0;
+  for (size_t i = 0; i < expected.size(); ++i) {
+    diff += (expected.data()[i] - actual.data()[i]).cast<double>().squaredNorm();
+    norm += expected.data()[i].cast<double>().squaredNorm();
+  }
+  ASSERT_GT(norm, 0.0);
+  std::printf("model vs re-imported export: relative RMSE %.3g\n", std::sqrt(diff / norm));
+  EXPECT_LT(std::sqrt(diff / norm), 1e-3) << "relative RMSE between the model and its re-imported export";
+}
+
+// Acceptance 2 of issue 11: `genscene demo` as the README runs it (20 frames of 160 x 120); the
+// tracking error and the model's novel views against the synthetic ground truth.
+TEST(GensceneDemo, ModelMatchesTheGroundTruth) {
+  test::TempDir tmp;
+  const Workspace ws(tmp / "demo");
+  ASSERT_EQ(RunToEnd({AppPath("genscene"), "demo", "--out", ws.root().string(), "--no-report"}, tmp / "demo.err"), 0)
+      << Bytes(tmp / "demo.err");
+  const AteResult ate = ComputeAte(ReadTumTrajectory(ws.Trajectory()), ReadTumTrajectory(ws.Input() / "groundtruth.txt"));
+  const auto eval = nlohmann::json::parse(ReadTextFile(ws.root() / "evaluation" / "evaluation.json"));
+  const double novel = eval["relative_rmse"].get<double>();
+  std::printf("demo: ATE %.4f cm over %zu poses; novel views: relative RMSE %.4f (noise taken out)\n", 100.0 * ate.rmse,
+              ate.pairs, novel);
+  EXPECT_EQ(ate.pairs, 20u);
+  EXPECT_LE(ate.rmse, 0.01);
+  EXPECT_LE(novel, 0.10);
+}
+
+}  // namespace
+}  // namespace genscene
