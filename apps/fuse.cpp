@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "capture/openni2_source.h"
+#include "core/check.h"
 
 namespace genscene::apps {
 
@@ -15,6 +16,10 @@ FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_o
   fusion::KinectFusion fusion(options, source->Intrinsics());
   const size_t total = source->FrameCount().value_or(0);
   while (auto frame = source->Next()) {
+    if (frame->depth.empty()) {
+      throw Error(Format(input, ": frame at t = ", frame->timestamp, " (", frame->color_path,
+                         ") has no depth image (a colour-only view set, no depth.txt?): fusion needs depth"));
+    }
     const fusion::FrameReport r = fusion.ProcessFrame(*frame);
     ++summary.frames;
     summary.seconds += r.seconds();

@@ -103,9 +103,13 @@ void WritePlot(const std::filesystem::path& png, const PlotSpec& spec, const std
     }
     if (points.size() > 1) cv::polylines(image, points, false, colour, 2, cv::LINE_AA);
     for (const cv::Point& p : points) cv::circle(image, p, 3, colour, cv::FILLED, cv::LINE_AA);
-    if (!s.name.empty()) {
-      cv::line(image, {right - 170, legend_y - 4}, {right - 150, legend_y - 4}, colour, 2, cv::LINE_AA);
-      cv::putText(image, s.name, {right - 144, legend_y}, font, 0.4, black, 1, cv::LINE_AA);
+    if (!s.name.empty()) {  // right-aligned inside the frame, on a white box
+      int baseline = 0;
+      const cv::Size text = cv::getTextSize(s.name, font, 0.4, 1, &baseline);
+      const int x = right - 8 - text.width;
+      cv::rectangle(image, {x - 30, legend_y - text.height - 3}, {right - 2, legend_y + 4}, cv::Scalar(255, 255, 255), cv::FILLED);
+      cv::line(image, {x - 26, legend_y - 4}, {x - 6, legend_y - 4}, colour, 2, cv::LINE_AA);
+      cv::putText(image, s.name, {x, legend_y}, font, 0.4, black, 1, cv::LINE_AA);
       legend_y += 16;
     }
   }

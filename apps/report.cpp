@@ -7,10 +7,15 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "apps/fuse.h"
 #include "apps/plot.h"
 #include "apps/scene_inputs.h"
 #include "core/check.h"
 #include "core/file_util.h"
+#include "core/mesh_distance.h"
+#include "core/ply_io.h"
+#include "core/tsdf_volume.h"
+#include "meshing/marching_cubes.h"
 #include "core/trajectory.h"
 #include "core/trajectory_metrics.h"
 #include "inverse/light_estimation.h"
@@ -120,6 +125,53 @@ void Tracking(const Workspace& ws, const fs::path& dir, std::ostream& md) {
   WritePlot(dir / "tracking_error.png", {"Per-frame position error against the ground truth", "frame", "cm"}, {error});
   md << "Absolute trajectory error (TUM, " << ate.pairs << " poses): RMSE **" << Fixed(100.0 * ate.rmse, 3)
      << " cm**, max " << Fixed(100.0 * ate.max, 3) << " cm.\n\n![per-frame error](tracking_error.png)\n\n";
+}
+
+// Surface error of the workspace's meshes against the input's ground-truth mesh (synthetic
+// inputs: mesh_gt.ply), and with `sweep`, fusion + meshing again at other voxel sizes.
+void Surface(const Workspace& ws, const fs::path& dir, const ReportOptions& options, std::ostream& md) {
+  const auto input = InputFolder(ws);
+  if (!input || !fs::exists(*input / "mesh_gt.ply") || !fs::exists(ws.Mesh())) return;
+  const TriangleMesh truth = ReadPly(*input / "mesh_gt.ply");
+  md << "## Surface error against the ground-truth mesh\n\nDistance of every vertex to `mesh_gt.ply` (cut off at 10 cm):\n\n"
+     << "| mesh | vertices | mean mm | RMS mm | max mm |\n|---|---:|---:|---:|---:|\n";
+  for (const fs::path& path : {ws.Mesh(), ws.RefinedMesh()}) {
+    if (!fs::exists(path)) continue;
+    const SurfaceError e = MeasureSurfaceError(ReadPly(path), truth);
+    md << "| " << path.filename().string() << " | " << e.points << " | " << Fixed(1000.0 * e.mean, 2) << " | "
+       << Fixed(1000.0 * e.rms, 2) << " | " << Fixed(1000.0 * e.max, 1) << " |\n";
+  }
+  md << "\n";
+  if (!options.sweep) return;
+  const auto summary = ReadJson(ws.root() / "summary.json");
+  if (!summary) return;
+  const std::string source = (*summary)["input"].get<std::string>();
+  PlotSeries error{"RMS surface error (mm)", {}, {}}, seconds{"fusion + meshing (s)", {}, {}};
+  md << "### Voxel size sweep\n\n| voxel size m | vertices | RMS mm | fusion s | meshing s |\n|---:|---:|---:|---:|---:|\n";
+  const fs::path scratch = dir / "sweep_workspace";
+  for (double voxel : {0.04, 0.02, 0.01, 0.005}) {
+    std::fprintf(stderr, "report: sweep: voxel size %g m\n", voxel);
+    fs::remove_all(scratch);
+    const Workspace tmp(scratch);
+    fusion::FusionOptions fo;
+    fo.voxel_size = voxel;
+    fo.truncation = std::max(fo.truncation, 4.0 * voxel);
+    const auto start = std::chrono::steady_clock::now();
+    FuseSequence(source, SourceOptions(), fo, tmp);
+    const double fused = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    const auto meshed_at = std::chrono::steady_clock::now();
+    const auto mesh = meshing::ExtractMesh(ReadTsdfVolume(tmp.Tsdf()), meshing::MeshingOptions()).mesh;
+    const double meshed = std::chrono::duration<double>(std::chrono::steady_clock::now() - meshed_at).count();
+    const SurfaceError e = MeasureSurfaceError(mesh, truth);
+    error.x.push_back(voxel), error.y.push_back(1000.0 * e.rms);
+    seconds.x.push_back(voxel), seconds.y.push_back(fused + meshed);
+    md << "| " << voxel << " | " << mesh.vertices.size() << " | " << Fixed(1000.0 * e.rms, 2) << " | " << Fixed(fused, 2)
+       << " | " << Fixed(meshed, 2) << " |\n";
+  }
+  fs::remove_all(scratch);
+  WritePlot(dir / "surface_voxel_size.png", {"Surface error and time against the voxel size", "voxel size (m)", "mm / s", true},
+            {error, seconds});
+  md << "\n![surface error against voxel size](surface_voxel_size.png)\n\n";
 }
 
 void Texturing(const Workspace& ws, std::ostream& md) {
@@ -232,7 +284,7 @@ void Evaluation(const Workspace& ws, const fs::path& dir, std::ostream& md) {
   std::vector<std::pair<std::string, std::string>> row;
   for (size_t k = 0; k < (*eval)["views"].size(); ++k) {
     const Json& v = (*eval)["views"][k];
-    char truth[32], model[32];
+    char truth[48], model[48];
     std::snprintf(truth, sizeof(truth), "novel_%02zu_truth.png", k);
     std::snprintf(model, sizeof(model), "novel_%02zu_model.png", k);
     row.push_back({Format("truth, frame ", v["frame"].get<int>()), CopyImage(ws.root() / "evaluation" / truth, dir, truth)});
@@ -253,12 +305,13 @@ fs::path WriteReport(const Workspace& ws, const ReportOptions& options, uint64_t
   md << "# genscene report\n\nWorkspace `" << ws.root().string() << "`.\n\n";
   Summary(ws, md);
   Tracking(ws, dir, md);
+  Surface(ws, dir, options, md);
   Texturing(ws, md);
   Lights(ws, dir, options, seed, md);
   Refinement(ws, dir, md);
   Evaluation(ws, dir, md);
-  md << "Not in this report yet: surface error against voxel size and texel error against texel spacing (see "
-        "bench_fusion, bench_marching_cubes and bench_texturing).\n";
+  md << "Not in this report yet: texel error against texel spacing (see bench_texturing, which measures it on a "
+        "scene whose observed colour is its albedo).\n";
   const fs::path path = dir / "report.md";
   WriteTextFileAtomically(path, md.str());
   return path;

@@ -23,9 +23,21 @@ CommandLine::CommandLine(CLI::App& app) : app_(app) {
 std::optional<int> CommandLine::Parse(int argc, char** argv) {
   try {
     app_.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    // --help prints and returns 0; usage errors print one line and return non-zero.
+  } catch (const CLI::CallForHelp& e) {
+    return app_.exit(e);  // prints the help, returns 0
+  } catch (const CLI::CallForAllHelp& e) {
     return app_.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app_.exit(e);
+  } catch (const CLI::ParseError& e) {
+    // A usage error is one "<app>: error: ..." line like every other error. A misspelt flag
+    // often surfaces as a value count error of another option: name the flag instead.
+    for (const std::string& arg : app_.remaining()) {
+      if (arg.size() > 1 && arg[0] == '-' && !(arg[1] >= '0' && arg[1] <= '9') && arg[1] != '.') {
+        throw Error(Format("unknown flag ", arg, " (see --help)"));
+      }
+    }
+    throw Error(Format(e.what(), " (see --help)"));
   }
   std::optional<ConfigFile> config;
   if (!config_path_.empty()) config.emplace(config_path_);

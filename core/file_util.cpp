@@ -1,5 +1,7 @@
 #include "core/file_util.h"
 
+#include <limits>
+
 #include <unistd.h>
 
 #include <cerrno>
@@ -77,6 +79,14 @@ long long ParseInteger(const std::string& token, const std::string& where) {
   } catch (const std::exception&) {
   }
   throw Error(Format(where, ": '", token, "' is not an integer"));
+}
+
+int ParseInt32(const std::string& token, const std::string& where) {
+  const long long value = ParseInteger(token, where);
+  if (value < std::numeric_limits<int>::min() || value > std::numeric_limits<int>::max()) {
+    throw Error(Format(where, ": '", token, "' is out of range (not a 32-bit integer)"));
+  }
+  return static_cast<int>(value);
 }
 
 fs::path TemporaryPathFor(const fs::path& path) {

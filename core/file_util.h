@@ -27,6 +27,8 @@ std::vector<std::string> SplitWhitespace(const std::string& text);
 // Parses a number; throws Error("<where>: '<token>' is not a number") on failure.
 double ParseDouble(const std::string& token, const std::string& where);
 long long ParseInteger(const std::string& token, const std::string& where);
+// ParseInteger, and an Error naming the token when it does not fit in an int.
+int ParseInt32(const std::string& token, const std::string& where);
 
 // Calls write(tmp) with a temporary path in the same folder as `path`, then renames tmp to `path`.
 // If write throws, the temporary file is removed and the exception propagates: `path` is either

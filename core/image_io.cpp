@@ -50,6 +50,63 @@ void CheckPngStructure(const fs::path& path) {
   throw Error(Format(path.string(), ": cannot decode image (truncated or corrupt PNG)"));
 }
 
+// Walks the header and the line offset table of a scanline OpenEXR file (magic, attributes up to
+// the empty name, one offset per chunk, each chunk's y and size within the file), for the same
+// reason: OpenCV's EXR decoder prints its own exceptions on stderr. Tiled, multi-part and deep
+// files, and unknown compressions, are left to OpenCV after the header.
+void CheckExrStructure(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  const auto fail = [&] {
+    throw Error(Format(path.string(), ": cannot decode image (corrupt, truncated or unsupported format)"));
+  };
+  const auto u32 = [&](size_t at) {
+    if (at + 4 > bytes.size()) fail();
+    uint32_t v = 0;
+    for (int i = 3; i >= 0; --i) v = (v << 8) | static_cast<unsigned char>(bytes[at + i]);
+    return v;
+  };
+  if (bytes.size() < 8 || u32(0) != 20000630u) fail();  // 0x762f3101 little-endian
+  const uint32_t flags = u32(4);
+  size_t pos = 8;
+  int compression = -1;
+  long long y_min = 0, y_max = -1;
+  const auto read_string = [&] {
+    const size_t end = bytes.find('\0', pos);
+    if (end == std::string::npos || end - pos > 255) fail();
+    std::string text = bytes.substr(pos, end - pos);
+    pos = end + 1;
+    return text;
+  };
+  for (int attributes = 0;; ++attributes) {
+    if (attributes > 1000) fail();
+    const std::string name = read_string();
+    if (name.empty()) break;
+    read_string();  // type
+    const uint32_t size = u32(pos);
+    pos += 4;
+    if (size > bytes.size() - pos) fail();
+    if (name == "compression" && size == 1) compression = static_cast<unsigned char>(bytes[pos]);
+    if (name == "dataWindow" && size == 16) {
+      y_min = static_cast<int32_t>(u32(pos + 4));
+      y_max = static_cast<int32_t>(u32(pos + 12));
+    }
+    pos += size;
+  }
+  if (flags & (0x200u | 0x800u | 0x1000u)) return;  // tiled, multi-part, deep
+  static const int kLinesPerChunk[] = {1, 1, 1, 16, 32, 16, 32, 32, 32, 256};
+  if (compression < 0 || compression > 9 || y_max < y_min) return;
+  const long long lines = kLinesPerChunk[compression];
+  const long long chunks = (y_max - y_min + 1 + lines - 1) / lines;
+  if (chunks > static_cast<long long>((bytes.size() - pos) / 8)) fail();
+  for (long long c = 0; c < chunks; ++c) {
+    const uint64_t offset = (static_cast<uint64_t>(u32(pos + 8 * c + 4)) << 32) | u32(pos + 8 * c);
+    if (offset > bytes.size() || bytes.size() - offset < 8) fail();
+    const uint32_t size = u32(offset + 4);
+    if (size > bytes.size() - offset - 8) fail();
+  }
+}
+
 bool HasExtension(const fs::path& path, const char* extension) {
   std::string ext = path.extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -63,6 +120,7 @@ cv::Mat ReadWithOpenCv(const fs::path& path, int flags) {
   if (fs::is_directory(path, ec)) throw Error(Format(path.string(), ": is a folder, not an image"));
   if (fs::file_size(path, ec) == 0) throw Error(Format(path.string(), ": empty file"));
   if (HasExtension(path, ".png")) CheckPngStructure(path);
+  if (HasExtension(path, ".exr")) CheckExrStructure(path);
   cv::Mat mat;
   try {
     mat = cv::imread(path.string(), flags);

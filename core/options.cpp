@@ -26,7 +26,7 @@ std::string FlagName(const std::string& key) {
 const std::vector<std::string>& AllConfigSections() {
   static const std::vector<std::string> sections = {
       "source", "synth", "fusion", "meshing", "texturing", "albedo", "lights", "refine", "render",
-      "viewer", "run"};
+      "viewer", "run", "evaluate"};
   return sections;
 }
 
@@ -35,7 +35,7 @@ ConfigFile::ConfigFile(const std::filesystem::path& path)
   const std::string text = ReadTextFile(path);
   try {
     *json_ = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // syntax errors, numbers out of range (1e400)
     throw Error(Format(path.string(), ": not valid JSON (", e.what(), ")"));
   }
   if (!json_->is_object()) throw Error(Format(path.string(), ": config must be a JSON object"));

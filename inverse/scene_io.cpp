@@ -3,6 +3,7 @@
 #include "inverse/scene_io.h"
 
 #include <algorithm>
+#include <limits>
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -48,8 +49,8 @@ CameraIntrinsics ParseIntrinsicsLine(const std::string& line, const std::string&
   k.fy = ParseDouble(t[1], where);
   k.cx = ParseDouble(t[2], where);
   k.cy = ParseDouble(t[3], where);
-  k.width = static_cast<int>(ParseInteger(t[4], where));
-  k.height = static_cast<int>(ParseInteger(t[5], where));
+  k.width = ParseInt32(t[4], where);
+  k.height = ParseInt32(t[5], where);
   for (size_t i = 6; i < t.size(); ++i) k.distortion[i - 6] = ParseDouble(t[i], where);
   k.Validate(where);
   return k;
@@ -68,8 +69,12 @@ View ParseCamera(const json& j, const std::string& where) {
   std::array<double, 8> v{};
   for (size_t i = 0; i < 8; ++i) v[i] = ParseDouble(t[i], where + ".pose");
   view.timestamp = v[0];
-  view.world_from_camera = PoseFromTranslationQuaternion(
-      Vector3d(v[1], v[2], v[3]), Eigen::Quaterniond(v[7], v[4], v[5], v[6]));
+  try {
+    view.world_from_camera = PoseFromTranslationQuaternion(
+        Vector3d(v[1], v[2], v[3]), Eigen::Quaterniond(v[7], v[4], v[5], v[6]));
+  } catch (const Error& e) {
+    throw Error(Format(where, ".pose: ", e.what()));
+  }
   return view;
 }
 
@@ -96,6 +101,11 @@ RenderSettings ParseRender(const json& j, const std::string& where) {
   const auto integer = [&](const char* key) -> std::optional<int> {
     if (!j.contains(key)) return std::nullopt;
     if (!j[key].is_number_integer()) throw Error(Format(where, ".", key, ": expected an integer"));
+    const bool fits = j[key].is_number_unsigned()
+                          ? j[key].get<unsigned long long>() <= static_cast<unsigned long long>(std::numeric_limits<int>::max())
+                          : j[key].get<long long>() >= std::numeric_limits<int>::min() &&
+                                j[key].get<long long>() <= std::numeric_limits<int>::max();
+    if (!fits) throw Error(Format(where, ".", key, ": ", j[key].dump(), " is out of range (not a 32-bit integer)"));
     return j[key].get<int>();
   };
   const auto number = [&](const char* key) -> std::optional<double> {
@@ -146,6 +156,7 @@ SceneMesh ParseMesh(const json& j, const fs::path& file, const std::string& wher
   if (!j.contains("ply") || !j["ply"].is_string())
     throw Error(Format(where, ": needs a \"ply\" path"));
   SceneMesh m;
+  if (j.contains("name") && !j["name"].is_string()) throw Error(Format(where, ".name: expected a string, got ", j["name"].dump()));
   m.name = j.contains("name") ? j["name"].get<std::string>() : Format("mesh", index);
   m.mesh = ReadPly(ResolveRelativeTo(file, j["ply"].get<std::string>()));
   if (!j.contains("albedo")) {
@@ -450,7 +461,7 @@ TriangleMesh ReadObj(const fs::path& path) {
           const size_t slash = std::min(t[i].find('/', start), t[i].size());
           if (slash > start)
             c[static_cast<size_t>(k)] =
-                static_cast<int>(ParseInteger(t[i].substr(start, slash - start), where));
+                ParseInt32(t[i].substr(start, slash - start), where);
           start = slash + 1;
         }
         if (c[0] < 1 || c[1] < 0 || c[2] < 0)

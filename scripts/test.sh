@@ -29,5 +29,8 @@ scripts/build.sh --sanitize
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export LSAN_OPTIONS="suppressions=$PWD/scripts/lsan.supp:print_suppressions=0"
-(cd build-sanitize && ctest --output-on-failure -j 2 --timeout 900 -LE "slow|badinput")
+# Three long numerical tests (a camera 1 km from the origin, decimation bounds, the exact-depth
+# room: 115 s under ASan, 20 s in Release) run in the Release pass only: CI must stay under 30 min.
+(cd build-sanitize && ctest --output-on-failure -j 2 --timeout 900 -LE "slow|badinput" \
+  -E "CameraOneKilometreFromTheOrigin|DecimationStaysWithinItsErrorBound|TracksTheRoomWithExactDepth")
 echo "test: all passed (Release and ASan + UBSan)"

@@ -4,6 +4,7 @@
 
 #include <fstream>
 
+#include "core/file_util.h"
 #include "core/image_io.h"
 #include "tests/test_util.h"
 
@@ -73,7 +74,8 @@ TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
   const fs::path ws = dir_ / "ws";
   const std::string demo = AppPath("genscene") + " demo --frames 3 --size 32x24 --lights-grid 3 --lights-pixels-per-view 200 "
                            "--lights-rounds 1 --refine-iterations 1 --refine-spp 2 --refine-pixels-per-view 100 "
-                           "--evaluate-views 1 --evaluate-truth-spp 4 --evaluate-model-spp 4 --out " + ws.string();
+                           "--evaluate-views 1 --evaluate-truth-spp 4 --evaluate-model-spp 4 --decimate-max-error 0 --no-report "
+                           "--out " + ws.string();
   auto r = RunCommand(demo);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(fs::exists(ws / "input/rgb.txt"));
@@ -85,11 +87,15 @@ TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
   EXPECT_TRUE(fs::exists(ws / "mesh.ply"));
   EXPECT_NE(r.output.find("3 frames 32x24"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("frames fused"), std::string::npos) << r.output;
+  // The report (without its sweeps, which re-run stages) of that workspace.
+  const auto report = RunCommand(AppPath("genscene") + " report " + ws.string());
+  EXPECT_EQ(report.exit_code, 0) << report.output;
   for (const char* output : {"lights.json", "mesh_refined.ply", "export/model.ply", "export/model.xml",
                              "export/trajectory.txt", "evaluation/evaluation.json", "summary.json", "genscene.log",
-                             "report/report.md", "report/tracking_time.png", "report/lights_penalty_error.png"}) {
+                             "report/report.md", "report/tracking_time.png", "report/refine_error.png"}) {
     EXPECT_TRUE(fs::exists(ws / output)) << output;
   }
+  EXPECT_NE(ReadTextFile(ws / "report/report.md").find("## Light estimation"), std::string::npos);
   EXPECT_NE(r.output.find("peak MB"), std::string::npos) << r.output;
   r = RunCommand(demo);
   ASSERT_EQ(r.exit_code, 0) << r.output;

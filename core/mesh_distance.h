@@ -1,0 +1,38 @@
+// Distances from points to a triangle mesh (the surface error of a reconstruction against a
+// ground-truth mesh): a uniform grid over the triangles, exact point-triangle distances
+// (closest point by Voronoi regions, Ericson 2005 §5.1.5), searched within a cut-off radius.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "core/mesh.h"
+
+namespace genscene {
+
+class MeshDistance {
+ public:
+  // `max_distance`: distances beyond it are reported as max_distance (the search stops there).
+  // Keeps a reference to `mesh`, which must outlive this object.
+  MeshDistance(const TriangleMesh& mesh, double max_distance);
+
+  double Distance(const Eigen::Vector3d& point) const;
+
+ private:
+  const TriangleMesh& mesh_;
+  double max_distance_;
+  double cell_ = 1.0;
+  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3i dims_ = Eigen::Vector3i::Ones();
+  std::vector<std::vector<int>> cells_;  // triangle indices per cell
+};
+
+struct SurfaceError {
+  size_t points = 0;
+  double mean = 0.0, rms = 0.0, max = 0.0;  // metres
+};
+
+// Distances of every vertex of `mesh` to `truth` (the reconstruction's accuracy).
+SurfaceError MeasureSurfaceError(const TriangleMesh& mesh, const TriangleMesh& truth, double max_distance = 0.1);
+
+}  // namespace genscene
