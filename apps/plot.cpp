@@ -18,10 +18,15 @@ namespace {
 // Tick values over [lo, hi]: 1-2-5 steps (linear), or powers of ten (log).
 std::vector<double> Ticks(double lo, double hi, bool log) {
   std::vector<double> ticks;
-  if (log) {
-    for (double e = std::floor(lo); e <= std::ceil(hi) + 1e-9; e += 1.0) {
-      if (e >= lo - 1e-9 && e <= hi + 1e-9) ticks.push_back(e);
+  if (log) {  // powers of ten, with 2 and 5 times them when the range spans less than two decades
+    for (double m : {1.0, 2.0, 5.0}) {
+      if (m > 1.0 && ticks.size() >= 3) break;
+      for (double e = std::floor(lo); e <= std::ceil(hi); e += 1.0) {
+        const double t = e + std::log10(m);
+        if (t >= lo - 1e-9 && t <= hi + 1e-9) ticks.push_back(t);
+      }
     }
+    std::sort(ticks.begin(), ticks.end());
     if (ticks.size() >= 2) return ticks;
     ticks.clear();
   }
