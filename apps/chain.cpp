@@ -124,6 +124,14 @@ class StageRunner {
   bool done_ = false;  // the `until` stage has run
 };
 
+// The workspace's model as a scene: `mesh` with the Mesh Colors albedo and the voxel lights.
+inverse::Scene LoadModel(const Workspace& ws, const fs::path& mesh, std::vector<std::string>* warnings) {
+  inverse::Scene scene = LoadGeometry({{}, mesh, ws.Albedo()}, ws, warnings);
+  scene.meshes.front().name = "model";
+  scene.voxel_lights = ReadLightsJson(ws.Lights());
+  return scene;
+}
+
 // WS/export/: model.ply, model.xml (+ model_meshes/), trajectory.txt. model.xml is written last.
 std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings) {
   const fs::path dir = ws.root() / "export";
@@ -135,9 +143,7 @@ std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings)
   WritePly(dir / "model.ply", colored);
   WriteTumTrajectory(dir / "trajectory.txt", ReadTumTrajectory(ws.Trajectory()));
 
-  inverse::Scene scene = LoadGeometry({{}, mesh_path, ws.Albedo()}, ws, warnings);
-  scene.meshes.front().name = "model";
-  scene.voxel_lights = ReadLightsJson(ws.Lights());
+  const inverse::Scene scene = LoadModel(ws, mesh_path, warnings);
   std::vector<inverse::View> views;  // the keyframe cameras as sensors
   for (const inverse::TrainingView& v : ReadViews(ws.Keyframes())) views.push_back(v.view);
   try {
@@ -243,8 +249,7 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
   if (all.empty()) throw Error(Format(input.string(), ": no frames to take novel views from"));
 
   std::vector<std::string> warnings;
-  Scene model = LoadGeometry({{}, ws.RefinedMesh(), ws.Albedo()}, ws, &warnings);
-  model.voxel_lights = ReadLightsJson(ws.Lights());
+  const Scene model = LoadModel(ws, ws.RefinedMesh(), &warnings);
   const PathTracer truth_tracer(truth), model_tracer(model);
 
   DemoEvaluation out;
