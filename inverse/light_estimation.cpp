@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <atomic>
 #include <cmath>
 
 #include "core/check.h"
@@ -92,6 +93,7 @@ void LightEstimationOptions::Validate() const {
   RequireRange("emitter_factor", emitter_factor, 1.0, 1e30);
   RequireRange("noise_correction", noise_correction, 0.0, 1.0);
   RequireRange("active_fraction", active_fraction, 0.0, 1.0);
+  RequireRange("memory_cap", memory_cap, 1.0, 1e7);
 }
 
 RenderOptions LightEstimationOptions::Paths() const {
@@ -241,9 +243,19 @@ std::vector<SampledPixel> SamplePixels(const PathTracer& tracer, const std::vect
   return out;
 }
 
+size_t LightCache::Bytes() const {
+  return index.capacity() * sizeof(int32_t) + coefficient.capacity() * sizeof(Eigen::Vector3f) +
+         row_begin.capacity() * sizeof(size_t) + pixels.capacity() * sizeof(SampledPixel);
+}
+
+double NormalEquationsBoundBytes(int dims) {
+  const double parameters = 6.0 * dims * dims * dims;
+  return 2.0 * 3.0 * parameters * parameters * sizeof(double);
+}
+
 LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid, const VoxelSplitting& splitting,
                            const std::vector<TrainingView>& views, const std::vector<SampledPixel>& pixels,
-                           const LightEstimationOptions& options, uint64_t seed) {
+                           const LightEstimationOptions& options, uint64_t seed, double cap_bytes) {
   const RenderOptions paths = options.Paths();
   const int parameters = 6 * grid.VoxelCount();
   struct Row {
@@ -251,6 +263,15 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
     std::vector<Eigen::Vector3f> coefficient;
     RayCounts rays;
   };
+  constexpr size_t kEntryBytes = sizeof(int32_t) + sizeof(Eigen::Vector3f);
+  // The rows live twice for a moment (per row, then packed): count them twice against the cap.
+  const size_t fixed = pixels.size() * (sizeof(Row) + sizeof(size_t) + sizeof(SampledPixel));
+  if (cap_bytes > 0.0 && 2.0 * fixed > cap_bytes) {
+    throw Error(Format("light estimation: the path-coefficient cache of ", pixels.size(), " pixels needs more than",
+                       " the memory cap of ", cap_bytes / 1e6, " MB; lower lights pixels_per_view or raise the",
+                       " lights memory_cap"));
+  }
+  std::atomic<size_t> entries{0};
   std::vector<Row> rows(pixels.size());
   ParallelForChunks(0, pixels.size(), 8, [&](size_t begin, size_t end) {
     // Dense accumulator over the parameters, reset through the list of touched entries.
@@ -277,6 +298,12 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
       for (int32_t p : touched) {
         row.coefficient.push_back(sum[p]);
         sum[p].setZero();
+      }
+      const size_t held = entries.fetch_add(touched.size()) + touched.size();
+      if (cap_bytes > 0.0 && 2.0 * static_cast<double>(held * kEntryBytes + fixed) > cap_bytes) {
+        throw Error(Format("light estimation: the path-coefficient cache outgrew the memory cap of ", cap_bytes / 1e6,
+                           " MB (", held, " coefficients so far, ", pixels.size(), " pixels); lower lights ",
+                           "pixels_per_view, spp or grid, or raise the lights memory_cap"));
       }
     }
   });
@@ -473,6 +500,15 @@ NormalEquations NormalEquations::FromCaches(const LightCache& first, const Light
 
 void NormalEquations::Add(const NormalEquations& other) {
   GS_CHECK_EQ(parameters, other.parameters);
+  if (used == other.used) {  // the usual case: add in place, no third copy
+    for (int c = 0; c < 3; ++c) {
+      gram[c] += other.gram[c];
+      rhs[c] += other.rhs[c];
+      observed_sq[c] += other.observed_sq[c];
+    }
+    pixels += other.pixels;
+    return;
+  }
   std::vector<int> merged;
   std::set_union(used.begin(), used.end(), other.used.begin(), other.used.end(), std::back_inserter(merged));
   const auto expand = [&](const NormalEquations& from, std::array<Eigen::MatrixXd, 3>* gram,
@@ -846,6 +882,15 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   out.pixels = pixels.size();
   out.lights = MakeVoxelGrid(tracer.scene(), options.grid);
   VoxelLightGrid& grid = out.lights;
+  // The dense normal equations are known before any path is traced: refuse them up front.
+  const double cap_bytes = options.memory_cap * 1e6;
+  const double equation_bytes = NormalEquationsBoundBytes(options.grid);
+  if (equation_bytes >= cap_bytes) {
+    throw Error(Format("light estimation: the normal equations of a ", options.grid, "^3 voxel grid (",
+                       6 * grid.VoxelCount(), " parameters, dense) may take ", std::ceil(equation_bytes / 1e6),
+                       " MB, over the memory cap of ", options.memory_cap, " MB; lower lights grid or raise the",
+                       " lights memory_cap"));
+  }
   NormalEquations total;
   LightCache last;
   std::vector<double> previous_power;
@@ -870,8 +915,11 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     LightEstimationOptions half = options;
     half.spp = options.spp / 2;
     const uint64_t round_seed = Mix64(seed + 0x51ED * (round + 1));
-    last = TraceLightCache(tracer, grid, splitting, views, pixels, half, round_seed);
-    const LightCache second = TraceLightCache(tracer, grid, splitting, views, pixels, half, ~round_seed);
+    last = LightCache();  // the previous round's cache is not needed while tracing
+    const double cache_bytes = cap_bytes - equation_bytes;
+    last = TraceLightCache(tracer, grid, splitting, views, pixels, half, round_seed, cache_bytes);
+    const LightCache second = TraceLightCache(tracer, grid, splitting, views, pixels, half, ~round_seed,
+                                              std::max(1.0, cache_bytes - static_cast<double>(last.Bytes())));
     r.trace_seconds = SecondsSince(t);
     r.nonzeros = last.NonZeros() + second.NonZeros();
     r.rays = last.rays.total() + second.rays.total();

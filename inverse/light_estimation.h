@@ -71,6 +71,9 @@ struct LightEstimationOptions {
                                     // make G indefinite and the solve diverge (experimental)
   double active_fraction = 1e-3;    // voxels with at least this share of the largest power are
                                     // "active" in reports
+  double memory_cap = 4000.0;       // MB the path-coefficient caches and the normal equations
+                                    // may take; exceeding it is an error (checked before tracing
+                                    // for the equations, while tracing for the caches)
 
   template <typename V>
   void Visit(V&& v) {
@@ -95,6 +98,7 @@ struct LightEstimationOptions {
     v("emitter_factor", emitter_factor, "", "mask pixels brighter than this x the 95th percentile");
     v("noise_correction", noise_correction, "", "share of the coefficient noise taken out of the Gram matrix");
     v("active_fraction", active_fraction, "", "share of the largest voxel power that counts as active");
+    v("memory_cap", memory_cap, "MB", "memory the path-coefficient caches and normal equations may take (error beyond)");
   }
   void Validate() const;
   RenderOptions Paths() const;  // the path settings as render options
@@ -132,13 +136,20 @@ struct LightCache {
   // Predicted radiance of every sampled pixel for the lights `grid` (same layout).
   std::vector<Eigen::Vector3f> Predict(const VoxelLightGrid& grid) const;
   size_t NonZeros() const { return index.size(); }
+  // Heap bytes held by the rows (index, coefficient, row_begin).
+  size_t Bytes() const;
 };
 
+// Bytes of the normal equations EstimateLights may hold at once for a grid of `dims`^3 voxels: two
+// sets (the running total and a round's) of three dense Gram matrices over all 6 dims^3 parameters.
+double NormalEquationsBoundBytes(int dims);
+
 // Traces `options.spp` paths per pixel (random numbers keyed by seed, view, pixel, sample) and
-// splits at every vertex as `splitting` says.
+// splits at every vertex as `splitting` says. Throws Error when the cache's rows would take more
+// than `cap_bytes` (0: no cap), with a message that says which options lower it.
 LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid, const VoxelSplitting& splitting,
                            const std::vector<TrainingView>& views, const std::vector<SampledPixel>& pixels,
-                           const LightEstimationOptions& options, uint64_t seed);
+                           const LightEstimationOptions& options, uint64_t seed, double cap_bytes = 0.0);
 
 // The radiance of one sampled pixel for the lights `grid`, by the same walk and the same random
 // numbers as TraceLightCache (a fresh render, for checking the cache).
