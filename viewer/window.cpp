@@ -7,7 +7,15 @@
 #include <cstdio>
 #include <vector>
 
+// AddressSanitizer: GCC defines __SANITIZE_ADDRESS__, clang has __has_feature(address_sanitizer).
 #if defined(__SANITIZE_ADDRESS__)
+#define GENSCENE_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define GENSCENE_ASAN 1
+#endif
+#endif
+#if defined(GENSCENE_ASAN)
 #include <dlfcn.h>
 #include <link.h>
 #endif
@@ -31,7 +39,7 @@ void OnGlfwError(int code, const char* description) {
 // XCloseDisplay (glfwTerminate) unloads it while its globals still point to its allocations, which
 // LeakSanitizer then reports as leaks from an "<unknown module>" that no suppression can name.
 void PinGlDriverForLeakSanitizer() {
-#if defined(__SANITIZE_ADDRESS__)
+#if defined(GENSCENE_ASAN)
   dl_iterate_phdr(
       [](dl_phdr_info* info, size_t, void*) -> int {
         const std::string name = info->dlpi_name ? info->dlpi_name : "";
