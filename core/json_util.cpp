@@ -13,7 +13,8 @@ namespace genscene::json_util {
 
 void CheckKeys(const json& j, std::initializer_list<const char*> allowed, const std::string& where) {
   if (!j.is_object()) throw Error(Format(where, ": must be a JSON object"));
-  for (const auto& [key, value] : j.items()) {
+  for (const auto& item : j.items()) {
+    const std::string& key = item.key();
     if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; })) {
       throw Error(Format(where, ": unknown key '", key, "'"));
     }
@@ -53,7 +54,7 @@ json FloatsToJson(const Eigen::Vector3f& v) {
 json ParseJsonFile(const std::filesystem::path& path) {
   try {
     return json::parse(ReadTextFile(path));
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // syntax errors, and numbers out of range (1e400: 406)
     throw Error(Format(path.string(), ": malformed JSON (", e.what(), ")"));
   }
 }

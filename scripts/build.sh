@@ -3,6 +3,8 @@
 #   scripts/build.sh               -> build/
 #   scripts/build.sh --sanitize    -> build-sanitize/ (ASan + UBSan, -O1 -g1: quick to compile,
 #                                     function and line names in the reports)
+#   scripts/build.sh --fuzz        -> build-fuzz/ (clang, ASan + UBSan, -O1 -g1: the parsers and
+#                                     the libFuzzer harnesses of fuzz/ only)
 # Extra arguments after the options are passed to `cmake --build` (e.g. --target genscene).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,6 +15,10 @@ if [ "${1:-}" = "--sanitize" ]; then
   shift
   BUILD_DIR=build-sanitize
   CMAKE_ARGS=(-DCMAKE_BUILD_TYPE=None "-DCMAKE_CXX_FLAGS=-O1 -g1" -DGENSCENE_SANITIZE=ON -DGENSCENE_BUILD_BENCH=OFF)
+elif [ "${1:-}" = "--fuzz" ]; then
+  shift
+  BUILD_DIR=build-fuzz
+  CMAKE_ARGS=(-DCMAKE_BUILD_TYPE=None "-DCMAKE_CXX_FLAGS=-O1 -g1" -DGENSCENE_FUZZ_ONLY=ON -DCMAKE_CXX_COMPILER=clang++)
 fi
 JOBS="${GENSCENE_JOBS:-2}"
 
