@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# README command 2: installs what is missing, builds, and runs the whole test suite on the
-# Release build, then again (all but the "slow" label) on the ASan + UBSan build. CI (.ci/run)
-# calls exactly this.
+# README command 2: installs what is missing, builds, and runs the whole test suite: the Release
+# build runs the long tests, the ASan + UBSan build the rest; then the fuzz build (clang) runs
+# every libFuzzer harness of fuzz/ for 30 s (scripts/fuzz.sh). CI (.ci/run) calls exactly this.
 #   scripts/test.sh            everything (what CI runs)
 #   scripts/test.sh --fast     Release build, tests labelled "fast" only (for developers)
 set -euo pipefail
@@ -13,13 +13,17 @@ if [ "${CI:-}" = "true" ] && [ ! -d ../shared/data ] && [ -z "${GENSCENE_SHARED_
   exit 1
 fi
 
-echo "test: $(date +%T) Release build"
-scripts/build.sh
-echo "test: $(date +%T) Release tests"
 if [ "${1:-}" = "--fast" ]; then
+  scripts/build.sh
   (cd build && ctest --output-on-failure -j 2 -L fast)
   exit 0
 fi
+# The Release build makes what its pass runs (target genscene_release_pass: every app, the
+# benchmarks, the test executables of the tests below); the other test executables are built and
+# run in the sanitizer pass.
+echo "test: $(date +%T) Release build"
+scripts/build.sh --target genscene_release_pass
+echo "test: $(date +%T) Release tests"
 # The Release pass runs what the sanitizer pass does not: the "slow" and "badinput" labels and
 # the three long numerical tests below; the "fast" and "apps" tests run in the sanitizer pass.
 HEAVY_UNDER_ASAN="CameraOneKilometreFromTheOrigin|DecimationStaysWithinItsErrorBound|TracksTheRoomWithExactDepth"
@@ -39,4 +43,8 @@ export LSAN_OPTIONS="suppressions=$PWD/scripts/lsan.supp:print_suppressions=0"
 # Three long numerical tests (a camera 1 km from the origin, decimation bounds, the exact-depth
 # room: 115 s under ASan, 20 s in Release) run in the Release pass only: CI must stay under 30 min.
 (cd build-sanitize && ctest --output-on-failure -j 2 --timeout 900 -LE "slow|badinput" -E "$HEAVY_UNDER_ASAN")
-echo "test: $(date +%T) all passed (Release and ASan + UBSan)"
+echo "test: $(date +%T) fuzz build (clang, ASan + UBSan, libFuzzer)"
+scripts/build.sh --fuzz
+echo "test: $(date +%T) fuzzing every parser, 30 s each"
+scripts/fuzz.sh 30
+echo "test: $(date +%T) all passed (Release, ASan + UBSan, fuzzing)"

@@ -1,0 +1,1 @@
+// Owner of the test executables' precompiled header (tests/CMakeLists.txt); no code.
