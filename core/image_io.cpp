@@ -1,5 +1,6 @@
 #include "core/image_io.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -30,8 +31,25 @@ void ConfigureOpenCvOnce() {
   (void)configured;
 }
 
+// The largest image genscene reads: 16384 pixels per side (as the film size) and 2^25 pixels (a
+// float RGB copy of 403 MB). Checked from the header, before a decoder allocates by the declared
+// size: a few hundred bytes of PNG or EXR can declare (and, compressed, hold) billions of pixels.
+constexpr long long kMaxImageSide = 16384;
+constexpr long long kMaxImagePixels = 1LL << 25;
+
+void CheckDeclaredSize(const fs::path& path, long long width, long long height) {
+  if (width < 1 || height < 1) {
+    throw Error(Format(path.string(), ": cannot decode image (declares ", width, "x", height, " pixels)"));
+  }
+  if (width > kMaxImageSide || height > kMaxImageSide || width * height > kMaxImagePixels) {
+    throw Error(Format(path.string(), ": image of ", width, "x", height, " pixels is larger than genscene reads (at most ",
+                       kMaxImageSide, " per side and ", kMaxImagePixels, " pixels)"));
+  }
+}
+
 // Walks the chunk structure of a PNG (signature, then length/type/data/CRC chunks up to IEND)
 // so that a truncated or mangled file gets our one-line error instead of libpng's stderr output.
+// The declared size is checked against the limits above.
 void CheckPngStructure(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), {});
@@ -45,6 +63,12 @@ void CheckPngStructure(const fs::path& path) {
     const size_t length = (size_t(b[0]) << 24) | (size_t(b[1]) << 16) | (size_t(b[2]) << 8) | size_t(b[3]);
     const std::string type = bytes.substr(pos + 4, 4);
     if (length > bytes.size() - pos - 12) break;
+    if (type == "IHDR" && length >= 8) {
+      const auto be32 = [&](size_t at) {
+        return (static_cast<long long>(b[at]) << 24) | (b[at + 1] << 16) | (b[at + 2] << 8) | b[at + 3];
+      };
+      CheckDeclaredSize(path, be32(8), be32(12));
+    }
     if (type == "IEND") return;
     pos += 12 + length;
   }
@@ -56,7 +80,7 @@ void CheckPngStructure(const fs::path& path) {
 // to an empty name) and preview (width x height RGBA); other types (string, vectors, unknown
 // ones) are read by their declared size, which is returned as it is. SIZE_MAX when the value runs
 // past the end of the file or is malformed.
-size_t ExrValueSize(const std::string& type, const std::string& bytes, size_t at) {
+size_t ExrValueSize(const std::string& type, const std::string& bytes, size_t at, int* channels) {
   static const std::map<std::string, size_t> kFixed = {
       {"box2i", 16}, {"box2f", 16}, {"chromaticities", 32}, {"compression", 1}, {"double", 8},
       {"envmap", 1}, {"float", 4}, {"int", 4}, {"keycode", 28}, {"lineOrder", 1}, {"m33f", 36},
@@ -72,10 +96,15 @@ size_t ExrValueSize(const std::string& type, const std::string& bytes, size_t at
   if (auto it = kFixed.find(type); it != kFixed.end()) return it->second;
   if (type == "chlist") {  // { name\0, int32 type, uint8 linear, 3 reserved, int32 xs, int32 ys }* \0
     size_t p = at;
-    for (int channels = 0; channels <= 1024; ++channels) {
+    int channels_read = 0;
+    for (int guard = 0; guard <= 1024; ++guard) {
       const size_t end = bytes.find('\0', p);
       if (end == std::string::npos || end - p > 255) return kBad;
-      if (end == p) return end + 1 - at;
+      if (end == p) {
+        *channels = std::max(*channels, channels_read);
+        return end + 1 - at;
+      }
+      ++channels_read;
       p = end + 1 + 16;
       if (p > bytes.size()) return kBad;
     }
@@ -108,8 +137,9 @@ void CheckExrStructure(const fs::path& path) {
   if (bytes.size() < 8 || u32(0) != 20000630u) fail();  // 0x762f3101 little-endian
   const uint32_t flags = u32(4);
   size_t pos = 8;
-  int compression = -1;
-  long long y_min = 0, y_max = -1;
+  int compression = -1, channels = 0;
+  long long x_min = 0, y_min = 0, x_max = -1, y_max = -1;
+  bool has_data_window = false;
   const auto read_string = [&] {
     const size_t end = bytes.find('\0', pos);
     if (end == std::string::npos || end - pos > 255) fail();
@@ -128,13 +158,23 @@ void CheckExrStructure(const fs::path& path) {
     // OpenEXR reads a known type's value by the type's layout, not by the declared size: where the
     // two disagree it goes on from another position than this walk (and has allocated what a
     // misread size said: 1.7 GB, found by fuzz_exr). So the declared size must be the layout's.
-    if (ExrValueSize(type, bytes, pos) != size) fail();
+    if (ExrValueSize(type, bytes, pos, &channels) != size) fail();
     if (name == "compression" && size == 1) compression = static_cast<unsigned char>(bytes[pos]);
     if (name == "dataWindow" && size == 16) {
+      x_min = static_cast<int32_t>(u32(pos));
       y_min = static_cast<int32_t>(u32(pos + 4));
+      x_max = static_cast<int32_t>(u32(pos + 8));
       y_max = static_cast<int32_t>(u32(pos + 12));
+      has_data_window = true;
     }
     pos += size;
+  }
+  // OpenEXR sizes its line buffers by the data window and the channels (a 2 GB buffer for a
+  // window 2^27 wide, found by fuzz_exr); OpenCV then allocates the whole image.
+  if (!has_data_window) fail();
+  CheckDeclaredSize(path, x_max - x_min + 1, y_max - y_min + 1);
+  if (channels > 16) {
+    throw Error(Format(path.string(), ": EXR with ", channels, " channels (genscene reads at most 16)"));
   }
   if (flags & (0x200u | 0x800u | 0x1000u)) return;  // tiled, multi-part, deep
   static const int kLinesPerChunk[] = {1, 1, 1, 16, 32, 16, 32, 32, 32, 256};
