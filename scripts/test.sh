@@ -21,13 +21,6 @@ fi
 # The Release build makes what its pass runs (target genscene_release_pass: every app, the
 # benchmarks, the test executables of the tests below); the other test executables are built and
 # run in the sanitizer pass.
-# The fuzz build (clang, the parsers and the harnesses only) runs at the lowest priority from the
-# start, on the CPU the other phases leave idle (configure steps, links, the tails of the test
-# passes); the fuzzing at the end waits for it.
-mkdir -p build-fuzz
-nice -n 19 scripts/build.sh --fuzz > build-fuzz/build.log 2>&1 &
-FUZZ_BUILD=$!
-trap 'kill "$FUZZ_BUILD" 2>/dev/null || true' EXIT
 echo "test: $(date +%T) Release build"
 scripts/build.sh --target genscene_release_pass
 echo "test: $(date +%T) Release tests"
@@ -50,12 +43,8 @@ export LSAN_OPTIONS="suppressions=$PWD/scripts/lsan.supp:print_suppressions=0"
 # Three long numerical tests (a camera 1 km from the origin, decimation bounds, the exact-depth
 # room: 115 s under ASan, 20 s in Release) run in the Release pass only: CI must stay under 30 min.
 (cd build-sanitize && ctest --output-on-failure -j 2 --timeout 900 -LE "slow|badinput" -E "$HEAVY_UNDER_ASAN")
-echo "test: $(date +%T) fuzz build (clang, ASan + UBSan, libFuzzer; started with the Release build)"
-if ! wait "$FUZZ_BUILD"; then
-  cat build-fuzz/build.log
-  echo "test: error: the fuzz build failed (its log is above)" >&2
-  exit 1
-fi
+echo "test: $(date +%T) fuzz build (clang, ASan + UBSan, libFuzzer)"
+scripts/build.sh --fuzz
 echo "test: $(date +%T) fuzzing every parser, 30 s each"
 scripts/fuzz.sh 30
 echo "test: $(date +%T) all passed (Release, ASan + UBSan, fuzzing)"
