@@ -99,6 +99,10 @@ VoxelLightGrid VoxelLightGridFromJson(const json& j, const std::string& where) {
                                  JsonVector<3>(j["bounds_max"], where + ".bounds_max"));
   const Eigen::Vector3d dims = JsonVector<3>(j["dims"], where + ".dims");
   if (dims != dims.array().round().matrix()) throw Error(Format(where, ".dims: expected integers"));
+  // Range-checked as doubles: casting a value beyond int's range is undefined behaviour.
+  if (dims.minCoeff() < 1 || dims.maxCoeff() > 256) {
+    throw Error(Format(where, ".dims: grid ", dims.transpose(), " is not in [1, 256] per axis"));
+  }
   g.dims = dims.cast<int>();
   if (j.contains("cube_size")) g.cube_size = JsonNumber(j["cube_size"], where + ".cube_size");
   for (const json& v : JsonArray(j["intensity"], where + ".intensity")) {

@@ -35,6 +35,11 @@ Vector3d ClosestOnTriangle(const Vector3d& p, const Vector3d& a, const Vector3d&
 
 }  // namespace
 
+Eigen::Vector3i MeshDistance::CellOf(const Vector3d& cell_units) const {
+  const Eigen::Array3d hi = (dims_.array() - 1).cast<double>();
+  return cell_units.array().floor().max(0.0).min(hi).cast<int>();
+}
+
 MeshDistance::MeshDistance(const TriangleMesh& mesh, double max_distance) : mesh_(mesh), max_distance_(max_distance) {
   if (!(max_distance > 0.0)) throw Error(Format("mesh distance: cut-off ", max_distance, " must be positive"));
   if (mesh.faces.empty()) throw Error("mesh distance: the reference mesh has no triangles");
@@ -48,8 +53,8 @@ MeshDistance::MeshDistance(const TriangleMesh& mesh, double max_distance) : mesh
   for (int f = 0; f < static_cast<int>(mesh.faces.size()); ++f) {
     Eigen::AlignedBox3d t;
     for (int k = 0; k < 3; ++k) t.extend(mesh.vertices[mesh.faces[f][k]].cast<double>());
-    const Eigen::Vector3i lo = ((t.min() - origin_) / cell_).array().floor().cast<int>().max(0).min(dims_.array() - 1);
-    const Eigen::Vector3i hi = ((t.max() - origin_) / cell_).array().floor().cast<int>().max(0).min(dims_.array() - 1);
+    const Eigen::Vector3i lo = CellOf((t.min() - origin_) / cell_);
+    const Eigen::Vector3i hi = CellOf((t.max() - origin_) / cell_);
     for (int z = lo.z(); z <= hi.z(); ++z)
       for (int y = lo.y(); y <= hi.y(); ++y)
         for (int x = lo.x(); x <= hi.x(); ++x) cells_[(static_cast<size_t>(z) * dims_.y() + y) * dims_.x() + x].push_back(f);
@@ -58,10 +63,8 @@ MeshDistance::MeshDistance(const TriangleMesh& mesh, double max_distance) : mesh
 
 double MeshDistance::Distance(const Vector3d& point) const {
   double best = max_distance_;
-  const Eigen::Vector3i lo =
-      ((point.array() - origin_.array() - max_distance_) / cell_).floor().cast<int>().max(0).min(dims_.array() - 1);
-  const Eigen::Vector3i hi =
-      ((point.array() - origin_.array() + max_distance_) / cell_).floor().cast<int>().max(0).min(dims_.array() - 1);
+  const Eigen::Vector3i lo = CellOf((point.array() - origin_.array() - max_distance_).matrix() / cell_);
+  const Eigen::Vector3i hi = CellOf((point.array() - origin_.array() + max_distance_).matrix() / cell_);
   for (int z = lo.z(); z <= hi.z(); ++z) {
     for (int y = lo.y(); y <= hi.y(); ++y) {
       for (int x = lo.x(); x <= hi.x(); ++x) {

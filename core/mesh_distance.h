@@ -19,6 +19,10 @@ class MeshDistance {
   double Distance(const Eigen::Vector3d& point) const;
 
  private:
+  // The grid cell of a point in cell units, clamped to the grid before the cast to int (a point
+  // far outside would overflow int, which is undefined behaviour).
+  Eigen::Vector3i CellOf(const Eigen::Vector3d& cell_units) const;
+
   const TriangleMesh& mesh_;
   double max_distance_;
   double cell_ = 1.0;
