@@ -3,9 +3,12 @@
 // Little-endian hosts only (x86-64, aarch64), which the static_assert below keeps honest.
 #pragma once
 
+#include <cstdint>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <type_traits>
 
 #include "core/check.h"
@@ -21,6 +24,21 @@ void PutBinary(std::string& out, const T& value) {
   char bytes[sizeof(T)];
   std::memcpy(bytes, &value, sizeof(T));
   out.append(bytes, sizeof(T));
+}
+
+// The unsigned 32-bit value at bytes[at], little-endian (LoadLE32) or big-endian (LoadBE32, as in
+// PNG); nullopt when the four bytes run past the end.
+inline std::optional<uint32_t> LoadLE32(std::string_view bytes, size_t at) {
+  if (at > bytes.size() || bytes.size() - at < 4) return std::nullopt;
+  uint32_t v = 0;
+  for (int i = 3; i >= 0; --i) v = (v << 8) | static_cast<unsigned char>(bytes[at + i]);
+  return v;
+}
+inline std::optional<uint32_t> LoadBE32(std::string_view bytes, size_t at) {
+  if (at > bytes.size() || bytes.size() - at < 4) return std::nullopt;
+  uint32_t v = 0;
+  for (int i = 0; i < 4; ++i) v = (v << 8) | static_cast<unsigned char>(bytes[at + i]);
+  return v;
 }
 
 // Reads values in order from a byte string; throws Error("<path>: truncated <kind> file (N bytes)

@@ -6,11 +6,16 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
 #include <opencv2/core.hpp>
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/binary_io.h"
 #include "core/check.h"
 #include "core/file_util.h"
 
@@ -59,40 +64,36 @@ void CheckPngStructure(const fs::path& path) {
   }
   size_t pos = 8;
   while (pos + 12 <= bytes.size()) {
-    const auto* b = reinterpret_cast<const unsigned char*>(bytes.data() + pos);
-    const size_t length = (size_t(b[0]) << 24) | (size_t(b[1]) << 16) | (size_t(b[2]) << 8) | size_t(b[3]);
+    const size_t length = *LoadBE32(bytes, pos);
     const std::string type = bytes.substr(pos + 4, 4);
     if (length > bytes.size() - pos - 12) break;
-    if (type == "IHDR" && length >= 8) {
-      const auto be32 = [&](size_t at) {
-        return (static_cast<long long>(b[at]) << 24) | (b[at + 1] << 16) | (b[at + 2] << 8) | b[at + 3];
-      };
-      CheckDeclaredSize(path, be32(8), be32(12));
-    }
+    if (type == "IHDR" && length >= 8) CheckDeclaredSize(path, *LoadBE32(bytes, pos + 8), *LoadBE32(bytes, pos + 12));
     if (type == "IEND") return;
     pos += 12 + length;
   }
   throw Error(Format(path.string(), ": cannot decode image (truncated or corrupt PNG)"));
 }
 
+// What the channel list of an OpenEXR header says that genscene refuses before decoding.
+struct ExrChannels {
+  int count = 0;
+  std::string subsampled;  // the first channel with x or y sampling other than 1, if any
+  int x_sampling = 1, y_sampling = 1;
+};
+
 // The size of an OpenEXR attribute value of `type` starting at bytes[at], as OpenEXR's reader
 // consumes it: fixed for the scalar, vector, box and matrix types, parsed for chlist (channels up
 // to an empty name) and preview (width x height RGBA); other types (string, vectors, unknown
-// ones) are read by their declared size, which is returned as it is. SIZE_MAX when the value runs
-// past the end of the file or is malformed.
-size_t ExrValueSize(const std::string& type, const std::string& bytes, size_t at, int* channels) {
+// ones) are read by their declared size, `declared`, which is returned as it is. SIZE_MAX when the
+// value runs past the end of the file or is malformed.
+size_t ExrValueSize(const std::string& type, const std::string& bytes, size_t at, uint32_t declared,
+                    ExrChannels* channels) {
   static const std::map<std::string, size_t> kFixed = {
       {"box2i", 16}, {"box2f", 16}, {"chromaticities", 32}, {"compression", 1}, {"double", 8},
       {"envmap", 1}, {"float", 4}, {"int", 4}, {"keycode", 28}, {"lineOrder", 1}, {"m33f", 36},
       {"m33d", 72}, {"m44f", 64}, {"m44d", 128}, {"rational", 8}, {"tiledesc", 9}, {"timecode", 8},
       {"v2i", 8}, {"v2f", 8}, {"v2d", 16}, {"v3i", 12}, {"v3f", 12}, {"v3d", 24}, {"deepImageState", 1}};
   constexpr size_t kBad = SIZE_MAX;
-  const auto u32 = [&](size_t p) -> uint64_t {
-    if (p + 4 > bytes.size()) return kBad;
-    uint32_t v = 0;
-    for (int i = 3; i >= 0; --i) v = (v << 8) | static_cast<unsigned char>(bytes[p + i]);
-    return v;
-  };
   if (auto it = kFixed.find(type); it != kFixed.end()) return it->second;
   if (type == "chlist") {  // { name\0, int32 type, uint8 linear, 3 reserved, int32 xs, int32 ys }* \0
     size_t p = at;
@@ -101,21 +102,31 @@ size_t ExrValueSize(const std::string& type, const std::string& bytes, size_t at
       const size_t end = bytes.find('\0', p);
       if (end == std::string::npos || end - p > 255) return kBad;
       if (end == p) {
-        *channels = std::max(*channels, channels_read);
+        channels->count = std::max(channels->count, channels_read);
         return end + 1 - at;
       }
       ++channels_read;
+      const std::optional<uint32_t> xs = LoadLE32(bytes, end + 9), ys = LoadLE32(bytes, end + 13);
+      if (!xs || !ys) return kBad;
+      if ((*xs != 1 || *ys != 1) && channels->subsampled.empty()) {
+        channels->subsampled = bytes.substr(p, end - p);
+        for (char& c : channels->subsampled) {  // the error stays one printable line
+          if (static_cast<unsigned char>(c) < 32 || static_cast<unsigned char>(c) > 126) c = '?';
+        }
+        channels->x_sampling = static_cast<int32_t>(*xs);
+        channels->y_sampling = static_cast<int32_t>(*ys);
+      }
       p = end + 1 + 16;
       if (p > bytes.size()) return kBad;
     }
     return kBad;
   }
   if (type == "preview") {  // uint32 width, uint32 height, 4 bytes per pixel
-    const uint64_t w = u32(at), h = u32(at + 4);
-    if (w == kBad || h == kBad || (w && h > (bytes.size() / 4) / w)) return kBad;
-    return 8 + 4 * w * h;
+    const std::optional<uint32_t> w = LoadLE32(bytes, at), h = LoadLE32(bytes, at + 4);
+    if (!w || !h || (*w && *h > (bytes.size() / 4) / *w)) return kBad;
+    return 8 + 4 * size_t{*w} * *h;
   }
-  return u32(at - 4);  // the declared size
+  return declared;
 }
 
 // Walks the header and the line offset table of a scanline OpenEXR file (magic, attributes up to
@@ -129,15 +140,15 @@ void CheckExrStructure(const fs::path& path) {
     throw Error(Format(path.string(), ": cannot decode image (corrupt, truncated or unsupported format)"));
   };
   const auto u32 = [&](size_t at) {
-    if (at + 4 > bytes.size()) fail();
-    uint32_t v = 0;
-    for (int i = 3; i >= 0; --i) v = (v << 8) | static_cast<unsigned char>(bytes[at + i]);
-    return v;
+    const std::optional<uint32_t> v = LoadLE32(bytes, at);
+    if (!v) fail();
+    return *v;
   };
   if (bytes.size() < 8 || u32(0) != 20000630u) fail();  // 0x762f3101 little-endian
   const uint32_t flags = u32(4);
   size_t pos = 8;
-  int compression = -1, channels = 0;
+  int compression = -1;
+  ExrChannels channels;
   long long x_min = 0, y_min = 0, x_max = -1, y_max = -1;
   bool has_data_window = false;
   const auto read_string = [&] {
@@ -158,7 +169,7 @@ void CheckExrStructure(const fs::path& path) {
     // OpenEXR reads a known type's value by the type's layout, not by the declared size: where the
     // two disagree it goes on from another position than this walk (and has allocated what a
     // misread size said: 1.7 GB, found by fuzz_exr). So the declared size must be the layout's.
-    if (ExrValueSize(type, bytes, pos, &channels) != size) fail();
+    if (ExrValueSize(type, bytes, pos, size, &channels) != size) fail();
     if (name == "compression" && size == 1) compression = static_cast<unsigned char>(bytes[pos]);
     if (name == "dataWindow" && size == 16) {
       x_min = static_cast<int32_t>(u32(pos));
@@ -173,12 +184,18 @@ void CheckExrStructure(const fs::path& path) {
   // window 2^27 wide, found by fuzz_exr); OpenCV then allocates the whole image.
   if (!has_data_window) fail();
   CheckDeclaredSize(path, x_max - x_min + 1, y_max - y_min + 1);
-  if (channels > 16) {
-    throw Error(Format(path.string(), ": EXR with ", channels, " channels (genscene reads at most 16)"));
+  if (channels.count > 16) {
+    throw Error(Format(path.string(), ": EXR with ", channels.count, " channels (genscene reads at most 16)"));
+  }
+  // OpenCV's EXR decoder overruns its buffers on subsampled channels (heap corruption, found by
+  // fuzz_exr: a channel with x sampling 8); depth and colour images are never subsampled.
+  if (!channels.subsampled.empty()) {
+    throw Error(Format(path.string(), ": EXR channel \"", channels.subsampled, "\" is subsampled (", channels.x_sampling,
+                       "x", channels.y_sampling, "); genscene reads only full-resolution channels"));
   }
   if (flags & (0x200u | 0x800u | 0x1000u)) return;  // tiled, multi-part, deep
   static const int kLinesPerChunk[] = {1, 1, 1, 16, 32, 16, 32, 32, 32, 256};
-  if (compression < 0 || compression > 9 || y_max < y_min) return;
+  if (compression < 0 || compression > 9) return;  // (the window is at least 1x1 here)
   const long long lines = kLinesPerChunk[compression];
   const long long chunks = (y_max - y_min + 1 + lines - 1) / lines;
   if (chunks > static_cast<long long>((bytes.size() - pos) / 8)) fail();
@@ -188,6 +205,56 @@ void CheckExrStructure(const fs::path& path) {
     const uint32_t size = u32(offset + 4);
     if (size > bytes.size() - offset - 8) fail();
   }
+}
+
+// Reads a checked scanline or tiled OpenEXR file with OpenEXR itself (OpenCV's EXR decoder prints
+// its exceptions on stderr, a second line beside our error): R, G, B as a 3-channel float image in
+// OpenCV's BGR order, else Y or the only channel (a depth image) as a 1-channel one; `color`
+// replicates a 1-channel image to 3 channels, as cv::IMREAD_COLOR does.
+cv::Mat ReadExr(const fs::path& path, bool color) {
+  const auto corrupt = [&] {
+    return Error(Format(path.string(), ": cannot decode image (corrupt, truncated or unsupported format)"));
+  };
+  cv::Mat mat;
+  try {
+    Imf::InputFile file(path.c_str());
+    const Imath::Box2i window = file.header().dataWindow();
+    const Imf::ChannelList& channels = file.header().channels();
+    std::vector<std::string> names;
+    for (auto it = channels.begin(); it != channels.end(); ++it) names.push_back(it.name());
+    std::vector<std::string> read;  // in the order of the cv::Mat channels
+    if (channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B")) {
+      read = {"B", "G", "R"};
+    } else if (channels.findChannel("Y")) {
+      read = {"Y"};
+    } else if (names.size() == 1) {
+      read = {names[0]};
+    } else {
+      std::string list;
+      for (const std::string& name : names) list += (list.empty() ? "" : ", ") + name;
+      for (char& c : list) {  // the error stays one printable line
+        if (static_cast<unsigned char>(c) < 32 || static_cast<unsigned char>(c) > 126) c = '?';
+      }
+      throw Error(Format(path.string(), ": EXR channels (", list,
+                         ") hold neither R, G, B nor Y nor a single channel (depth)"));
+    }
+    const int width = window.max.x - window.min.x + 1, height = window.max.y - window.min.y + 1;
+    const int count = static_cast<int>(read.size());
+    mat.create(height, width, CV_32FC(count));
+    Imf::FrameBuffer buffer;
+    const size_t x_stride = sizeof(float) * count, y_stride = x_stride * width;
+    for (int c = 0; c < count; ++c) {
+      buffer.insert(read[c], Imf::Slice::Make(Imf::FLOAT, mat.ptr<float>() + c, window, x_stride, y_stride));
+    }
+    file.setFrameBuffer(buffer);
+    file.readPixels(window.min.y, window.max.y);
+  } catch (const Error&) {
+    throw;
+  } catch (const std::exception&) {
+    throw corrupt();
+  }
+  if (color && mat.channels() == 1) cv::merge(std::vector<cv::Mat>{mat, mat, mat}, mat);
+  return mat;
 }
 
 bool HasExtension(const fs::path& path, const char* extension) {
@@ -203,7 +270,10 @@ cv::Mat ReadWithOpenCv(const fs::path& path, int flags) {
   if (fs::is_directory(path, ec)) throw Error(Format(path.string(), ": is a folder, not an image"));
   if (fs::file_size(path, ec) == 0) throw Error(Format(path.string(), ": empty file"));
   if (HasExtension(path, ".png")) CheckPngStructure(path);
-  if (HasExtension(path, ".exr")) CheckExrStructure(path);
+  if (HasExtension(path, ".exr")) {
+    CheckExrStructure(path);
+    return ReadExr(path, flags != cv::IMREAD_UNCHANGED && (flags & cv::IMREAD_COLOR) != 0);
+  }
   cv::Mat mat;
   try {
     mat = cv::imread(path.string(), flags);

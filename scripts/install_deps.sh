@@ -8,7 +8,7 @@ PACKAGES=(
   cmake g++ make pkg-config ccache clang libclang-rt-14-dev
   # core
   libeigen3-dev libtbb-dev libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
-  libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev
+  libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopenexr-dev
   libopenmesh-dev
   # inverse (path tracer, Mitsuba XML scenes)
   libembree-dev libtinyxml2-dev

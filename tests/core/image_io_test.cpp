@@ -1,5 +1,9 @@
 #include "core/image_io.h"
 
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfOutputFile.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -164,6 +168,48 @@ TEST(ImageIo, RealFormatsDecode) {
   EXPECT_EQ(nyu_color.width(), 640);
   const ImageRgb sun_color = ReadColorImage(other / "SUN_color.jpg", CameraResponse());
   EXPECT_GT(sun_color.width(), 0);
+}
+
+// An EXR written by OpenEXR itself, with the named FLOAT channels; channel c holds c + x / 10 + y.
+void WriteExrChannels(const std::filesystem::path& path, int width, int height, const std::vector<std::string>& names) {
+  Imf::Header header(width, height);
+  std::vector<std::vector<float>> planes;
+  for (size_t c = 0; c < names.size(); ++c) {
+    header.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
+    planes.emplace_back(static_cast<size_t>(width * height));
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) planes[c][y * width + x] = static_cast<float>(c) + 0.1f * x + y;
+    }
+  }
+  Imf::OutputFile file(path.c_str(), header);
+  Imf::FrameBuffer buffer;
+  for (size_t c = 0; c < names.size(); ++c) {
+    buffer.insert(names[c], Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(planes[c].data()), sizeof(float),
+                                       sizeof(float) * width));
+  }
+  file.setFrameBuffer(buffer);
+  file.writePixels(height);
+}
+
+TEST(ImageIo, ExrChannelsAreChosenByName) {
+  test::TempDir dir;
+  // A single channel of any name is a depth image (Blender writes "Z", others "depth" or "Y").
+  WriteExrChannels(dir / "z.exr", 4, 3, {"Z"});
+  const ImageDepth z = ReadDepthImage(dir / "z.exr");
+  ASSERT_EQ(z.width(), 4);
+  EXPECT_FLOAT_EQ(z(3, 2), 0.3f + 2.0f);
+  // R, G, B are colour, whatever else the file holds (here alpha and depth).
+  WriteExrChannels(dir / "rgbaz.exr", 4, 3, {"A", "B", "G", "R", "Z"});
+  const ImageRgb rgb = ReadColorImage(dir / "rgbaz.exr", CameraResponse());
+  // Channels are stored sorted by name: A 0, B 1, G 2, R 3, Z 4.
+  EXPECT_FLOAT_EQ(rgb(1, 2)[0], 3.0f + 0.1f + 2.0f);
+  EXPECT_FLOAT_EQ(rgb(1, 2)[1], 2.0f + 0.1f + 2.0f);
+  EXPECT_FLOAT_EQ(rgb(1, 2)[2], 1.0f + 0.1f + 2.0f);
+  // A colour file is no depth image.
+  ExpectErrorNaming([&] { ReadDepthImage(dir / "rgbaz.exr"); }, "3 channels", "rgbaz.exr");
+  // Two channels that are neither colour nor luminance: no guessing.
+  WriteExrChannels(dir / "az.exr", 4, 3, {"A", "Z"});
+  ExpectErrorNaming([&] { ReadDepthImage(dir / "az.exr"); }, "EXR channels (A, Z)", "az.exr");
 }
 
 }  // namespace
