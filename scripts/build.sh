@@ -22,5 +22,12 @@ elif [ "${1:-}" = "--fuzz" ]; then
 fi
 JOBS="${GENSCENE_JOBS:-2}"
 
-cmake -S . -B "$BUILD_DIR" "${CMAKE_ARGS[@]}" >/dev/null
+# Ninja when installed (scripts/install_deps.sh installs it): on 2 cores it kept both busy (97 %)
+# where Make left more idle and spent more CPU on its own bookkeeping (the Release pass target,
+# measured back to back: 5:03 with Ninja, 6:02 with Make). A folder already configured keeps its
+# generator (CMake refuses to switch).
+GENERATOR=()
+if [ ! -f "$BUILD_DIR/CMakeCache.txt" ] && command -v ninja >/dev/null 2>&1; then GENERATOR=(-G Ninja); fi
+
+cmake -S . -B "$BUILD_DIR" "${GENERATOR[@]}" "${CMAKE_ARGS[@]}" >/dev/null
 cmake --build "$BUILD_DIR" -j "$JOBS" "$@"
