@@ -211,13 +211,16 @@ class CollectingImporter final : public OpenMesh::IO::BaseImporter {
   FaceHandle add_face(const VHandles& indices) override {
     const size_t polygon = polygon_count();
     if (indices.size() < 3) Note(Format("face ", polygon, " has ", indices.size(), " vertices"));
-    for (const VertexHandle& vh : indices) {
-      if (vh.idx() < 0 || static_cast<size_t>(vh.idx()) >= file_vertices_) {
-        Note(Format("face ", polygon, " uses vertex ", vh.idx(), " but the file has ",
-                    file_vertices_, " vertices"));
+    for (size_t i = 0; i < indices.size() && problem_.empty(); ++i) {
+      const int index = indices[i].idx();
+      if (index < 0 || static_cast<size_t>(index) >= file_vertices_) {
+        Note(Format("face ", polygon, " uses vertex ", index, " but the file has ", file_vertices_, " vertices"));
       }
     }
-    for (size_t k = 1; k + 1 < indices.size(); ++k) {  // fan triangulation
+    // After a problem the file is refused: count the polygon, build nothing (a corrupt ASCII file
+    // fed OpenMesh's reader faces of millions of bogus indices, found by fuzz_ply: a 1.8 KB file
+    // took 1.9 s, a message formatted per index).
+    for (size_t k = 1; problem_.empty() && k + 1 < indices.size(); ++k) {  // fan triangulation
       triangles_.emplace_back(indices[0].idx(), indices[k].idx(), indices[k + 1].idx());
     }
     first_triangle_.push_back(triangles_.size());
