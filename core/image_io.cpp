@@ -74,6 +74,14 @@ void CheckPngStructure(const fs::path& path) {
   throw Error(Format(path.string(), ": cannot decode image (truncated or corrupt PNG)"));
 }
 
+// Channel names from a file, fit for a one-line error: bytes outside printable ASCII become '?'.
+std::string Printable(std::string text) {
+  for (char& c : text) {
+    if (static_cast<unsigned char>(c) < 32 || static_cast<unsigned char>(c) > 126) c = '?';
+  }
+  return text;
+}
+
 // What the channel list of an OpenEXR header says that genscene refuses before decoding.
 struct ExrChannels {
   int count = 0;
@@ -109,10 +117,7 @@ size_t ExrValueSize(const std::string& type, const std::string& bytes, size_t at
       const std::optional<uint32_t> xs = LoadLE32(bytes, end + 9), ys = LoadLE32(bytes, end + 13);
       if (!xs || !ys) return kBad;
       if ((*xs != 1 || *ys != 1) && channels->subsampled.empty()) {
-        channels->subsampled = bytes.substr(p, end - p);
-        for (char& c : channels->subsampled) {  // the error stays one printable line
-          if (static_cast<unsigned char>(c) < 32 || static_cast<unsigned char>(c) > 126) c = '?';
-        }
+        channels->subsampled = Printable(bytes.substr(p, end - p));
         channels->x_sampling = static_cast<int32_t>(*xs);
         channels->y_sampling = static_cast<int32_t>(*ys);
       }
@@ -232,10 +237,7 @@ cv::Mat ReadExr(const fs::path& path, bool color) {
     } else {
       std::string list;
       for (const std::string& name : names) list += (list.empty() ? "" : ", ") + name;
-      for (char& c : list) {  // the error stays one printable line
-        if (static_cast<unsigned char>(c) < 32 || static_cast<unsigned char>(c) > 126) c = '?';
-      }
-      throw Error(Format(path.string(), ": EXR channels (", list,
+      throw Error(Format(path.string(), ": EXR channels (", Printable(list),
                          ") hold neither R, G, B nor Y nor a single channel (depth)"));
     }
     const int width = window.max.x - window.min.x + 1, height = window.max.y - window.min.y + 1;
