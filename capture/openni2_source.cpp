@@ -4,7 +4,9 @@
 #include <spdlog/spdlog.h>
 
 #include <array>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <filesystem>
 #include <mutex>
 #include <optional>
@@ -89,6 +91,36 @@ std::array<float, 256> LinearTable(const CameraResponse& response) {
   return table;
 }
 
+// Waits for OpenNI2's end-of-file event of one recording. The OniFile driver raises it on its
+// player thread (PlayerDevice::OnEndOfFileReached, reached from the player's ReadNext once the
+// end record is read), so the event also says that the player has returned from delivering the
+// last frame.
+class EndOfFileListener : public openni::OpenNI::DeviceStateChangedListener {
+ public:
+  explicit EndOfFileListener(std::string uri) : uri_(std::move(uri)) {}
+
+  void onDeviceStateChanged(const openni::DeviceInfo* info, openni::DeviceState state) override {
+    if (state != openni::DEVICE_STATE_EOF || info == nullptr || uri_ != info->getUri()) return;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      eof_ = true;
+    }
+    reached_.notify_all();
+  }
+
+  // True once the event came, false after `timeout` without it.
+  bool Wait(std::chrono::milliseconds timeout) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    return reached_.wait_for(lock, timeout, [this] { return eof_; });
+  }
+
+ private:
+  const std::string uri_;
+  std::mutex mutex_;
+  std::condition_variable reached_;
+  bool eof_ = false;
+};
+
 class OpenNI2Source : public FrameSource {
  public:
   OpenNI2Source(const std::string& spec, const SourceOptions& options,
@@ -149,6 +181,12 @@ class OpenNI2Source : public FrameSource {
       info = InspectOniFile(spec_);
       RequirePlayableRgbd(*info);
       OpenDevice(spec_.c_str());
+      // Listening from before the first start: the event may come before Close asks for it.
+      eof_listener_.emplace(device_.getDeviceInfo().getUri());
+      if (openni::OpenNI::addDeviceStateChangedListener(&*eof_listener_) != openni::STATUS_OK)
+        throw Error(
+            Format(spec_, ": cannot listen to OpenNI2 device events: ", LastOpenNI2Error()));
+      eof_listener_registered_ = true;
     } else {
       // A recording opened earlier in this process stays listed as a device (and would be what
       // ANY_DEVICE opens): only real cameras count, and the first one is opened by its URI.
@@ -202,10 +240,12 @@ class OpenNI2Source : public FrameSource {
   // the file and delivers nothing more) -- the device is closed first, which joins the player
   // thread before the stream list is touched, and the two stream handles are then left alone for
   // the rest of the process (two idle OpenNI2 stream objects and threads per recording read).
-  // Residual race, not closed here: the player thread may still be returning from the delivery
-  // of the last frame (it releases the frame through the per-sensor object after we have it) when
-  // Device::close deletes that object -- 1 of 500 such processes under the same load. A fix would
-  // wait for OpenNI2's device-state event ONI_DEVICE_STATE_EOF (raised after that return) first.
+  // A recording read to its end is closed only after OpenNI2's end-of-file event
+  // (EndOfFileListener): before it, the player thread may still be returning from the delivery of
+  // the last frame (it releases the frame through the per-sensor object after we have it) while
+  // Device::close deletes that object -- 1 of 500 processes under the same load crashed so. The
+  // wait comes before the streams are stopped: a player with no started stream never reads on to
+  // the end record.
   // A recording stopped part-way is torn down streams first: the driver then unregisters its
   // streams, so the held frame goes nowhere, and the parked player thread walks the stream list
   // only under the device lock, once per 2 s wait (0 failures in 300 processes).
@@ -213,11 +253,17 @@ class OpenNI2Source : public FrameSource {
   void Close() {
     depth_frame_.release();
     color_frame_.release();
+    const bool read_to_end =
+        any_started_ && depth_read_ >= depth_total_ && color_read_ >= color_total_;
+    if (is_file_ && read_to_end && eof_listener_registered_ &&
+        !eof_listener_->Wait(std::chrono::milliseconds(kEndOfFileWaitMs))) {
+      spdlog::warn("{}: OpenNI2 gave no end-of-file event within {} ms after the last frame", spec_,
+                   kEndOfFileWaitMs);
+    }
     for (std::optional<openni::VideoStream>* s : {&depth_, &color_}) {
       if (*s) (*s)->stop();
     }
-    const bool player_holds_no_frame =
-        !any_started_ || (depth_read_ >= depth_total_ && color_read_ >= color_total_);
+    const bool player_holds_no_frame = !any_started_ || read_to_end;
     if (!(is_file_ && player_holds_no_frame)) {
       for (std::optional<openni::VideoStream>* s : {&depth_, &color_}) {
         if (*s && (*s)->isValid()) oniStreamDestroy((*s)->_getHandle());
@@ -225,7 +271,11 @@ class OpenNI2Source : public FrameSource {
     }
     depth_.reset();  // the wrappers do not own the handles: nothing is destroyed here
     color_.reset();
-    device_.close();
+    device_.close();  // joins the player thread: no event can come after this
+    if (eof_listener_registered_) {
+      openni::OpenNI::removeDeviceStateChangedListener(&*eof_listener_);
+      eof_listener_registered_ = false;
+    }
   }
 
   void OpenDevice(const char* uri) {
@@ -429,6 +479,9 @@ class OpenNI2Source : public FrameSource {
   std::array<float, 256> to_linear_;
   bool is_file_ = false;
   bool any_started_ = false;  // a stream was started (the player may hold a frame; see Close)
+  static constexpr int kEndOfFileWaitMs = 2000;
+  std::optional<EndOfFileListener> eof_listener_;  // recordings only (see Close)
+  bool eof_listener_registered_ = false;
   openni::Device device_;
   // Wrappers that do not own their stream handles: Close decides whether a handle is destroyed.
   std::optional<openni::VideoStream> depth_, color_;
