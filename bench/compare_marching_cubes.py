@@ -5,8 +5,9 @@
    as .npy, then times skimage.measure.marching_cubes (Lewiner) on the same grids at level 0.
 2. Fused scene (optional, --tum DIR --tsdf WS/tsdf.gsv): Open3D fuses the TUM-layout folder into a
    ScalableTSDFVolume with the voxel size and truncation of our tsdf.gsv and times
-   extract_triangle_mesh; genscene-mesh meshes our tsdf.gsv (fused from the same folder by
-   genscene-fuse). The volumes are fused by different code, so counts agree only roughly.
+   extract_triangle_mesh; bench_marching_cubes --tsdf times ExtractMesh on our tsdf.gsv (fused
+   from the same folder by genscene-fuse) in-process, like Open3D's call, and prints its
+   decimation table. The volumes are fused by different code, so counts agree only roughly.
 
 Each time is the best of --repeat runs. Run by hand, e.g.
   python3 bench/compare_marching_cubes.py --build build --sizes 64 128
@@ -14,7 +15,6 @@ Each time is the best of --repeat runs. Run by hand, e.g.
 """
 import argparse
 import os
-import re
 import shutil
 import struct
 import subprocess
@@ -37,8 +37,10 @@ def dense_grids(args, workdir):
     from skimage import measure
 
     bench = os.path.join(args.build, "bench", "bench_marching_cubes")
-    subprocess.run([bench, "--dump", workdir] + [str(n) for n in args.sizes], check=True,
-                   stdout=subprocess.DEVNULL)
+    extra = ["--tsdf", args.tsdf] if args.tsdf else []
+    text = subprocess.run([bench, "--dump", workdir] + extra + [str(n) for n in args.sizes], check=True,
+                          capture_output=True, text=True).stdout
+    args.fused_text = text[text.find("\nFused volume"):] if args.tsdf else ""
     ours = {}
     with open(os.path.join(workdir, "genscene_mc.txt")) as f:
         for line in f:
@@ -113,23 +115,17 @@ def fused_scene(args, workdir):
         frames += 1
     o3d_seconds, mesh = best_time(volume.extract_triangle_mesh, args.repeat)
 
-    ws = os.path.join(workdir, "ws")
-    os.makedirs(ws, exist_ok=True)
-    shutil.copy(args.tsdf, os.path.join(ws, "tsdf.gsv"))
-    app = os.path.join(args.build, "apps", "genscene-mesh")
-    gs_seconds, text = float("inf"), ""
-    for _ in range(args.repeat):
-        text = subprocess.run([app, ws], check=True, capture_output=True, text=True).stdout
-        gs_seconds = min(gs_seconds, float(re.search(r"genscene-mesh: ([0-9.]+) s", text).group(1)))
-    counts = re.search(r"-> (\d+) vertices, (\d+) triangles", text)
+    with open(os.path.join(workdir, "genscene_fused.txt")) as f:
+        threads, gs_verts, gs_tris, gs_seconds = f.read().split()
     print("\nFused scene %s (%d frames, voxel %.4f m, truncation %.4f m); best of %d" % (
         args.tum, frames, voxel_size, truncation, args.repeat))
-    print("%-40s %10s %10s %10s" % ("", "vertices", "triangles", "ms"))
-    print("%-40s %10d %10d %10.1f" % ("Open3D ScalableTSDFVolume.extract_triangle_mesh", len(mesh.vertices),
+    print("%-48s %10s %10s %10s" % ("", "vertices", "triangles", "ms"))
+    print("%-48s %10d %10d %10.1f" % ("Open3D ScalableTSDFVolume.extract_triangle_mesh", len(mesh.vertices),
                                       len(mesh.triangles), o3d_seconds * 1e3))
-    print("%-40s %10s %10s %10.1f" % ("genscene-mesh (ExtractMesh, all threads)", counts.group(1), counts.group(2),
-                                      gs_seconds * 1e3))
-    print("speedup: %.1fx" % (o3d_seconds / gs_seconds))
+    print("%-48s %10s %10s %10.1f" % ("genscene ExtractMesh (%s threads)" % threads, gs_verts, gs_tris,
+                                      float(gs_seconds) * 1e3))
+    print("speedup: %.1fx" % (o3d_seconds / float(gs_seconds)))
+    print(args.fused_text)
 
 
 def main():
@@ -146,8 +142,7 @@ def main():
         parser.error("--tum and --tsdf go together")
     workdir = tempfile.mkdtemp(prefix="genscene-mc-compare-")
     try:
-        if args.sizes:
-            dense_grids(args, workdir)
+        dense_grids(args, workdir)
         if args.tum:
             fused_scene(args, workdir)
     finally:

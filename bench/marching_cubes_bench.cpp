@@ -1,11 +1,15 @@
 // Marching cubes speed: cells per second over dense gyroid volumes of a few sizes, with 1 thread
 // and all threads (issue 5, acceptance 4), and the decimation table of triangle count against the
-// measured one-sided Hausdorff error (acceptance 5, here on an analytic torus until a fused scene
-// exists). Each time is the best of 3 runs after a warm-up. Run by hand:
-//   build/bench/bench_marching_cubes [--dump DIR] [sizes...]
+// measured one-sided Hausdorff error on an analytic torus (acceptance 5). Each time is the best of
+// 3 runs after a warm-up. Run by hand:
+//   build/bench/bench_marching_cubes [--dump DIR] [--tsdf WS/tsdf.gsv [--decimation]] [sizes...]
 // --dump DIR writes each grid as DIR/gyroid_<N>.npy (float32, axes z, y, x: numpy's C order of
 // our x-fastest lattice) and our counts and times to DIR/genscene_mc.txt, for
 // bench/compare_marching_cubes.py (skimage on the same grids).
+// --tsdf meshes a fused volume (a genscene-fuse workspace's tsdf.gsv) in-process, timed without
+// the file I/O; with --dump its counts and time go to DIR/genscene_fused.txt (Open3D's
+// extract_triangle_mesh in the script). --decimation adds the decimation table for that fused
+// scene (each bound is a full decimation: minutes for a mesh of a few 100k triangles).
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -16,7 +20,9 @@
 #include <string>
 #include <vector>
 
+#include "core/mesh_distance.h"
 #include "core/parallel.h"
+#include "core/tsdf_volume.h"
 #include "meshing/marching_cubes.h"
 #include "tests/meshing/analytic_volume.h"
 
@@ -53,12 +59,13 @@ void WriteNpy(const std::filesystem::path& path, const TsdfVolume& volume, int n
   }
 }
 
-double BestSeconds(const TsdfVolume& volume, meshing::MeshingResult* result) {
-  *result = meshing::ExtractMesh(volume, meshing::MeshingOptions());  // warm-up
+double BestSeconds(const TsdfVolume& volume, meshing::MeshingResult* result,
+                   const meshing::MeshingOptions& options = meshing::MeshingOptions()) {
+  *result = meshing::ExtractMesh(volume, options);  // warm-up
   double best = 1e300;
   for (int run = 0; run < 3; ++run) {
     const auto start = std::chrono::steady_clock::now();
-    *result = meshing::ExtractMesh(volume, meshing::MeshingOptions());
+    *result = meshing::ExtractMesh(volume, options);
     best = std::min(
         best, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   }
@@ -96,14 +103,67 @@ void DecimationTable() {
   }
 }
 
+// A fused volume: marching cubes timed in-process (1 thread and all threads), then decimation at
+// several bounds with the one-sided Hausdorff error measured (every vertex of the full mesh to the
+// simplified one, exact point-triangle distances).
+void FusedScene(const std::filesystem::path& tsdf, const std::filesystem::path& dump,
+                bool decimation) {
+  const TsdfVolume volume = ReadTsdfVolume(tsdf);
+  std::printf("\nFused volume %s: %zu blocks, voxel %.4f m; best of 3 after a warm-up\n",
+              tsdf.string().c_str(), volume.num_blocks(), volume.voxel_size());
+  std::printf("%8s %12s %10s %10s %10s %10s\n", "threads", "cells", "vertices", "triangles", "ms",
+              "Mcells/s");
+  meshing::MeshingResult full;
+  for (int threads : {1, 0}) {
+    SetThreadCount(threads);
+    const double seconds = BestSeconds(volume, &full);
+    const meshing::MeshingStats& s = full.stats;
+    std::printf("%8d %12zu %10zu %10zu %10.1f %10.1f\n", ThreadCount(), s.cells, s.vertices,
+                s.triangles, seconds * 1e3, s.cells / seconds / 1e6);
+    if (!dump.empty() && threads == 0) {
+      std::ofstream(dump / "genscene_fused.txt")
+          << ThreadCount() << " " << s.vertices << " " << s.triangles << " " << seconds << "\n";
+    }
+  }
+  SetThreadCount(0);
+  if (!decimation) return;
+  std::printf(
+      "\nDecimation of the fused scene: one-sided Hausdorff = max distance of the full mesh's "
+      "vertices to the simplified mesh\n");
+  std::printf("%12s %10s %10s %14s %14s %10s\n", "bound mm", "triangles", "vertices",
+              "Hausdorff mm", "mean dist mm", "seconds");
+  std::printf("%12s %10zu %10zu %14s %14s %10s\n", "off", full.mesh.faces.size(),
+              full.mesh.vertices.size(), "0", "0", "-");
+  for (double bound : {0.0005, 0.001, 0.002, 0.003, 0.005, 0.01}) {
+    meshing::MeshingOptions options;
+    options.decimate_max_error = bound;
+    const meshing::MeshingResult r = meshing::ExtractMesh(volume, options);
+    const MeshDistance distance(r.mesh, 10 * bound);
+    double hausdorff = 0.0, sum = 0.0;
+    for (const Eigen::Vector3f& v : full.mesh.vertices) {
+      const double d = distance.Distance(v.cast<double>());
+      hausdorff = std::max(hausdorff, d);
+      sum += d;
+    }
+    std::printf("%12.2f %10zu %10zu %14.3f %14.4f %10.3f\n", bound * 1e3, r.mesh.faces.size(),
+                r.mesh.vertices.size(), hausdorff * 1e3, sum / full.mesh.vertices.size() * 1e3,
+                r.stats.seconds_decimate);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::filesystem::path dump;
+  std::filesystem::path dump, tsdf;
+  bool decimation = false;
   std::vector<int> sizes;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--dump") == 0 && i + 1 < argc)
       dump = argv[++i];
+    else if (std::strcmp(argv[i], "--tsdf") == 0 && i + 1 < argc)
+      tsdf = argv[++i];
+    else if (std::strcmp(argv[i], "--decimation") == 0)
+      decimation = true;
     else
       sizes.push_back(std::atoi(argv[i]));
   }
@@ -142,5 +202,6 @@ int main(int argc, char** argv) {
   }
   SetThreadCount(0);
   DecimationTable();
+  if (!tsdf.empty()) FusedScene(tsdf, dump, decimation);
   return 0;
 }
