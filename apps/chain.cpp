@@ -226,7 +226,8 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
     stage.Run("evaluate", {judged}, {ws.RefinedMesh(), ws.Albedo(), ws.Lights()}, [&] {
       const DemoEvaluation e = EvaluateAgainstTruth(ws, input, options.lights, options.evaluate, seed);
       return Format(e.views.size(), " novel views against the ground truth: relative RMSE ", e.relative_rmse,
-                    " (noise taken out) (", judged.string(), ")");
+                    " (noise taken out, ", options.evaluate.block, "x", options.evaluate.block, " pixel tiles) (",
+                    judged.string(), ")");
     });
   }
 }
@@ -235,6 +236,7 @@ void EvaluationOptions::Validate() const {
   RequireRange("views", views, 1, 1000);
   RequireRange("truth_spp", truth_spp, 2, 1 << 16);
   RequireRange("model_spp", model_spp, 2, 1 << 16);
+  RequireRange("block", block, 1, 64);
 }
 
 DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
@@ -270,7 +272,8 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
     }
     const double noise_rms = std::sqrt(noise / (3.0 * a.size()));
     ImageRgb render;
-    const ViewError e = CompareRender(model_tracer, reference, lights, model_spp, seed + 2000 + k, noise_rms, &render);
+    const ViewError e =
+        CompareRender(model_tracer, reference, lights, model_spp, seed + 2000 + k, noise_rms, &render, eval.block);
     char name[32];
     std::snprintf(name, sizeof(name), "novel_%02d", k);
     WritePng(dir / (std::string(name) + "_truth.png"), reference.image);
@@ -283,6 +286,7 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
   nlohmann::ordered_json report;
   report["truth_spp"] = truth_spp;
   report["model_spp"] = model_spp;
+  report["block"] = eval.block;
   report["relative_rmse"] = out.relative_rmse;
   report["views"] = list;
   WriteTextFileAtomically(dir / "evaluation.json", report.dump(1) + "\n");

@@ -34,11 +34,14 @@ struct EvaluationOptions {
   int views = 3;        // novel views, between the keyframes
   int truth_spp = 128;  // samples per pixel of the ground-truth renders
   int model_spp = 64;   // samples per pixel of the model's renders
+  int block = 4;        // compare means over block x block pixel tiles (1: pixel by pixel)
   template <typename V>
   void Visit(V&& v) {
     v("views", views, "", "novel views judged against the synthetic ground truth");
     v("truth_spp", truth_spp, "", "samples per pixel of the ground-truth renders");
     v("model_spp", model_spp, "", "samples per pixel of the model's renders (two halves: the noise is measured)");
+    v("block", block, "pixels",
+      "compare the means of block x block pixel tiles, with their noise taken out (1: pixel by pixel)");
   }
   void Validate() const;
 };

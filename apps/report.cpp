@@ -279,8 +279,9 @@ void Refinement(const Workspace& ws, const fs::path& dir, std::ostream& md) {
 void Evaluation(const Workspace& ws, const fs::path& dir, std::ostream& md) {
   const auto eval = ReadJson(ws.root() / "evaluation" / "evaluation.json");
   if (!eval) return;
-  md << "## Novel views against the ground truth\n\nMean relative RMSE (noise of both renders taken out): **"
-     << Fixed((*eval)["relative_rmse"].get<double>()) << "**.\n\n";
+  const int block = eval->contains("block") ? (*eval)["block"].get<int>() : 1;
+  md << "## Novel views against the ground truth\n\nMean relative RMSE (noise of both renders taken out, over "
+     << block << "x" << block << " pixel tiles): **" << Fixed((*eval)["relative_rmse"].get<double>()) << "**.\n\n";
   std::vector<std::pair<std::string, std::string>> row;
   for (size_t k = 0; k < (*eval)["views"].size(); ++k) {
     const Json& v = (*eval)["views"][k];

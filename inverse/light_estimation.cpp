@@ -975,7 +975,8 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
 }
 
 ViewError CompareRender(const PathTracer& lit, const TrainingView& reference, const LightEstimationOptions& options,
-                        int spp, uint64_t seed, double reference_noise_rms, ImageRgb* render) {
+                        int spp, uint64_t seed, double reference_noise_rms, ImageRgb* render, int block) {
+  GS_CHECK_GE(block, 1);
   const Image<uint8_t> valid = ValidPixels(lit, reference, options);
   RenderOptions half = options.Paths();
   half.spp = std::max(1, spp / 2);
@@ -983,16 +984,32 @@ ViewError CompareRender(const PathTracer& lit, const TrainingView& reference, co
   const RenderOutput b = lit.Render(reference.view, half, seed ^ 0xB5297A4D3F1E0C2Bull);
   ViewError e;
   double err = 0.0, ref = 0.0, noise = 0.0;
-  for (int v = 0; v < valid.height(); ++v) {
-    for (int u = 0; u < valid.width(); ++u) {
-      if (!valid(u, v)) continue;
-      const Eigen::Vector3d pa = a.radiance(u, v).cast<double>(), pb = b.radiance(u, v).cast<double>();
-      const Eigen::Vector3d mean = 0.5 * (pa + pb), r = reference.image(u, v).cast<double>();
-      err += (mean - r).squaredNorm();
-      ref += r.squaredNorm();
-      // Variance of the mean of two independent halves: |a - b|^2 / 4.
-      noise += 0.25 * (pa - pb).squaredNorm() + 3.0 * reference_noise_rms * reference_noise_rms;
-      ++e.pixels;
+  const double reference_variance = 3.0 * reference_noise_rms * reference_noise_rms;  // per pixel
+  for (int v0 = 0; v0 < valid.height(); v0 += block) {
+    for (int u0 = 0; u0 < valid.width(); u0 += block) {
+      // Sums over the tile's valid pixels; with block 1 this is the per-pixel comparison.
+      Eigen::Vector3d sum_mean = Eigen::Vector3d::Zero(), sum_ref = Eigen::Vector3d::Zero();
+      double render_variance = 0.0;
+      size_t n = 0;
+      for (int v = v0; v < std::min(v0 + block, valid.height()); ++v) {
+        for (int u = u0; u < std::min(u0 + block, valid.width()); ++u) {
+          if (!valid(u, v)) continue;
+          const Eigen::Vector3d pa = a.radiance(u, v).cast<double>(), pb = b.radiance(u, v).cast<double>();
+          sum_mean += 0.5 * (pa + pb);
+          sum_ref += reference.image(u, v).cast<double>();
+          // Variance of the mean of two independent halves: |a - b|^2 / 4.
+          render_variance += 0.25 * (pa - pb).squaredNorm();
+          ++n;
+        }
+      }
+      if (n == 0) continue;
+      const double count = static_cast<double>(n);
+      const Eigen::Vector3d mean = sum_mean / count, r = sum_ref / count;
+      // Each tile weighs as its pixels; the noise of a tile mean is a pixel's over the count.
+      err += count * (mean - r).squaredNorm();
+      ref += count * r.squaredNorm();
+      noise += (render_variance + count * reference_variance) / count;
+      e.pixels += n;
     }
   }
   if (render) {

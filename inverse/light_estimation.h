@@ -243,6 +243,11 @@ Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& view, c
 // Relative RMSE sqrt(sum |P - R|^2 / sum |R|^2) of a render against a reference over the valid
 // pixels (masked as SamplePixels does), and the part of it that is Monte Carlo noise of the
 // render (from two half renders) and of the reference (given as its RMS noise per channel).
+// With `block` > 1 the images are compared as means over block x block tiles (of their valid
+// pixels, each tile weighted by its count): the noise variance of a tile mean is that of a pixel
+// over the count (pixels are sampled independently), so subtracting it is far steadier when the
+// per-pixel noise is much larger than the error being measured; errors finer than a tile are
+// averaged away.
 struct ViewError {
   size_t pixels = 0;
   double rmse = 0.0;          // raw
@@ -252,6 +257,7 @@ struct ViewError {
 // `lit`: the scene with the lights to judge (rendered with next-event estimation, `spp` in total).
 ViewError CompareRender(const PathTracer& lit, const TrainingView& reference,
                         const LightEstimationOptions& options, int spp, uint64_t seed,
-                        double reference_noise_rms = 0.0, ImageRgb* render = nullptr);
+                        double reference_noise_rms = 0.0, ImageRgb* render = nullptr,
+                        int block = 1);
 
 }  // namespace genscene::inverse
