@@ -8,6 +8,10 @@
    extract_triangle_mesh; bench_marching_cubes --tsdf times ExtractMesh on our tsdf.gsv (fused
    from the same folder by genscene-fuse) in-process, like Open3D's call, and prints its
    decimation table. The volumes are fused by different code, so counts agree only roughly.
+3. Same volume (with --tsdf): our tsdf.gsv's blocks (8^3 voxels, as Open3D's) copied into an
+   Open3D tensor VoxelBlockGrid (tsdf = sdf / truncation, weight), whose extract_triangle_mesh is
+   timed on exactly the voxels ExtractMesh meshes (block keys, voxel order and values carried
+   over; voxels of weight 0 count as unobserved in both).
 
 Each time is the best of --repeat runs. Run by hand, e.g.
   python3 bench/compare_marching_cubes.py --build build --sizes 64 128
@@ -128,6 +132,53 @@ def fused_scene(args, workdir):
     print(args.fused_text)
 
 
+def read_gsv(path):
+    import numpy as np
+    with open(path, "rb") as f:
+        data = f.read()
+    if data[:8] != b"GSTSDF01":
+        sys.exit("%s: not a genscene TSDF volume" % path)
+    voxel_size, truncation, _max_weight = struct.unpack_from("<ddf", data, 8)
+    origin = struct.unpack_from("<ddd", data, 28)
+    (count,) = struct.unpack_from("<Q", data, 52)
+    block = np.dtype([("key", "<i4", 3), ("voxels", "<f4", (512, 5))])
+    blocks = np.frombuffer(data, dtype=block, count=count, offset=60)
+    return voxel_size, truncation, np.array(origin), blocks
+
+
+def same_volume(args):
+    import numpy as np
+    import open3d as o3d
+    import open3d.core as o3c
+
+    voxel_size, truncation, origin, blocks = read_gsv(args.tsdf)
+    device = o3c.Device("CPU:0")
+    vbg = o3d.t.geometry.VoxelBlockGrid(
+        attr_names=("tsdf", "weight"), attr_dtypes=(o3c.float32, o3c.float32), attr_channels=((1), (1)),
+        voxel_size=voxel_size, block_resolution=8, block_count=len(blocks) + 16, device=device)
+    keys = o3c.Tensor(np.ascontiguousarray(blocks["key"]), dtype=o3c.int32, device=device)
+    buf_indices, masks = vbg.hashmap().activate(keys)
+    assert masks.numpy().all(), "duplicate block keys"
+    # Both lay a block's voxels out x fastest, then y, then z.
+    voxels = blocks["voxels"]
+    tsdf = (voxels[:, :, 0] / truncation).reshape(-1, 8, 8, 8, 1).astype(np.float32)
+    weight = voxels[:, :, 1].reshape(-1, 8, 8, 8, 1).astype(np.float32)
+    index = buf_indices.to(o3c.int64)
+    vbg.attribute("tsdf")[index] = o3c.Tensor(tsdf, device=device)
+    vbg.attribute("weight")[index] = o3c.Tensor(weight, device=device)
+    o3d_seconds, mesh = best_time(lambda: vbg.extract_triangle_mesh(weight_threshold=1e-6), args.repeat)
+    with open(os.path.join(args.workdir, "genscene_fused.txt")) as f:
+        threads, gs_verts, gs_tris, gs_seconds = f.read().split()
+    print("\nSame volume %s (%d blocks of 8^3 voxels, voxel %.4f m) copied into Open3D; best of %d" % (
+        args.tsdf, len(blocks), voxel_size, args.repeat))
+    print("%-48s %10s %10s %10s" % ("", "vertices", "triangles", "ms"))
+    print("%-48s %10d %10d %10.1f" % ("Open3D VoxelBlockGrid.extract_triangle_mesh", mesh.vertex.positions.shape[0],
+                                      mesh.triangle.indices.shape[0], o3d_seconds * 1e3))
+    print("%-48s %10s %10s %10.1f" % ("genscene ExtractMesh (%s threads)" % threads, gs_verts, gs_tris,
+                                      float(gs_seconds) * 1e3))
+    print("speedup: %.1fx" % (o3d_seconds / float(gs_seconds)))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--build", default="build", help="build folder with bench/ and apps/")
@@ -141,10 +192,13 @@ def main():
     if bool(args.tum) != bool(args.tsdf):
         parser.error("--tum and --tsdf go together")
     workdir = tempfile.mkdtemp(prefix="genscene-mc-compare-")
+    args.workdir = workdir
     try:
         dense_grids(args, workdir)
         if args.tum:
             fused_scene(args, workdir)
+        if args.tsdf:
+            same_volume(args)
     finally:
         shutil.rmtree(workdir, ignore_errors=True)
 
