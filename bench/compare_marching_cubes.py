@@ -119,31 +119,32 @@ def fused_scene(args, workdir):
         frames += 1
     o3d_seconds, mesh = best_time(volume.extract_triangle_mesh, args.repeat)
 
-    with open(os.path.join(workdir, "genscene_fused.txt")) as f:
-        threads, gs_verts, gs_tris, gs_seconds = f.read().split()
     print("\nFused scene %s (%d frames, voxel %.4f m, truncation %.4f m); best of %d" % (
         args.tum, frames, voxel_size, truncation, args.repeat))
-    print("%-48s %10s %10s %10s" % ("", "vertices", "triangles", "ms"))
-    print("%-48s %10d %10d %10.1f" % ("Open3D ScalableTSDFVolume.extract_triangle_mesh", len(mesh.vertices),
-                                      len(mesh.triangles), o3d_seconds * 1e3))
-    print("%-48s %10s %10s %10.1f" % ("genscene ExtractMesh (%s threads)" % threads, gs_verts, gs_tris,
-                                      float(gs_seconds) * 1e3))
-    print("speedup: %.1fx" % (o3d_seconds / float(gs_seconds)))
+    print_against_ours("Open3D ScalableTSDFVolume.extract_triangle_mesh", len(mesh.vertices), len(mesh.triangles),
+                       o3d_seconds, workdir)
     print(args.fused_text)
 
 
-def read_gsv(path):
+def print_against_ours(label, vertices, triangles, seconds, workdir):
+    """Open3D's row, ExtractMesh's (bench_marching_cubes --tsdf wrote it to genscene_fused.txt), the speedup."""
+    with open(os.path.join(workdir, "genscene_fused.txt")) as f:
+        threads, gs_verts, gs_tris, gs_seconds = f.read().split()
+    print("%-48s %10s %10s %10s" % ("", "vertices", "triangles", "ms"))
+    print("%-48s %10d %10d %10.1f" % (label, vertices, triangles, seconds * 1e3))
+    print("%-48s %10s %10s %10.1f" % ("genscene ExtractMesh (%s threads)" % threads, gs_verts, gs_tris,
+                                      float(gs_seconds) * 1e3))
+    print("speedup: %.1fx" % (seconds / float(gs_seconds)))
+
+
+def read_gsv_blocks(path):
+    """The blocks of a tsdf.gsv (header: read_gsv_header): i32 key[3], 512 voxels of 5 floats."""
     import numpy as np
     with open(path, "rb") as f:
         data = f.read()
-    if data[:8] != b"GSTSDF01":
-        sys.exit("%s: not a genscene TSDF volume" % path)
-    voxel_size, truncation, _max_weight = struct.unpack_from("<ddf", data, 8)
-    origin = struct.unpack_from("<ddd", data, 28)
     (count,) = struct.unpack_from("<Q", data, 52)
     block = np.dtype([("key", "<i4", 3), ("voxels", "<f4", (512, 5))])
-    blocks = np.frombuffer(data, dtype=block, count=count, offset=60)
-    return voxel_size, truncation, np.array(origin), blocks
+    return np.frombuffer(data, dtype=block, count=count, offset=60)
 
 
 def same_volume(args):
@@ -151,7 +152,8 @@ def same_volume(args):
     import open3d as o3d
     import open3d.core as o3c
 
-    voxel_size, truncation, origin, blocks = read_gsv(args.tsdf)
+    voxel_size, truncation = read_gsv_header(args.tsdf)
+    blocks = read_gsv_blocks(args.tsdf)
     device = o3c.Device("CPU:0")
     vbg = o3d.t.geometry.VoxelBlockGrid(
         attr_names=("tsdf", "weight"), attr_dtypes=(o3c.float32, o3c.float32), attr_channels=((1), (1)),
@@ -167,16 +169,10 @@ def same_volume(args):
     vbg.attribute("tsdf")[index] = o3c.Tensor(tsdf, device=device)
     vbg.attribute("weight")[index] = o3c.Tensor(weight, device=device)
     o3d_seconds, mesh = best_time(lambda: vbg.extract_triangle_mesh(weight_threshold=1e-6), args.repeat)
-    with open(os.path.join(args.workdir, "genscene_fused.txt")) as f:
-        threads, gs_verts, gs_tris, gs_seconds = f.read().split()
     print("\nSame volume %s (%d blocks of 8^3 voxels, voxel %.4f m) copied into Open3D; best of %d" % (
         args.tsdf, len(blocks), voxel_size, args.repeat))
-    print("%-48s %10s %10s %10s" % ("", "vertices", "triangles", "ms"))
-    print("%-48s %10d %10d %10.1f" % ("Open3D VoxelBlockGrid.extract_triangle_mesh", mesh.vertex.positions.shape[0],
-                                      mesh.triangle.indices.shape[0], o3d_seconds * 1e3))
-    print("%-48s %10s %10s %10.1f" % ("genscene ExtractMesh (%s threads)" % threads, gs_verts, gs_tris,
-                                      float(gs_seconds) * 1e3))
-    print("speedup: %.1fx" % (o3d_seconds / float(gs_seconds)))
+    print_against_ours("Open3D VoxelBlockGrid.extract_triangle_mesh", mesh.vertex.positions.shape[0],
+                       mesh.triangle.indices.shape[0], o3d_seconds, args.workdir)
 
 
 def main():

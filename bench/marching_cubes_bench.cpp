@@ -59,13 +59,12 @@ void WriteNpy(const std::filesystem::path& path, const TsdfVolume& volume, int n
   }
 }
 
-double BestSeconds(const TsdfVolume& volume, meshing::MeshingResult* result,
-                   const meshing::MeshingOptions& options = meshing::MeshingOptions()) {
-  *result = meshing::ExtractMesh(volume, options);  // warm-up
+double BestSeconds(const TsdfVolume& volume, meshing::MeshingResult* result) {
+  *result = meshing::ExtractMesh(volume, meshing::MeshingOptions());  // warm-up
   double best = 1e300;
   for (int run = 0; run < 3; ++run) {
     const auto start = std::chrono::steady_clock::now();
-    *result = meshing::ExtractMesh(volume, options);
+    *result = meshing::ExtractMesh(volume, meshing::MeshingOptions());
     best = std::min(
         best, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   }
