@@ -156,9 +156,13 @@ void CheckExrStructure(const fs::path& path) {
   ExrChannels channels;
   long long x_min = 0, y_min = 0, x_max = -1, y_max = -1;
   bool has_data_window = false;
+  // OpenEXR reads a name or type name of at most 31 characters (254 with the long-names flag) and
+  // goes on after that many bytes when no NUL came: a longer name would make it read the rest of
+  // the header from another position than this walk (a 1.6 GB attribute value, found by fuzz_exr).
+  const size_t max_name = (flags & 0x400u) ? 254 : 31;
   const auto read_string = [&] {
     const size_t end = bytes.find('\0', pos);
-    if (end == std::string::npos || end - pos > 255) fail();
+    if (end == std::string::npos || end - pos > max_name) fail();
     std::string text = bytes.substr(pos, end - pos);
     pos = end + 1;
     return text;
