@@ -110,15 +110,17 @@ void FusedScene(const std::filesystem::path& tsdf, const std::filesystem::path& 
   const TsdfVolume volume = ReadTsdfVolume(tsdf);
   std::printf("\nFused volume %s: %zu blocks, voxel %.4f m; best of 3 after a warm-up\n",
               tsdf.string().c_str(), volume.num_blocks(), volume.voxel_size());
-  std::printf("%8s %12s %10s %10s %10s %10s\n", "threads", "cells", "vertices", "triangles", "ms",
-              "Mcells/s");
+  std::printf("%8s %12s %10s %10s %10s %10s   phases ms: %s\n", "threads", "cells", "vertices",
+              "triangles", "ms", "Mcells/s", "classify scan vertices triangles");
   meshing::MeshingResult full;
   for (int threads : {1, 0}) {
     SetThreadCount(threads);
     const double seconds = BestSeconds(volume, &full);
     const meshing::MeshingStats& s = full.stats;
-    std::printf("%8d %12zu %10zu %10zu %10.1f %10.1f\n", ThreadCount(), s.cells, s.vertices,
-                s.triangles, seconds * 1e3, s.cells / seconds / 1e6);
+    std::printf("%8d %12zu %10zu %10zu %10.1f %10.1f   %.1f %.1f %.1f %.1f\n", ThreadCount(),
+                s.cells, s.vertices, s.triangles, seconds * 1e3, s.cells / seconds / 1e6,
+                s.seconds_classify * 1e3, s.seconds_scan * 1e3, s.seconds_vertices * 1e3,
+                s.seconds_triangles * 1e3);
     if (!dump.empty() && threads == 0) {
       std::ofstream(dump / "genscene_fused.txt")
           << ThreadCount() << " " << s.vertices << " " << s.triangles << " " << seconds << "\n";

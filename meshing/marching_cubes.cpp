@@ -3,6 +3,7 @@
 #include <array>
 #include <chrono>
 #include <climits>
+#include <memory>
 
 #include "core/check.h"
 #include "core/parallel.h"
@@ -75,6 +76,9 @@ class Neighbourhood {
     return int64_t{block} * kVoxels + TsdfBlock::Index(local.x(), local.y(), local.z());
   }
 
+  // Index of the neighbour of block b at offset (i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1), or -1.
+  int32_t Neighbour(size_t b, int i) const { return neighbours_[b][i]; }
+
   // The voxel at local coordinates v of block b when it exists and is observed.
   const TsdfVoxel* Observed(size_t b, const Eigen::Vector3i& v, float min_weight) const {
     const int64_t id = PointId(b, v);
@@ -92,39 +96,71 @@ Eigen::Vector3i LocalOf(int i) {
   return Eigen::Vector3i(i % kSide, (i / kSide) % kSide, i / (kSide * kSide));
 }
 
-// Cube index of the cell with lower corner v (local to block b); 0 when a corner is unobserved.
-uint8_t ClassifyCell(const Neighbourhood& hood, size_t b, const Eigen::Vector3i& v, float iso,
-                     float min_weight) {
-  float sdf[8];
-  for (int c = 0; c < 8; ++c) {
-    const TsdfVoxel* voxel = hood.Observed(b, v + CornerOffset(c), min_weight);
-    if (voxel == nullptr) return 0;
-    sdf[c] = voxel->sdf;
-  }
-  return CubeIndex(sdf, iso);
-}
+// The corners of a block's cells are its 8^3 voxels plus the far faces taken from its +x, +y and
+// +z neighbours: 9^3 lattice points, each reduced to two bits.
+constexpr int kPad = kSide + 1;
+constexpr int kPadPoints = kPad * kPad * kPad;
+constexpr uint8_t kObservedBit = 1, kInsideBit = 2;
 
-// Bit `axis` set when the point's edge along `axis` carries a vertex: its ends are observed and
-// on opposite sides, and one of the four cells around the edge has triangles.
-uint8_t EdgeMask(const Neighbourhood& hood, const std::vector<uint8_t>& cube, const CubeCase* cases,
-                 size_t b, const Eigen::Vector3i& v, float iso, float min_weight) {
-  const TsdfVoxel* p = hood.Observed(b, v, min_weight);
-  if (p == nullptr) return 0;
-  uint8_t mask = 0;
-  for (int axis = 0; axis < 3; ++axis) {
-    const TsdfVoxel* q = hood.Observed(b, v + Unit(axis), min_weight);
-    if (q == nullptr || (p->sdf < iso) == (q->sdf < iso)) continue;
-    const Eigen::Vector3i u = Unit((axis + 1) % 3), w = Unit((axis + 2) % 3);
-    for (const Eigen::Vector3i& cell :
-         {v, Eigen::Vector3i(v - u), Eigen::Vector3i(v - w), Eigen::Vector3i(v - u - w)}) {
-      const int64_t id = hood.PointId(b, cell);
-      if (id >= 0 && cases[cube[id]].num_triangles > 0) {
-        mask |= static_cast<uint8_t>(1u << axis);
-        break;
+// Cube indices of block b's 512 cells into `cube` (0 where a corner is unobserved). Returns false,
+// leaving `cube` untouched, when no cell of the block can have triangles: its observed corners all
+// lie on one side of the iso level (most blocks of a fused volume: the truncation band is wider
+// than the surface). One neighbour lookup per corner point, not per cell corner.
+bool ClassifyBlock(const Neighbourhood& hood, const TsdfVolume& volume, size_t b, float iso,
+                   float min_weight, uint8_t* cube) {
+  std::array<uint8_t, kPadPoints> state;
+  bool any_inside = false, any_outside = false;
+  for (int z = 0, p = 0; z < kPad; ++z) {
+    for (int y = 0; y < kPad; ++y) {
+      for (int x = 0; x < kPad; ++x, ++p) {
+        const int64_t id = hood.PointId(b, Eigen::Vector3i(x, y, z));
+        uint8_t bits = 0;
+        if (id >= 0) {
+          const TsdfVoxel& voxel = volume.block(id / kVoxels).voxels[id % kVoxels];
+          if (IsObserved(voxel, min_weight)) {
+            const bool inside = voxel.sdf < iso;
+            bits = kObservedBit | (inside ? kInsideBit : 0);
+            any_inside |= inside;
+            any_outside |= !inside;
+          }
+        }
+        state[p] = bits;
       }
     }
   }
-  return mask;
+  if (!any_inside || !any_outside) return false;
+  constexpr std::array<int, 8> kCorner = {0,          1,          kPad,           kPad + 1,
+                                          kPad * kPad, kPad * kPad + 1, kPad * kPad + kPad,
+                                          kPad * kPad + kPad + 1};
+  for (int i = 0; i < kVoxels; ++i) {
+    const int x = i % kSide, y = (i / kSide) % kSide, z = i / (kSide * kSide);
+    const int base = x + kPad * (y + kPad * z);
+    uint8_t observed = kObservedBit, index = 0;
+    for (int c = 0; c < 8; ++c) {
+      const uint8_t bits = state[base + kCorner[c]];
+      observed &= bits;
+      index |= static_cast<uint8_t>(((bits >> 1) & 1u) << c);
+    }
+    cube[i] = observed ? index : 0;
+  }
+  return true;
+}
+
+// Per cube index, bit e set when cell edge e is crossed: its two corners lie on opposite sides.
+// In a cell with triangles every crossed edge carries a vertex (the face rule of cube_cases.h
+// joins every crossed edge of a face), so these are the edges the cell's triangles use.
+const std::array<uint16_t, 256>& CrossedEdges() {
+  static const std::array<uint16_t, 256> table = [] {
+    std::array<uint16_t, 256> crossed{};
+    for (int index = 0; index < 256; ++index) {
+      for (int e = 0; e < 12; ++e) {
+        const int c0 = CornerIndex(EdgeStart(e)), c1 = c0 + (1 << EdgeAxis(e));
+        if (((index >> c0) & 1) != ((index >> c1) & 1)) crossed[index] |= static_cast<uint16_t>(1u << e);
+      }
+    }
+    return crossed;
+  }();
+  return table;
 }
 
 // Sdf gradient (per lattice unit) at lattice point v by central differences over observed
@@ -186,10 +222,10 @@ MeshingResult ExtractMesh(const TsdfVolume& volume, const MeshingOptions& option
   ParallelFor(
       0, num_blocks,
       [&](size_t b) {
+        uint8_t* block_cube = cube.data() + b * kVoxels;
+        if (!ClassifyBlock(hood, volume, b, iso, min_weight, block_cube)) return;  // stays 0
         for (int i = 0; i < kVoxels; ++i) {
-          const uint8_t index = ClassifyCell(hood, b, LocalOf(i), iso, min_weight);
-          cube[b * kVoxels + i] = index;
-          const int triangles = cases[index].num_triangles;
+          const int triangles = cases[block_cube[i]].num_triangles;
           block_cells[b] += triangles > 0;
           block_triangles[b] += triangles;
         }
@@ -221,20 +257,40 @@ MeshingResult ExtractMesh(const TsdfVolume& volume, const MeshingOptions& option
   stats.active_cells = num_active;
   stats.seconds_scan = SecondsSince(t0);
 
-  // Phase 3: active edges per lattice point, scanned into each point's first vertex.
+  // Phase 3: active edges per lattice point, scanned into each point's first vertex. Each active
+  // cell marks its crossed edges in the edge's lower end point, bit = axis. The marks are ORed
+  // atomically: OR commutes, so the masks do not depend on the order or the thread count. An edge
+  // gets a vertex exactly when it is crossed, its ends are observed and one of its four cells
+  // has triangles (such a cell has all eight corners observed).
   t0 = Clock::now();
   std::vector<uint8_t> edge_mask(num_blocks * kVoxels);
+  const std::array<uint16_t, 256>& crossed_edges = CrossedEdges();
+  ParallelFor(
+      0, num_active,
+      [&](size_t a) {
+        const int64_t cell = active_cell[a];
+        const size_t b = static_cast<size_t>(cell / kVoxels);
+        const Eigen::Vector3i v = LocalOf(static_cast<int>(cell % kVoxels));
+        const uint16_t crossed = crossed_edges[cube[cell]];
+        for (int e = 0; e < 12; ++e) {
+          if (!(crossed & (1u << e))) continue;
+          const int64_t point = hood.PointId(b, v + EdgeStart(e));
+          GS_CHECK_GE(point, 0);
+          __atomic_fetch_or(&edge_mask[point], static_cast<uint8_t>(1u << EdgeAxis(e)),
+                            __ATOMIC_RELAXED);
+        }
+      },
+      256);
   std::vector<uint32_t> block_vertices(num_blocks);
   ParallelFor(
       0, num_blocks,
       [&](size_t b) {
-        for (int i = 0; i < kVoxels; ++i) {
-          const uint8_t mask = EdgeMask(hood, cube, cases, b, LocalOf(i), iso, min_weight);
-          edge_mask[b * kVoxels + i] = mask;
-          block_vertices[b] += (mask & 1) + ((mask >> 1) & 1) + ((mask >> 2) & 1);
-        }
+        const uint8_t* mask = edge_mask.data() + b * kVoxels;
+        uint32_t count = 0;
+        for (int i = 0; i < kVoxels; ++i) count += __builtin_popcount(mask[i]);
+        block_vertices[b] = count;
       },
-      4);
+      64);
   std::vector<uint64_t> vertex_offset;
   const uint64_t num_vertices = ExclusiveScan(block_vertices, &vertex_offset);
   CheckIndexRange(num_vertices, "vertices");
@@ -244,10 +300,12 @@ MeshingResult ExtractMesh(const TsdfVolume& volume, const MeshingOptions& option
   mesh.vertices.resize(num_vertices);
   mesh.normals.resize(num_vertices);
   mesh.vertex_colors.resize(num_vertices);
-  std::vector<int32_t> first_vertex(num_blocks * kVoxels, -1);
+  // Read only where edge_mask has a bit set, which is where it is written: left uninitialised.
+  const std::unique_ptr<int32_t[]> first_vertex(new int32_t[num_blocks * kVoxels]);
   ParallelFor(
       0, num_blocks,
       [&](size_t b) {
+        if (block_vertices[b] == 0) return;
         auto next = static_cast<int32_t>(vertex_offset[b]);
         const Eigen::Vector3i block_origin = kSide * volume.block_key(b);
         for (int i = 0; i < kVoxels; ++i) {

@@ -5,13 +5,16 @@
 // Phases (each a ParallelFor over blocks or over a compacted list):
 //   1. classify: the cube index of every cell of every allocated block (a cell is owned by the
 //      block of its lower corner; its upper corners may lie in the +x/+y/+z neighbour blocks,
-//      found through the block hash);
+//      found through the block hash). Each block first gathers its 9^3 corner points once; a
+//      block whose observed points all lie on one side of the iso level (most of a fused
+//      volume's truncation band) has no triangles and is done;
 //   2. scan + compaction: triangle count per cell -> exclusive scan -> list of active cells with
 //      their first triangle;
 //   3. edges: each lattice point owns its +x, +y and +z edges; an edge gets a vertex when its ends
-//      are on opposite sides of the iso level and one of its four cells is active. Vertex count
-//      per point -> exclusive scan -> first vertex per point, so every vertex is created exactly
-//      once and shared by every triangle around it, across block boundaries too;
+//      are on opposite sides of the iso level and one of its four cells is active. Each active
+//      cell marks its crossed edges in their owning points (atomic OR: order-independent). Vertex
+//      count per point -> exclusive scan -> first vertex per point, so every vertex is created
+//      exactly once and shared by every triangle around it, across block boundaries too;
 //   4. vertices: position, normal, colour per active edge;
 //   5. triangles: per active cell, the case table's edges -> the owning point's vertex index.
 //
