@@ -18,10 +18,16 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 }
 
 // The lattice origin: the first camera position snapped to the block grid of the world, so that
-// volumes of the same scene line up, and voxel arithmetic stays near the cameras.
+// volumes of the same scene line up, and voxel arithmetic stays near the cameras; then shifted by
+// half a voxel, so that lattice points sit at voxel centres ((i + 1/2) voxel_size, as Open3D's
+// do), not on the round coordinates where walls and floors of modelled scenes lie. A surface
+// through lattice points leaves those voxels' sdf at noise level: their signs flip at random and
+// marching cubes makes a rough sheet with about twice the triangles (measured on the synthetic
+// room: 688,683 triangles, 1.70 mm RMS, against 378,426 and 1.48 mm for Open3D on the same frames).
 Eigen::Vector3d SnappedOrigin(const Eigen::Vector3d& position, double voxel_size) {
   const double block = kTsdfBlockSide * voxel_size;
-  return (position / block).array().round().matrix() * block;
+  return (position / block).array().round().matrix() * block +
+         Eigen::Vector3d::Constant(0.5 * voxel_size);
 }
 
 }  // namespace
