@@ -45,11 +45,14 @@ std::vector<Eigen::Vector3i> BlocksInTruncationBand(const TsdfVolume& volume, co
       if (d <= 0.0f) continue;
       const Eigen::Vector3f ray(static_cast<float>((u - k.cx) / k.fx),
                                 static_cast<float>((v - k.cy) / k.fy), 1.0f);
-      // Samples half a block apart along the ray over planar depths [d - trunc, d + trunc].
-      const float step = 0.5f * block_metres / ray.norm();
-      const int samples = static_cast<int>(std::ceil(2.0f * trunc / step)) + 1;
+      // Samples half a block apart along the ray over the band, a truncation either side of the
+      // surface along the ray: planar depths [d - trunc / lambda, d + trunc / lambda].
+      const float lambda = ray.norm();
+      const float band = trunc / lambda;
+      const float step = 0.5f * block_metres / lambda;
+      const int samples = static_cast<int>(std::ceil(2.0f * band / step)) + 1;
       for (int s = 0; s < samples; ++s) {
-        const float z = std::min(d + trunc, d - trunc + step * static_cast<float>(s));
+        const float z = std::min(d + band, d - band + step * static_cast<float>(s));
         if (z <= 0.0f) continue;
         const Eigen::Vector3f lattice = rotation * (ray * z) + centre;
         const Eigen::Vector3i key(FloorToInt(lattice.x() * inv_side), FloorToInt(lattice.y() * inv_side),
@@ -125,13 +128,16 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
           // Nearest pixel: footprints are [u - 0.5, u + 0.5); the range test comes before the
           // integer conversion (which truncates, equal to floor for non-negative values).
           const float inv_z = 1.0f / p.z();
-          const float uf = fx * p.x() * inv_z + cx + 0.5f, vf = fy * p.y() * inv_z + cy + 0.5f;
+          const float rx = p.x() * inv_z, ry = p.y() * inv_z;  // the voxel's ray, (rx, ry, 1)
+          const float uf = fx * rx + cx + 0.5f, vf = fy * ry + cy + 0.5f;
           if (!(uf >= 0.0f && vf >= 0.0f && uf < wf && vf < hf)) continue;
           const int u = static_cast<int>(uf), v = static_cast<int>(vf);
           const float d = depth(u, v);
           if (d <= 0.0f) continue;
           TsdfVoxel& voxel = block.voxels[TsdfBlock::Index(x, y, z)];
-          count += UpdateVoxel(voxel, d - p.z(), trunc, max_weight, with_color ? &color(u, v) : nullptr);
+          const float lambda = std::sqrt(1.0f + rx * rx + ry * ry);
+          count += UpdateVoxel(voxel, (d - p.z()) * lambda, trunc, max_weight,
+                               with_color ? &color(u, v) : nullptr);
         }
       }
     }

@@ -20,8 +20,12 @@ struct IntegrationStats {
 };
 
 // Kernel: the new (sdf, weight) of one voxel after one observation.
-//   eta = measured depth - the voxel's depth along the optical axis (planar z, so that the
-//   distance is measured along the viewing direction consistently over the image);
+//   eta = distance along the voxel's viewing ray from the voxel to the measured surface:
+//   (measured depth - the voxel's planar depth) * lambda, lambda = |(x/z, y/z, 1)| >= 1
+//   (KinectFusion's eta = |t - p| / lambda^-1 form). The planar difference alone shrinks the
+//   distance by lambda toward the image borders, widening the band there: on the synthetic room
+//   (1 cm voxels, exact depth) the mesh's RMS error was 1.59 mm with it, 1.47 mm with the ray
+//   distance (Open3D, which also measures along the ray: 1.48 mm);
 //   eta < -truncation: the voxel is hidden behind the surface, no update;
 //   otherwise sdf_obs = min(eta, truncation), and the running average
 //   sdf' = (w sdf + w_obs sdf_obs) / (w + w_obs), w' = min(w + w_obs, max_weight).
