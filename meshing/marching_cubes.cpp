@@ -76,9 +76,6 @@ class Neighbourhood {
     return int64_t{block} * kVoxels + TsdfBlock::Index(local.x(), local.y(), local.z());
   }
 
-  // Index of the neighbour of block b at offset (i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1), or -1.
-  int32_t Neighbour(size_t b, int i) const { return neighbours_[b][i]; }
-
   // The voxel at local coordinates v of block b when it exists and is observed.
   const TsdfVoxel* Observed(size_t b, const Eigen::Vector3i& v, float min_weight) const {
     const int64_t id = PointId(b, v);
@@ -97,10 +94,9 @@ Eigen::Vector3i LocalOf(int i) {
 }
 
 // The corners of a block's cells are its 8^3 voxels plus the far faces taken from its +x, +y and
-// +z neighbours: 9^3 lattice points, each reduced to two bits.
+// +z neighbours: 9^3 lattice points.
 constexpr int kPad = kSide + 1;
 constexpr int kPadPoints = kPad * kPad * kPad;
-constexpr uint8_t kObservedBit = 1, kInsideBit = 2;
 
 // Cube indices of block b's 512 cells into `cube` (0 where a corner is unobserved). Returns false,
 // leaving `cube` untouched, when no cell of the block can have triangles: its observed corners all
@@ -108,40 +104,40 @@ constexpr uint8_t kObservedBit = 1, kInsideBit = 2;
 // than the surface). One neighbour lookup per corner point, not per cell corner.
 bool ClassifyBlock(const Neighbourhood& hood, const TsdfVolume& volume, size_t b, float iso,
                    float min_weight, uint8_t* cube) {
-  std::array<uint8_t, kPadPoints> state;
+  std::array<float, kPadPoints> sdf;
+  std::array<bool, kPadPoints> observed;
   bool any_inside = false, any_outside = false;
   for (int z = 0, p = 0; z < kPad; ++z) {
     for (int y = 0; y < kPad; ++y) {
       for (int x = 0; x < kPad; ++x, ++p) {
         const int64_t id = hood.PointId(b, Eigen::Vector3i(x, y, z));
-        uint8_t bits = 0;
-        if (id >= 0) {
-          const TsdfVoxel& voxel = volume.block(id / kVoxels).voxels[id % kVoxels];
-          if (IsObserved(voxel, min_weight)) {
-            const bool inside = voxel.sdf < iso;
-            bits = kObservedBit | (inside ? kInsideBit : 0);
-            any_inside |= inside;
-            any_outside |= !inside;
-          }
-        }
-        state[p] = bits;
+        const TsdfVoxel* voxel =
+            id >= 0 ? &volume.block(id / kVoxels).voxels[id % kVoxels] : nullptr;
+        observed[p] = voxel != nullptr && IsObserved(*voxel, min_weight);
+        if (!observed[p]) continue;
+        sdf[p] = voxel->sdf;
+        any_inside |= sdf[p] < iso;
+        any_outside |= !(sdf[p] < iso);
       }
     }
   }
   if (!any_inside || !any_outside) return false;
-  constexpr std::array<int, 8> kCorner = {0,          1,          kPad,           kPad + 1,
-                                          kPad * kPad, kPad * kPad + 1, kPad * kPad + kPad,
-                                          kPad * kPad + kPad + 1};
+  std::array<int, 8> corner_offset;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3i o = CornerOffset(c);
+    corner_offset[c] = o.x() + kPad * (o.y() + kPad * o.z());
+  }
   for (int i = 0; i < kVoxels; ++i) {
     const int x = i % kSide, y = (i / kSide) % kSide, z = i / (kSide * kSide);
     const int base = x + kPad * (y + kPad * z);
-    uint8_t observed = kObservedBit, index = 0;
-    for (int c = 0; c < 8; ++c) {
-      const uint8_t bits = state[base + kCorner[c]];
-      observed &= bits;
-      index |= static_cast<uint8_t>(((bits >> 1) & 1u) << c);
+    float corners[8];
+    bool all_observed = true;
+    for (int c = 0; c < 8 && all_observed; ++c) {
+      const int point = base + corner_offset[c];
+      all_observed = observed[point];
+      if (all_observed) corners[c] = sdf[point];
     }
-    cube[i] = observed ? index : 0;
+    cube[i] = all_observed ? CubeIndex(corners, iso) : 0;
   }
   return true;
 }
