@@ -69,7 +69,7 @@ Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
   r.scene = MakeCornellBoxScene();
   if (std::getenv("VOXEL_TRUTH")) {  // diagnostic: the truth is a voxel light the grid can represent
     Scene s = WithoutLights(r.scene);
-    VoxelLightGrid g = MakeVoxelGrid(s, 7);
+    VoxelLightGrid g = MakeVoxelGrid(s, 7);  // the estimate's grid (default inset)
     g.intensity[3 + 7 * 3 + 49 * 6] = Eigen::Vector3f(3.0f, 2.5f, 1.8f);
     g.weights[3 + 7 * 3 + 49 * 6] = {0.1f, 0.1f, 0.1f, 0.1f, 0.0f, 1.0f};
     s.voxel_lights = g;
@@ -161,8 +161,8 @@ void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, i
 
 int main(int argc, char** argv) {
   fs::path out = "bench_out";
-  int width = 160, height = 120, ref_spp = 1024, spp = 4, eval_spp = 256;
-  double gamma = 0.0;
+  int width = 160, height = 120, ref_spp = 1024, spp = LightEstimationOptions().spp, eval_spp = 256;
+  double gamma = LightEstimationOptions().noise_correction;
   std::vector<double> weights = {0.0, 1e-4, 1e-3, 1e-2};
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--out")) out = argv[i + 1];
@@ -243,6 +243,7 @@ int main(int argc, char** argv) {
     if (std::getenv("ROUNDS")) o.rounds = std::atoi(std::getenv("ROUNDS"));
     if (std::getenv("DIRECT")) o.direct_paths = std::atoi(std::getenv("DIRECT"));
     if (std::getenv("MVOX")) o.resample_voxels = std::atoi(std::getenv("MVOX"));
+    if (std::getenv("SPLIT")) o.split_depth = std::atoi(std::getenv("SPLIT"));
     t = Now();
     const LightEstimate e = EstimateLights(replica.scene, replica.train, o, 7);
     const double seconds = Now() - t;

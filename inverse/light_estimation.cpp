@@ -78,6 +78,8 @@ void LightEstimationOptions::Validate() const {
   RequireRange("direct_paths", direct_paths, 1, 1 << 16);  // at most all of a half's paths
   if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
   RequireRange("rr_depth", rr_depth, 1, 1 << 20);
+  RequireRange("split_depth", split_depth, 1, 1 << 20);
+  RequireRange("boundary_inset", boundary_inset, 0.0, 0.5);
   RequireRange("penalty_weight", penalty_weight, 0.0, 1e6);
   RequireRange("penalty_epsilon", penalty_epsilon, 1e-9, 1e6);
   RequireRange("rounds", rounds, 1, 100);
@@ -114,7 +116,8 @@ Scene WithoutLights(const Scene& scene) {
   return out;
 }
 
-VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims) {
+VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset) {
+  GS_CHECK(boundary_inset >= 0.0 && boundary_inset <= 0.5);
   VoxelLightGrid g;
   for (const SceneMesh& m : scene.meshes) {
     if (m.IsEmitter()) continue;
@@ -125,6 +128,15 @@ VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims) {
     const double size = std::max(1e-3, g.bounds.isEmpty() ? 1.0 : g.bounds.sizes().maxCoeff());
     g.bounds.extend(g.bounds.min() - Eigen::Vector3d::Constant(0.5 * size));
     g.bounds.extend(g.bounds.max() + Eigen::Vector3d::Constant(0.5 * size));
+  }
+  if (dims > 1) {
+    // The outer layer of voxel centres lies `boundary_inset` voxels inside the bounding box
+    // (a voxel centre grid would hold it half a voxel inside): lights sit on ceilings and walls.
+    // The voxels are then (size / (dims - 1 + 2 inset)) wide and the box grows by
+    // (1/2 - inset) of one on every side.
+    const Eigen::Vector3d voxel = g.bounds.sizes() / (dims - 1 + 2.0 * boundary_inset);
+    const Eigen::Vector3d grow = voxel * (0.5 - boundary_inset);
+    g.bounds = Eigen::AlignedBox3d(g.bounds.min() - grow, g.bounds.max() + grow);
   }
   g.dims = Eigen::Vector3i::Constant(dims);
   g.intensity.assign(static_cast<size_t>(g.VoxelCount()), Eigen::Vector3f::Zero());
@@ -880,7 +892,7 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   LightEstimate out;
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, options, seed, &out.masks);
   out.pixels = pixels.size();
-  out.lights = MakeVoxelGrid(tracer.scene(), options.grid);
+  out.lights = MakeVoxelGrid(tracer.scene(), options.grid, options.boundary_inset);
   VoxelLightGrid& grid = out.lights;
   // The dense normal equations are known before any path is traced: refuse them up front.
   const double cap_bytes = options.memory_cap * 1e6;
@@ -900,7 +912,7 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     // The first vertex connects to every voxel; deeper ones draw voxels, uniformly in round 0,
     // then in proportion to the estimated powers mixed with the uniform distribution.
     VoxelSplitting splitting;
-    splitting.all_until_depth = 1;
+    splitting.all_until_depth = options.split_depth;
     std::vector<double> pmf(static_cast<size_t>(grid.VoxelCount()), 1.0);
     if (round > 0) {
       double total_power = 0.0;

@@ -43,6 +43,8 @@ struct LightEstimationOptions {
   static constexpr const char* kSection = "lights";
 
   int grid = 7;                     // voxels per axis over the scene's bounding box
+  double boundary_inset = 0.1;      // the outer voxel centres lie this many voxels inside the
+                                    // bounding box (0.5: cells that tile it; see MakeVoxelGrid)
   int pixels_per_view = 3000;       // sampled pixels per training view
   int spp = 16;                     // camera paths per sampled pixel (box filter over the pixel);
                                     // even: two independent halves give the normal equations
@@ -50,6 +52,10 @@ struct LightEstimationOptions {
                                     // every voxel (direct light); deeper vertices draw voxels
   int max_depth = -1;               // longest path, Mitsuba convention (-1: Russian roulette ends it)
   int rr_depth = 5;                 // Russian roulette from this depth
+  int split_depth = 1 << 20;        // path vertices up to this depth connect to every voxel
+                                    // (default: all; the coefficients' noise is shared by the
+                                    // voxels instead of drawn per voxel); deeper ones draw
+                                    // resample_voxels voxels
   double penalty_weight = 1e-3;     // w of the activation penalty
   double penalty_epsilon = 0.01;    // eps relative to s_ref
   int rounds = 3;                   // tracing rounds at most (1 = no resampling); the normal
@@ -67,8 +73,9 @@ struct LightEstimationOptions {
   double saturation = 0.0;          // observed values >= this are masked (0: no saturation)
   double emitter_factor = 8.0;      // pixels brighter than this x the view's 95th percentile
                                     // luminance are taken for emitters seen directly (masked)
-  double noise_correction = 0.0;    // gamma of NormalEquations::FromCaches, in [0, 1]; > 0 can
-                                    // make G indefinite and the solve diverge (experimental)
+  double noise_correction = 0.5;    // gamma of NormalEquations::FromCaches, in [0, 1]: the share
+                                    // of the coefficients' noise taken out of G; near 1 G can be
+                                    // indefinite and the solve diverge
   double active_fraction = 1e-3;    // voxels with at least this share of the largest power are
                                     // "active" in reports
   double memory_cap = 4000.0;       // MB the path-coefficient caches and the normal equations
@@ -78,11 +85,13 @@ struct LightEstimationOptions {
   template <typename V>
   void Visit(V&& v) {
     v("grid", grid, "voxels", "voxels per axis over the scene's bounding box");
+    v("boundary_inset", boundary_inset, "voxels", "outer voxel centres this far inside the bounding box (0.5: cells tile it)");
     v("pixels_per_view", pixels_per_view, "", "random valid pixels sampled per training view");
     v("spp", spp, "", "camera paths per sampled pixel (even: two independent halves)");
     v("direct_paths", direct_paths, "", "paths per half whose first vertex connects to every voxel");
     v("max_depth", max_depth, "segments", "longest path (-1: Russian roulette ends it)");
     v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
+    v("split_depth", split_depth, "vertices", "path vertices up to this depth connect to every voxel (deeper: drawn)");
     v("penalty_weight", penalty_weight, "", "weight of the log activation penalty (0: none)");
     v("penalty_epsilon", penalty_epsilon, "", "activation scale, relative to the best uniform lighting");
     v("rounds", rounds, "", "tracing rounds at most (later rounds resample voxels by power)");
@@ -121,8 +130,11 @@ std::vector<SampledPixel> SamplePixels(const PathTracer& tracer, const std::vect
                                        const LightEstimationOptions& options, uint64_t seed,
                                        std::vector<PixelMaskCounts>* counts = nullptr);
 
-// The grid over the scene's bounding box (non-emitting meshes), dims^3 voxels, all dark.
-VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims);
+// The grid over the scene's bounding box (non-emitting meshes), dims^3 voxels, all dark. The
+// outer layer of voxel centres lies `boundary_inset` voxel sizes inside the box (the default is
+// the option lights.boundary_inset's; 0.5: the box split into dims^3 cells; smaller: the grid
+// grows so that lights can sit near the walls and the ceiling, where real lights are).
+VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset = 0.1);
 
 // Per sampled pixel, the coefficients of the parameters p = 6 j + k (sorted, RGB), compressed.
 struct LightCache {

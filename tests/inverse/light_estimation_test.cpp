@@ -14,10 +14,13 @@
 namespace genscene::inverse {
 namespace {
 
-// The Cornell box without its light, and a voxel grid over it with a few lit voxels.
+// The Cornell box without its light, and a voxel grid over it with a few lit voxels. The grid's
+// cells tile the box (boundary inset 0.5: centres at 0, +-2/3 in x and y, 1/3, 1, 5/3 in z), so
+// the lights stay clear of the walls; the estimates below use the same grid (kSmallInset).
+constexpr double kSmallInset = 0.5;
 struct SmallScene {
   Scene geometry = WithoutLights(MakeCornellBoxScene());
-  VoxelLightGrid grid = MakeVoxelGrid(geometry, 3);
+  VoxelLightGrid grid = MakeVoxelGrid(geometry, 3, kSmallInset);
   SmallScene() {
     grid.intensity[22] = Eigen::Vector3f(2.0f, 1.5f, 1.0f);  // top layer, centre: (0, 0, 1.67)
     grid.weights[22] = {0.2f, 0.2f, 0.2f, 0.2f, 0.0f, 1.0f};
@@ -74,6 +77,26 @@ TEST(LightCache, PredictionEqualsAFreshRenderWithTheSameSamples) {
 
 // The cache's estimator (splitting over voxels) and the path tracer's (one light sample per
 // vertex) are different Monte Carlo estimators of the same pixel: their means agree.
+// The outer voxel centres lie `inset` voxels inside the scene's box (lights on the walls and the
+// ceiling with a small inset; cells that tile the box with 0.5), the voxels evenly spaced.
+TEST(MakeVoxelGrid, OuterCentresLieTheInsetInsideTheBox) {
+  const Scene geometry = WithoutLights(MakeCornellBoxScene());  // walls at x, y = +-1, z = 0 and 2
+  for (double inset : {0.5, 0.1, 0.0}) {
+    const VoxelLightGrid g = MakeVoxelGrid(geometry, 7, inset);
+    const double voxel = 2.0 / (6.0 + 2.0 * inset);
+    for (int axis = 0; axis < 3; ++axis) {
+      EXPECT_NEAR(g.bounds.sizes()[axis] / g.dims[axis], voxel, 1e-6) << "inset " << inset;
+    }
+    const Eigen::Vector3d first = g.VoxelCenter(0), last = g.VoxelCenter(g.VoxelCount() - 1);
+    EXPECT_LT((first - Eigen::Vector3d(-1.0, -1.0, 0.0) - Eigen::Vector3d::Constant(inset * voxel)).norm(), 1e-5)
+        << "inset " << inset << ": first centre " << first.transpose();
+    EXPECT_LT((last - Eigen::Vector3d(1.0, 1.0, 2.0) + Eigen::Vector3d::Constant(inset * voxel)).norm(), 1e-5)
+        << "inset " << inset << ": last centre " << last.transpose();
+  }
+  // One voxel: its centre is the box's.
+  EXPECT_LT((MakeVoxelGrid(geometry, 1, 0.1).VoxelCenter(0) - Eigen::Vector3d(0.0, 0.0, 1.0)).norm(), 1e-6);
+}
+
 TEST(LightCache, AgreesWithThePathTracerOnAverage) {
   SmallScene s;
   const Scene lit = s.Lit();
@@ -226,6 +249,7 @@ TEST(EstimateLights, RecoversAVoxelLight) {
   const std::vector<TrainingView> views = Render(lit, {all[0], all[1], all[2]}, 64);
   LightEstimationOptions o;
   o.grid = 3;
+  o.boundary_inset = kSmallInset;
   o.pixels_per_view = 300;
   o.rounds = 2;
   const LightEstimate e = EstimateLights(lit, views, o, 1);
@@ -287,6 +311,7 @@ TEST(EstimateLights, PenaltyZeroAndHugeStayFinite) {
   const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
   LightEstimationOptions o;
   o.grid = 3;
+  o.boundary_inset = kSmallInset;
   o.pixels_per_view = 150;
   o.rounds = 1;
   o.spp = 4;
@@ -324,6 +349,7 @@ TEST(EstimateLights, UnreachableVoxelStaysDark) {
   const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
   LightEstimationOptions o;
   o.grid = 3;
+  o.boundary_inset = kSmallInset;
   o.pixels_per_view = 150;
   o.rounds = 1;
   o.spp = 4;
@@ -346,6 +372,7 @@ TEST(EstimateLights, FindsALightSeenOnlyThroughBounces) {
   const std::vector<TrainingView> views = Render(lit, floor_views, 64);
   LightEstimationOptions o;
   o.grid = 3;
+  o.boundary_inset = kSmallInset;
   o.pixels_per_view = 300;
   o.rounds = 2;
   const LightEstimate e = EstimateLights(lit, views, o, 2);
@@ -367,6 +394,7 @@ TEST(EstimateLights, AlbedoFixesTheScaleGauge) {
   const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0], CornellLightViews(16, 12)[1]}, 32, 2);
   LightEstimationOptions o;
   o.grid = 3;
+  o.boundary_inset = kSmallInset;
   o.pixels_per_view = 150;
   o.rounds = 1;
   o.max_depth = 2;
@@ -481,6 +509,7 @@ TEST(EstimateLights, MemoryCapIsAClearError) {
   // grid 3: 162 parameters, 1.3 MB of equations; the cache of 900 pixels with up to 162 entries
   // of 16 bytes each needs up to 2.3 MB per trace.
   o.grid = 3;
+  o.boundary_inset = kSmallInset;
   const PathTracer tracer(s.geometry);
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 1);
   const LightCache full = TraceLightCache(tracer, MakeVoxelGrid(s.geometry, 3), VoxelSplitting{}, views, pixels, o, 1);
