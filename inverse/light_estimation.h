@@ -24,6 +24,8 @@
 //  5. EstimateLights runs rounds: trace, solve, then re-trace with voxel sampling proportional to
 //     the estimated powers (the paper's remedy for starting without the right sampling
 //     distribution), accumulating the normal equations, until the voxel powers stop changing.
+//     Drawn voxels are used only beyond split_depth; with the default (every vertex connects to
+//     every voxel) a later round adds fresh paths, not a better sampling distribution.
 #pragma once
 
 #include <Eigen/Core>
@@ -131,10 +133,11 @@ std::vector<SampledPixel> SamplePixels(const PathTracer& tracer, const std::vect
                                        std::vector<PixelMaskCounts>* counts = nullptr);
 
 // The grid over the scene's bounding box (non-emitting meshes), dims^3 voxels, all dark. The
-// outer layer of voxel centres lies `boundary_inset` voxel sizes inside the box (the default is
-// the option lights.boundary_inset's; 0.5: the box split into dims^3 cells; smaller: the grid
-// grows so that lights can sit near the walls and the ceiling, where real lights are).
-VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset = 0.1);
+// outer layer of voxel centres lies `boundary_inset` voxel sizes inside the box (default: the
+// option's; 0.5: the box split into dims^3 cells; smaller: the grid grows so that lights can sit
+// near the walls and the ceiling, where real lights are).
+VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims,
+                             double boundary_inset = LightEstimationOptions().boundary_inset);
 
 // Per sampled pixel, the coefficients of the parameters p = 6 j + k (sorted, RGB), compressed.
 struct LightCache {

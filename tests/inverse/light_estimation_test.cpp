@@ -75,8 +75,6 @@ TEST(LightCache, PredictionEqualsAFreshRenderWithTheSameSamples) {
   }
 }
 
-// The cache's estimator (splitting over voxels) and the path tracer's (one light sample per
-// vertex) are different Monte Carlo estimators of the same pixel: their means agree.
 // The outer voxel centres lie `inset` voxels inside the scene's box (lights on the walls and the
 // ceiling with a small inset; cells that tile the box with 0.5), the voxels evenly spaced.
 TEST(MakeVoxelGrid, OuterCentresLieTheInsetInsideTheBox) {
@@ -97,6 +95,8 @@ TEST(MakeVoxelGrid, OuterCentresLieTheInsetInsideTheBox) {
   EXPECT_LT((MakeVoxelGrid(geometry, 1, 0.1).VoxelCenter(0) - Eigen::Vector3d(0.0, 0.0, 1.0)).norm(), 1e-6);
 }
 
+// The cache's estimator (splitting over voxels) and the path tracer's (one light sample per
+// vertex) are different Monte Carlo estimators of the same pixel: their means agree.
 TEST(LightCache, AgreesWithThePathTracerOnAverage) {
   SmallScene s;
   const Scene lit = s.Lit();
@@ -512,7 +512,7 @@ TEST(EstimateLights, MemoryCapIsAClearError) {
   o.boundary_inset = kSmallInset;
   const PathTracer tracer(s.geometry);
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 1);
-  const LightCache full = TraceLightCache(tracer, MakeVoxelGrid(s.geometry, 3), VoxelSplitting{}, views, pixels, o, 1);
+  const LightCache full = TraceLightCache(tracer, MakeVoxelGrid(s.geometry, 3, kSmallInset), VoxelSplitting{}, views, pixels, o, 1);
   ASSERT_GT(full.NonZeros(), 10000u);
   o.memory_cap = 1.0 + 0.5 * static_cast<double>(full.Bytes()) / 1e6;  // equations fit, caches do not
   try {
