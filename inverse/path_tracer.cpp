@@ -281,6 +281,17 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
   Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
   const auto allowed = [&](int segments) { return options.max_depth < 0 || segments <= options.max_depth; };
   const int voxels = grid.VoxelCount();
+  std::vector<Eigen::Vector3f> centres(static_cast<size_t>(voxels));
+  for (int j = 0; j < voxels; ++j) centres[j] = grid.VoxelCenter(j).cast<float>();
+  struct Candidate {
+    int voxel;
+    float weight, cos_over_d2, t_max;
+    Eigen::Vector3f wi;
+  };
+  std::vector<Candidate> candidates;
+  std::vector<Eigen::Vector3f> directions;
+  std::vector<float> t_max;
+  std::vector<uint8_t> blocked;
 
   for (int depth = 1;; ++depth) {
     ++local.intersect;
@@ -294,38 +305,55 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
     const Eigen::Vector3f origin_offset = at.p + OffsetScale(at.p) * at.ng;
     const Eigen::Vector3f f_beta = beta.cwiseProduct(albedo) / static_cast<float>(M_PI);
 
-    // One shadow ray to voxel j; as SampleLight + next-event estimation in Radiance().
-    const auto connect = [&](int j, float weight) {
-      const Eigen::Vector3f to_light = grid.VoxelCenter(j).cast<float>() - at.p;
+    // Shadow rays to the chosen voxels (as SampleLight + next-event estimation in Radiance()):
+    // gathered first, traced as one stream from this vertex, then emitted in the gathered order.
+    candidates.clear();
+    const auto consider = [&](int j, float weight) {
+      const Eigen::Vector3f to_light = centres[j] - at.p;
       const float d2 = to_light.squaredNorm();
       if (d2 <= 0.0f) return;
       const float distance = std::sqrt(d2);
       const Eigen::Vector3f wi = to_light / distance;
       const float cos_s = at.ns.dot(wi);
       if (cos_s <= 0.0f || at.ng.dot(wi) <= 0.0f) return;
-      ++local.occluded;
-      if (tracer_->Occluded(origin_offset, wi, 0.0f, distance * (1.0f - 1e-4f))) return;
-      // I(w) = L sum_k lambda_k max(0, w . d_k) with w = -wi, from the voxel to the surface.
-      const Eigen::Vector3f base = f_beta * (cos_s / d2 * weight);
-      std::array<Eigen::Vector3f, 6> c;
-      const float w[3] = {-wi.x(), -wi.y(), -wi.z()};
-      for (int axis = 0; axis < 3; ++axis) {
-        c[2 * axis] = base * std::max(0.0f, w[axis]);
-        c[2 * axis + 1] = base * std::max(0.0f, -w[axis]);
-      }
-      sink(j, c);
+      candidates.push_back({j, weight, cos_s / d2, distance * (1.0f - 1e-4f), wi});
     };
     if (depth == 1 && first_vertex_weight <= 0.0f) {
       // direct light estimated by other paths
     } else if (depth <= splitting.all_until_depth || splitting.samples <= 0) {
       const float weight = depth == 1 ? first_vertex_weight : 1.0f;
       for (int j = 0; j < voxels; ++j) {
-        if (splitting.enabled.empty() || splitting.enabled[j]) connect(j, weight);
+        if (splitting.enabled.empty() || splitting.enabled[j]) consider(j, weight);
       }
     } else {
       for (int s = 0; s < splitting.samples; ++s) {
         const int j = splitting.Choose(rng.UniformDouble());
-        connect(j, static_cast<float>(1.0 / (splitting.samples * splitting.pmf[j])));
+        consider(j, static_cast<float>(1.0 / (splitting.samples * splitting.pmf[j])));
+      }
+    }
+    const int n = static_cast<int>(candidates.size());
+    if (n > 0) {
+      directions.resize(candidates.size());
+      t_max.resize(candidates.size());
+      blocked.resize(candidates.size());
+      for (int i = 0; i < n; ++i) {
+        directions[i] = candidates[i].wi;
+        t_max[i] = candidates[i].t_max;
+      }
+      local.occluded += n;
+      tracer_->OccludedFrom(origin_offset, directions.data(), t_max.data(), n, 0.0f, blocked.data());
+      for (int i = 0; i < n; ++i) {
+        if (blocked[i]) continue;
+        const Candidate& c = candidates[i];
+        // I(w) = L sum_k lambda_k max(0, w . d_k) with w = -wi, from the voxel to the surface.
+        const Eigen::Vector3f base = f_beta * (c.cos_over_d2 * c.weight);
+        std::array<Eigen::Vector3f, 6> coefficients;
+        const float w[3] = {-c.wi.x(), -c.wi.y(), -c.wi.z()};
+        for (int axis = 0; axis < 3; ++axis) {
+          coefficients[2 * axis] = base * std::max(0.0f, w[axis]);
+          coefficients[2 * axis + 1] = base * std::max(0.0f, -w[axis]);
+        }
+        sink(c.voxel, coefficients);
       }
     }
 

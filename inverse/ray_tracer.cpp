@@ -2,6 +2,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <mutex>
@@ -162,6 +163,41 @@ bool RayTracer::Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& d
   FillRay(ray, origin, direction, t_min, t_max);
   rtcOccluded1(impl_->scene, &context, &ray);
   return ray.tfar == -INFINITY;
+}
+
+void RayTracer::OccludedFrom(const Eigen::Vector3f& origin, const Eigen::Vector3f* directions, const float* t_max,
+                             int n, float t_min, uint8_t* occluded) const {
+  GS_CHECK(impl_->committed);
+  RTCRay16 packet;
+  alignas(64) int valid[16];
+  for (int begin = 0; begin < n; begin += 16) {
+    const int count = std::min(16, n - begin);
+    bool any = false;
+    for (int r = 0; r < 16; ++r) {
+      const int i = begin + r;
+      valid[r] = r < count && t_max[i] > t_min ? -1 : 0;
+      any = any || valid[r] != 0;
+      const Eigen::Vector3f d = r < count ? directions[i] : Eigen::Vector3f::UnitZ();
+      packet.org_x[r] = origin.x();
+      packet.org_y[r] = origin.y();
+      packet.org_z[r] = origin.z();
+      packet.dir_x[r] = d.x();
+      packet.dir_y[r] = d.y();
+      packet.dir_z[r] = d.z();
+      packet.tnear[r] = t_min;
+      packet.tfar[r] = r < count ? t_max[i] : t_min;
+      packet.time[r] = 0.0f;
+      packet.mask[r] = 0xFFFFFFFFu;
+      packet.id[r] = 0;
+      packet.flags[r] = 0;
+    }
+    if (any) {
+      RTCIntersectContext context;
+      rtcInitIntersectContext(&context);
+      rtcOccluded16(valid, impl_->scene, &context, &packet);
+    }
+    for (int r = 0; r < count; ++r) occluded[begin + r] = valid[r] != 0 && packet.tfar[r] == -INFINITY ? 1 : 0;
+  }
 }
 
 int RayTracer::MeshCount() const { return static_cast<int>(impl_->geometries.size()); }

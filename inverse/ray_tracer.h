@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <cmath>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -41,6 +42,11 @@ class RayTracer {
   // True when anything blocks the segment t in [t_min, t_max].
   bool Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_min,
                 float t_max) const;
+  // Occlusion of n segments from one origin, as Occluded(origin, directions[i], t_min, t_max[i])
+  // for each i, into occluded[i] (1 when blocked). Traced as one ray stream (Embree's
+  // rtcOccluded1M, marked coherent): the shadow rays of one path vertex to many voxel lights.
+  void OccludedFrom(const Eigen::Vector3f& origin, const Eigen::Vector3f* directions, const float* t_max, int n,
+                    float t_min, uint8_t* occluded) const;
 
   int MeshCount() const;
 

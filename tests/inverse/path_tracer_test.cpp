@@ -9,7 +9,9 @@
 #include <cstdio>
 
 #include "core/parallel.h"
+#include "core/rng.h"
 #include "core/synthetic.h"
+#include "inverse/ray_tracer.h"
 
 namespace genscene::inverse {
 namespace {
@@ -262,6 +264,38 @@ TEST(PathTracer, SameSeedSameImageWithOneAndTwoThreads) {
   EXPECT_EQ(one.radiance.pixels(), two.radiance.pixels());
   EXPECT_EQ(one.depth.pixels(), two.depth.pixels());
   EXPECT_NE(one.radiance.pixels(), other_seed.radiance.pixels());
+}
+
+// The stream of shadow rays from one vertex (the voxel-light splitting) gives each ray's single-ray
+// answer: 64 origins inside the Cornell room (box and sphere occlude), 343 segments each towards
+// points all over the room, with empty segments (t_max <= t_min) and streams longer than one chunk.
+TEST(RayTracer, StreamOcclusionMatchesSingleRays) {
+  RayTracer tracer;
+  tracer.AddMesh(MakeCornellScene().ToMesh());
+  tracer.Commit();
+  CounterRng rng(7, 1);
+  int blocked = 0, open = 0;
+  for (int o = 0; o < 64; ++o) {
+    const Eigen::Vector3f origin(1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() + 0.05f);
+    std::vector<Eigen::Vector3f> directions(343);
+    std::vector<float> t_max(343);
+    for (size_t i = 0; i < directions.size(); ++i) {
+      const Eigen::Vector3f target(1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() + 0.05f);
+      directions[i] = (target - origin).normalized();
+      t_max[i] = i % 50 == 0 ? 0.0f : (target - origin).norm();
+    }
+    std::vector<uint8_t> occluded(directions.size(), 7);
+    tracer.OccludedFrom(origin, directions.data(), t_max.data(), static_cast<int>(directions.size()), 0.0f,
+                        occluded.data());
+    for (size_t i = 0; i < directions.size(); ++i) {
+      const bool single = tracer.Occluded(origin, directions[i], 0.0f, t_max[i]);
+      ASSERT_EQ(occluded[i], single ? 1 : 0) << "origin " << o << " ray " << i;
+      (single ? blocked : open) += 1;
+    }
+  }
+  // Both answers occur often, so the comparison tests something.
+  EXPECT_GT(blocked, 1000);
+  EXPECT_GT(open, 1000);
 }
 
 TEST(PathTracer, BadScenesAreRejected) {
