@@ -160,6 +160,8 @@ void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, i
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Line-buffered even into a file or pipe: a sweep runs for minutes and reports each round.
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
   fs::path out = "bench_out";
   int width = 160, height = 120, ref_spp = 1024, spp = LightEstimationOptions().spp, eval_spp = 256;
   double gamma = LightEstimationOptions().noise_correction;
