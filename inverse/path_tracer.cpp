@@ -306,7 +306,7 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
     const Eigen::Vector3f f_beta = beta.cwiseProduct(albedo) / static_cast<float>(M_PI);
 
     // Shadow rays to the chosen voxels (as SampleLight + next-event estimation in Radiance()):
-    // gathered first, traced as one stream from this vertex, then emitted in the gathered order.
+    // gathered first, traced together in packets from this vertex, then emitted in the gathered order.
     candidates.clear();
     const auto consider = [&](int j, float weight) {
       const Eigen::Vector3f to_light = centres[j] - at.p;

@@ -43,8 +43,9 @@ class RayTracer {
   bool Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_min,
                 float t_max) const;
   // Occlusion of n segments from one origin, as Occluded(origin, directions[i], t_min, t_max[i])
-  // for each i, into occluded[i] (1 when blocked). Traced as one ray stream (Embree's
-  // rtcOccluded1M, marked coherent): the shadow rays of one path vertex to many voxel lights.
+  // for each i, into occluded[i] (1 when blocked). Traced in packets of 16 (rtcOccluded16): the
+  // shadow rays of one path vertex to many voxel lights, 1.3x faster than one by one (Embree's
+  // stream API, rtcOccluded1M, was no faster than single rays).
   void OccludedFrom(const Eigen::Vector3f& origin, const Eigen::Vector3f* directions, const float* t_max, int n,
                     float t_min, uint8_t* occluded) const;
 
