@@ -141,14 +141,7 @@ void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, i
       const ViewError ve = CompareRender(lit_tracer, v, o, eval_spp, 5, 0.0028);
       nv += ve.rmse / novel.size(), nv_b += ve.rmse_bias / novel.size();
     }
-    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-    double total = 0.0;
-    for (int j = 0; j < e.lights.VoxelCount(); ++j) {
-      const double p = Luminance(e.lights.Power(j));
-      centroid += p * e.lights.VoxelCenter(j);
-      total += p;
-    }
-    centroid /= total;
+    const Eigen::Vector3d centroid = e.lights.PowerCentroid();
     const double voxel = e.lights.bounds.sizes().x() / e.lights.dims.x();
     char c[64];
     std::snprintf(c, sizeof(c), "(%.3f, %.3f, %.3f)", centroid.x(), centroid.y(), centroid.z());

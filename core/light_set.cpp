@@ -75,6 +75,24 @@ Eigen::Vector3f VoxelLightGrid::Power(int voxel) const {
   return intensity[voxel] * static_cast<float>(M_PI * sum);
 }
 
+double VoxelLightGrid::TotalPowerLuminance() const {
+  double total = 0.0;
+  for (int j = 0; j < VoxelCount(); ++j) total += Luminance(Power(j));
+  return total;
+}
+
+Eigen::Vector3d VoxelLightGrid::PowerCentroid() const {
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  double total = 0.0;
+  for (int j = 0; j < VoxelCount(); ++j) {
+    const double p = Luminance(Power(j));
+    centroid += p * VoxelCenter(j);
+    total += p;
+  }
+  if (!(total > 0.0)) return Eigen::Vector3d::Constant(std::nan(""));
+  return centroid / total;
+}
+
 std::vector<int> VoxelLightGrid::ActiveVoxels(double fraction) const {
   std::vector<double> power(static_cast<size_t>(VoxelCount()));
   double largest = 0.0;

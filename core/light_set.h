@@ -56,6 +56,10 @@ struct VoxelLightGrid {
   // Radiant power (W) of `voxel`, per channel: the integral of I(w) over the sphere,
   // pi * L * sum_k lambda_k.
   Eigen::Vector3f Power(int voxel) const;
+  // Sum over the voxels of Luminance(Power(j)), and the voxel centres' mean weighted by it (NaN
+  // when no voxel has power): where the light is, as the light-estimation tests and bench judge it.
+  double TotalPowerLuminance() const;
+  Eigen::Vector3d PowerCentroid() const;
   // Voxels whose power luminance is at least `fraction` of the largest one (0: any power > 0).
   std::vector<int> ActiveVoxels(double fraction = 0.0) const;
   void Validate() const;

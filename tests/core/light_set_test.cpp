@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "core/check.h"
+#include "core/color.h"
 #include "core/light_set.h"
 #include "tests/test_util.h"
 
@@ -42,6 +43,20 @@ TEST(LightSet, PowerAndActiveVoxels) {
   EXPECT_NEAR(g.Power(5).x(), M_PI * 0.725 * 2.6, 1e-5);
   EXPECT_EQ(g.ActiveVoxels(), (std::vector<int>{5, 17}));
   EXPECT_EQ(g.ActiveVoxels(0.5), (std::vector<int>{5}));
+}
+
+TEST(LightSet, PowerCentroidWeighsVoxelCentresByPowerLuminance) {
+  VoxelLightGrid g = SmallGrid();
+  const double p5 = Luminance(g.Power(5)), p17 = Luminance(g.Power(17));
+  EXPECT_NEAR(g.TotalPowerLuminance(), p5 + p17, 1e-9);
+  const Eigen::Vector3d expected = (p5 * g.VoxelCenter(5) + p17 * g.VoxelCenter(17)) / (p5 + p17);
+  EXPECT_LT((g.PowerCentroid() - expected).norm(), 1e-12);
+  g.intensity[17] = g.intensity[5];
+  g.weights[17] = g.weights[5];
+  EXPECT_LT((g.PowerCentroid() - 0.5 * (g.VoxelCenter(5) + g.VoxelCenter(17))).norm(), 1e-12);
+  g.intensity.assign(24, Eigen::Vector3f::Zero());
+  EXPECT_EQ(g.TotalPowerLuminance(), 0.0);
+  EXPECT_TRUE(g.PowerCentroid().array().isNaN().all());
 }
 
 TEST(LightSet, BadLightsJsonIsAnErrorNamingTheFile) {

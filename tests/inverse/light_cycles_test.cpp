@@ -6,7 +6,6 @@
 #include <cstdio>
 #include <vector>
 
-#include "core/color.h"
 #include "core/frame_source.h"
 #include "inverse/light_estimation.h"
 #include "inverse/path_tracer.h"
@@ -45,15 +44,8 @@ TEST(LightEstimationCycles, ActiveVoxelsConcentrateUnderTheTrueLight) {
   const LightEstimate e = EstimateLights(scene, train, options, 7);
   ASSERT_GT(e.active_voxels, 0);
 
-  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  double total = 0.0;
-  for (int j = 0; j < e.lights.VoxelCount(); ++j) {
-    const double p = Luminance(e.lights.Power(j));
-    centroid += p * e.lights.VoxelCenter(j);
-    total += p;
-  }
-  ASSERT_GT(total, 0.0);
-  centroid /= total;
+  ASSERT_GT(e.lights.TotalPowerLuminance(), 0.0);
+  const Eigen::Vector3d centroid = e.lights.PowerCentroid();
   const double spacing = (e.lights.VoxelCenter(1) - e.lights.VoxelCenter(0)).norm();
   const double distance = (centroid - light.center()).norm();
   EXPECT_LT(distance, spacing) << "power-weighted centroid (" << centroid.transpose() << ") vs light centre ("

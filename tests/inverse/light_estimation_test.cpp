@@ -253,14 +253,9 @@ TEST(EstimateLights, RecoversAVoxelLight) {
   o.pixels_per_view = 300;
   o.rounds = 2;
   const LightEstimate e = EstimateLights(lit, views, o, 1);
-  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
-  double total = 0.0;
-  for (int j = 0; j < 27; ++j) {
-    const double p = Luminance(e.lights.Power(j));
-    centroid += p * e.lights.VoxelCenter(j);
-    total += p;
-  }
-  centroid /= total;
+  ASSERT_EQ(e.lights.VoxelCount(), 27);
+  const Eigen::Vector3d centroid = e.lights.PowerCentroid();
+  const double total = e.lights.TotalPowerLuminance();
   const double voxel = 2.0 / 3.0;
   EXPECT_LT((centroid - truth.VoxelCenter(22)).norm(), 0.5 * voxel) << "centroid " << centroid.transpose();
   EXPECT_NEAR(total / Luminance(truth.Power(22)), 1.0, 0.25);
@@ -399,10 +394,7 @@ TEST(EstimateLights, AlbedoFixesTheScaleGauge) {
   o.rounds = 1;
   o.max_depth = 2;
   const auto total_power = [&](const Scene& scene) {
-    const LightEstimate e = EstimateLights(scene, views, o, 3);
-    double total = 0.0;
-    for (int j = 0; j < 27; ++j) total += Luminance(e.lights.Power(j));
-    return total;
+    return EstimateLights(scene, views, o, 3).lights.TotalPowerLuminance();
   };
   Scene half = lit;
   for (auto& a : half.meshes[0].albedo.values) a *= 0.5f;
