@@ -283,10 +283,11 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
   const int voxels = grid.VoxelCount();
   std::vector<Eigen::Vector3f> centres(static_cast<size_t>(voxels));
   for (int j = 0; j < voxels; ++j) centres[j] = grid.VoxelCenter(j).cast<float>();
+  // The shadow rays of one vertex: voxel, weight and cos / d^2 per ray beside the arrays that
+  // OccludedFrom reads (directions to the voxels, segment lengths).
   struct Candidate {
     int voxel;
-    float weight, cos_over_d2, t_max;
-    Eigen::Vector3f wi;
+    float weight, cos_over_d2;
   };
   std::vector<Candidate> candidates;
   std::vector<Eigen::Vector3f> directions;
@@ -308,6 +309,8 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
     // Shadow rays to the chosen voxels (as SampleLight + next-event estimation in Radiance()):
     // gathered first, traced together in packets from this vertex, then emitted in the gathered order.
     candidates.clear();
+    directions.clear();
+    t_max.clear();
     const auto consider = [&](int j, float weight) {
       const Eigen::Vector3f to_light = centres[j] - at.p;
       const float d2 = to_light.squaredNorm();
@@ -316,7 +319,9 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
       const Eigen::Vector3f wi = to_light / distance;
       const float cos_s = at.ns.dot(wi);
       if (cos_s <= 0.0f || at.ng.dot(wi) <= 0.0f) return;
-      candidates.push_back({j, weight, cos_s / d2, distance * (1.0f - 1e-4f), wi});
+      candidates.push_back({j, weight, cos_s / d2});
+      directions.push_back(wi);
+      t_max.push_back(distance * (1.0f - 1e-4f));
     };
     if (depth == 1 && first_vertex_weight <= 0.0f) {
       // direct light estimated by other paths
@@ -333,13 +338,7 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
     }
     const int n = static_cast<int>(candidates.size());
     if (n > 0) {
-      directions.resize(candidates.size());
-      t_max.resize(candidates.size());
       blocked.resize(candidates.size());
-      for (int i = 0; i < n; ++i) {
-        directions[i] = candidates[i].wi;
-        t_max[i] = candidates[i].t_max;
-      }
       local.occluded += n;
       tracer_->OccludedFrom(origin_offset, directions.data(), t_max.data(), n, 0.0f, blocked.data());
       for (int i = 0; i < n; ++i) {
@@ -348,7 +347,7 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
         // I(w) = L sum_k lambda_k max(0, w . d_k) with w = -wi, from the voxel to the surface.
         const Eigen::Vector3f base = f_beta * (c.cos_over_d2 * c.weight);
         std::array<Eigen::Vector3f, 6> coefficients;
-        const float w[3] = {-c.wi.x(), -c.wi.y(), -c.wi.z()};
+        const float w[3] = {-directions[i].x(), -directions[i].y(), -directions[i].z()};
         for (int axis = 0; axis < 3; ++axis) {
           coefficients[2 * axis] = base * std::max(0.0f, w[axis]);
           coefficients[2 * axis + 1] = base * std::max(0.0f, -w[axis]);
