@@ -16,6 +16,7 @@ void IcpOptions::Validate() const {
   RequireRange("icp_max_distance", max_distance, 1e-4, 10.0);
   RequireRange("icp_max_angle", max_angle, 1.0, 90.0);
   RequireRange("icp_huber_delta", huber_delta, 1e-5, 10.0);
+  RequireRange("icp_min_step", min_step, 0.0, 1e-2);
   RequireRange("degenerate_eigen_ratio", degenerate_eigen_ratio, 0.0, 0.5);
   RequireRange("min_inlier_ratio", min_inlier_ratio, 0.0, 1.0);
   RequireRange("max_rms_residual", max_rms_residual, 1e-5, 10.0);
@@ -154,7 +155,7 @@ IcpReport TrackFrameToModel(const std::vector<PyramidLevel>& live, const Raycast
       if (step.constrained == 0) break;
       pose = ExpSE3(step.xi) * pose;
       ++report.iterations;
-      if (step.xi.norm() < 1e-7) break;
+      if (step.xi.norm() < options.min_step) break;
     }
   }
   // Quality figures of the final pose at full resolution.

@@ -23,6 +23,10 @@ struct IcpOptions {
   double max_distance = 0.1;    // m; correspondences farther apart are rejected
   double max_angle = 30.0;      // degrees between normals; larger is rejected
   double huber_delta = 0.01;    // m; robust (Huber) weight beyond this point-to-plane residual
+  // A level's iterations stop once a step moves the pose less than this (|xi|: metres and
+  // radians). On the 150-frame synthetic room 1e-5 took 14 instead of 19 steps a frame (tracking
+  // 17.6 -> 10.7 ms) for the same ATE (5.13 mm); 1e-7 ran every iteration.
+  double min_step = 1e-5;
   // Eigenvalue / largest below this = unconstrained direction (rotation scaled to metres).
   // Measured at full resolution: a pure plane's three free directions reach 4.1e-4 (noise of
   // the raycast normals); the weakest direction of the small Cornell room at 160x120 is 1.3e-3,

@@ -60,6 +60,7 @@ struct FusionOptions {
     v("icp_max_distance", icp.max_distance, "m", "largest point distance of a correspondence");
     v("icp_max_angle", icp.max_angle, "deg", "largest normal angle of a correspondence");
     v("icp_huber_delta", icp.huber_delta, "m", "Huber threshold of the point-to-plane residual");
+    v("icp_min_step", icp.min_step, "m or rad", "a resolution level stops iterating when a pose update is smaller");
     v("degenerate_eigen_ratio", icp.degenerate_eigen_ratio, "", "eigenvalue ratio below which a pose direction counts as unconstrained");
     v("min_inlier_ratio", icp.min_inlier_ratio, "", "tracking is lost below this inlier fraction");
     v("max_rms_residual", icp.max_rms_residual, "m", "tracking is lost above this RMS residual");
