@@ -122,21 +122,30 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
     size_t count = 0;
     for (int z = 0; z < kTsdfBlockSide; ++z) {
       for (int y = 0; y < kTsdfBlockSide; ++y) {
+        // The projection of a row of eight voxels as plain arrays, which the compiler turns into
+        // SIMD (divisions and square roots four at a time); the updates follow one by one.
+        const Eigen::Vector3f row = base + a_f * Eigen::Vector3f(0.0f, y, z);
+        const Eigen::Vector3f dx = a_f.col(0);
+        float pz[kTsdfBlockSide], uf[kTsdfBlockSide], vf[kTsdfBlockSide], lambda[kTsdfBlockSide];
         for (int x = 0; x < kTsdfBlockSide; ++x) {
-          const Eigen::Vector3f p = base + a_f * Eigen::Vector3f(x, y, z);
-          if (p.z() <= 0.0f) continue;
+          const float px = row.x() + x * dx.x(), py = row.y() + x * dx.y();
+          pz[x] = row.z() + x * dx.z();
+          const float inv_z = 1.0f / pz[x];
+          const float rx = px * inv_z, ry = py * inv_z;  // the voxel's ray, (rx, ry, 1)
+          uf[x] = fx * rx + cx + 0.5f;
+          vf[x] = fy * ry + cy + 0.5f;
+          lambda[x] = std::sqrt(1.0f + rx * rx + ry * ry);
+        }
+        for (int x = 0; x < kTsdfBlockSide; ++x) {
+          if (pz[x] <= 0.0f) continue;
           // Nearest pixel: footprints are [u - 0.5, u + 0.5); the range test comes before the
           // integer conversion (which truncates, equal to floor for non-negative values).
-          const float inv_z = 1.0f / p.z();
-          const float rx = p.x() * inv_z, ry = p.y() * inv_z;  // the voxel's ray, (rx, ry, 1)
-          const float uf = fx * rx + cx + 0.5f, vf = fy * ry + cy + 0.5f;
-          if (!(uf >= 0.0f && vf >= 0.0f && uf < wf && vf < hf)) continue;
-          const int u = static_cast<int>(uf), v = static_cast<int>(vf);
+          if (!(uf[x] >= 0.0f && vf[x] >= 0.0f && uf[x] < wf && vf[x] < hf)) continue;
+          const int u = static_cast<int>(uf[x]), v = static_cast<int>(vf[x]);
           const float d = depth(u, v);
           if (d <= 0.0f) continue;
           TsdfVoxel& voxel = block.voxels[TsdfBlock::Index(x, y, z)];
-          const float lambda = std::sqrt(1.0f + rx * rx + ry * ry);
-          count += UpdateVoxel(voxel, (d - p.z()) * lambda, trunc, max_weight,
+          count += UpdateVoxel(voxel, (d - pz[x]) * lambda[x], trunc, max_weight,
                                with_color ? &color(u, v) : nullptr);
         }
       }
