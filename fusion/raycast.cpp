@@ -39,7 +39,7 @@ class CachedVoxelAccess {
     const int x = FloorToInt(p.x()), y = FloorToInt(p.y()), z = FloorToInt(p.z());
     const float fx = p.x() - x, fy = p.y() - y, fz = p.z() - z;
     const int lx = x & 7, ly = y & 7, lz = z & 7;
-    float c[8];
+    float c[8], weight = 1.0f;
     if (lx < 7 && ly < 7 && lz < 7) {
       // All eight corners in one block (343 of 512 cells): one lookup, fixed offsets.
       const TsdfBlock* block = Block(Eigen::Vector3i(x >> 3, y >> 3, z >> 3));
@@ -48,19 +48,30 @@ class CachedVoxelAccess {
       constexpr int kOffset[8] = {0, 1, 8, 9, 64, 65, 72, 73};
       for (int i = 0; i < 8; ++i) {
         const TsdfVoxel& v = v0[kOffset[i]];
-        if (v.weight <= 0.0f) return false;
+        weight = std::min(weight, v.weight);  // one test for all eight, not eight branches
         c[i] = v.sdf;
       }
     } else {
+      // Corners in up to 2x2x2 blocks: each block looked up once.
+      const Eigen::Vector3i key(x >> 3, y >> 3, z >> 3);
+      const int sx = lx == 7, sy = ly == 7, sz = lz == 7;
+      const TsdfBlock* blocks[8];
+      for (int b = 0; b < 8; ++b) {
+        const int bx = b & 1, by = (b >> 1) & 1, bz = (b >> 2) & 1;
+        if ((bx && !sx) || (by && !sy) || (bz && !sz)) continue;
+        blocks[b] = Block(key + Eigen::Vector3i(bx, by, bz));
+        if (blocks[b] == nullptr) return false;
+      }
       for (int i = 0; i < 8; ++i) {
-        const int cx = x + (i & 1), cy = y + ((i >> 1) & 1), cz = z + ((i >> 2) & 1);
-        const TsdfBlock* block = Block(Eigen::Vector3i(cx >> 3, cy >> 3, cz >> 3));
-        if (block == nullptr) return false;
-        const TsdfVoxel& v = block->voxels[TsdfBlock::Index(cx & 7, cy & 7, cz & 7)];
-        if (v.weight <= 0.0f) return false;
+        const int dx = i & 1, dy = (i >> 1) & 1, dz = (i >> 2) & 1;
+        const int bx = dx & sx, by = dy & sy, bz = dz & sz;  // the corner crosses into block +1
+        const TsdfBlock* block = blocks[bx | (by << 1) | (bz << 2)];
+        const TsdfVoxel& v = block->voxels[TsdfBlock::Index((lx + dx) & 7, (ly + dy) & 7, (lz + dz) & 7)];
+        weight = std::min(weight, v.weight);
         c[i] = v.sdf;
       }
     }
+    if (weight <= 0.0f) return false;
     const float c00 = c[0] + fx * (c[1] - c[0]), c10 = c[2] + fx * (c[3] - c[2]);
     const float c01 = c[4] + fx * (c[5] - c[4]), c11 = c[6] + fx * (c[7] - c[6]);
     const float c0 = c00 + fy * (c10 - c00), c1 = c01 + fy * (c11 - c01);
