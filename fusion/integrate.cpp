@@ -119,13 +119,13 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
   ParallelFor(0, keys.size(), [&](size_t i) {
     TsdfBlock& block = volume.block(static_cast<size_t>(indices[i]));
     const Eigen::Vector3f base = (a * (kTsdfBlockSide * keys[i]).cast<double>() + b).cast<float>();
+    const Eigen::Vector3f dx = a_f.col(0);  // camera-frame step of one voxel along x
     size_t count = 0;
     for (int z = 0; z < kTsdfBlockSide; ++z) {
       for (int y = 0; y < kTsdfBlockSide; ++y) {
         // The projection of a row of eight voxels as plain arrays, which the compiler turns into
         // SIMD (divisions and square roots four at a time); the updates follow one by one.
         const Eigen::Vector3f row = base + a_f * Eigen::Vector3f(0.0f, y, z);
-        const Eigen::Vector3f dx = a_f.col(0);
         float pz[kTsdfBlockSide], uf[kTsdfBlockSide], vf[kTsdfBlockSide], lambda[kTsdfBlockSide];
         for (int x = 0; x < kTsdfBlockSide; ++x) {
           const float px = row.x() + x * dx.x(), py = row.y() + x * dx.y();
