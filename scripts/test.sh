@@ -31,14 +31,15 @@ HEAVY_UNDER_ASAN="CameraOneKilometreFromTheOrigin|DecimationStaysWithinItsErrorB
 (cd build && ctest --output-on-failure -j 2 --timeout 600 -R "$HEAVY_UNDER_ASAN")
 
 # The sanitizer pass runs every test except those labelled "slow" (long renders compared with
-# other renderers, the whole chain: they exercise the same code as the fast tests, at 3x the cost
-# under ASan) and "badinput" (the bad-input catalogue, 199 runs of the apps: 85 s in Release, about
+# other renderers, the whole chain: they exercise the same code as the fast tests, at about 6x the
+# cost under ASan) and "badinput" (the bad-input catalogue, 199 runs of the apps: 85 s in Release, about
 # 150 s under ASan; run under ASan by hand, see tests/bad_inputs/README.md).
 # Measured in session 12 with the slow tests in a sanitizer build at -O2 (the build took 8:24,
 # against 6:38 at -O1): the two 150-frame fusion sequences 216 s and 241 s (34 s and 39 s in
 # Release), the demo-chain test 462 s (64 s), the Cycles comparison views_train 101 s (24 s); 17 of
 # the 38 slow tests took 1,559 s, about 6x Release. At -O1 each fusion sequence ran over 10 minutes.
-# Under ASan they would take CI well past its 30 minutes.
+# Under ASan they would take CI well past its 30 minutes. Session 13: -DEIGEN_NO_DEBUG (the
+# sanitizer build keeps Eigen's asserts) changed little (views_train 101 s again).
 echo "test: $(date +%T) sanitizer build (ASan + UBSan)"
 scripts/build.sh --sanitize
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
