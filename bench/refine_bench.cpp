@@ -9,7 +9,10 @@
 //  3. Every vertex perturbed with noise sigma = 5 % of the radius: RMS vertex error per iteration and
 //     flipped faces.
 // Run by hand:  build/bench/bench_refine [--out DIR] [--ref-spp N] [--spp N] [--iterations N]
-//               [--max-depth D] [--threads N] [--sections 123]
+//               [--max-depth D] [--threads N] [--sections 123] [--seed N] [--prior M]
+//               [--prior-tangent M] [--perturbation F] [--flat 0|1]
+// RADIAL=1 also prints, per iteration, the Levenberg-Marquardt state and the vertex errors split
+// along the sphere's radius and across it.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -36,8 +39,10 @@ struct Settings {
   int ref_spp = 1024, spp = 16, iterations = 5, max_depth = -1;
   double perturbation = 0.2;  // of the radius
   double prior_sigma = RefineOptions().prior_sigma;
+  double prior_tangent_sigma = RefineOptions().prior_tangent_sigma;
   bool smooth = true;         // the replica's sphere shades with area-weighted vertex normals
   std::string sections = "123";
+  uint64_t seed = 1;          // of the refinement's random numbers
 };
 
 void Paste(ImageRgb& canvas, const ImageRgb& image, int x0) {
@@ -58,6 +63,7 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
   options.iterations = s.iterations;
   options.max_depth = s.max_depth;
   options.prior_sigma = s.prior_sigma;
+  options.prior_tangent_sigma = s.prior_tangent_sigma;
   const std::vector<TrainingView> targets = {{view, reference}};
   DifferentiablePathTracer at_truth(scene, refined);
   RefineOptions none = options;
@@ -103,6 +109,24 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
     const Eigen::VectorXd d = at.Positions() - truth;
     double watched_max = 0.0;
     for (int v : watched) watched_max = std::max(watched_max, d.segment<3>(3 * v).norm());
+    if (std::getenv("RADIAL")) {
+      std::printf("   cost %.6g step %.5f rejected %d damping %.3g accepted %d\n", it.cost, it.step_rms, it.rejected,
+                  it.damping, it.accepted ? 1 : 0);
+      for (int v : watched) {
+        const Eigen::Vector3d t = truth.segment<3>(3 * v), e = d.segment<3>(3 * v);
+        const Eigen::Vector3d n = (t - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
+        std::printf("   v%d radial %+.5f tangential %.5f\n", v, e.dot(n), (e - e.dot(n) * n).norm());
+      }
+      double rad = 0.0, tan = 0.0;
+      for (int v = 0; v < at.VertexCount(); ++v) {
+        const Eigen::Vector3d t = truth.segment<3>(3 * v), e = d.segment<3>(3 * v);
+        const Eigen::Vector3d n = (t - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
+        rad += e.dot(n) * e.dot(n);
+        tan += (e - e.dot(n) * n).squaredNorm();
+      }
+      std::printf("   all: radial RMS %.5f tangential RMS %.5f\n", std::sqrt(rad / at.VertexCount()),
+                  std::sqrt(tan / at.VertexCount()));
+    }
     total += it.seconds;
     std::printf("%5d %9.2f %10.4f %11.5f %12.5f %12.3f %9.1f %8d\n", it.iteration, it.seconds, it.data_rmse,
                 std::sqrt(d.squaredNorm() / at.VertexCount()), watched_max, watched_max / perturbation,
@@ -110,7 +134,7 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
     std::fflush(stdout);
     shading.push_back(PathTracer(ShadingOnly(at.scene())).Render(view, render, 3).radiance);
   };
-  const RefineResult result = RefineVertices(tracer, targets, options, 1, progress);
+  const RefineResult result = RefineVertices(tracer, targets, options, s.seed, progress);
   std::printf("total %.1f s for %zu iterations (%.2f s per iteration)\n", total, result.history.size() - 1,
               (total - result.history[0].seconds) / std::max<size_t>(1, result.history.size() - 1));
   return shading;
@@ -194,6 +218,8 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--sections")) s.sections = argv[i + 1];
     if (!std::strcmp(argv[i], "--perturbation")) s.perturbation = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--prior")) s.prior_sigma = std::atof(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--prior-tangent")) s.prior_tangent_sigma = std::atof(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--seed")) s.seed = std::strtoull(argv[i + 1], nullptr, 10);
     if (!std::strcmp(argv[i], "--flat")) s.smooth = !std::atoi(argv[i + 1]);
   }
   fs::create_directories(s.out);

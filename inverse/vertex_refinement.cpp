@@ -23,6 +23,7 @@ void RefineOptions::Validate() const {
   RequireRange("rr_depth", rr_depth, 1, 1 << 20);
   RequireRange("noise", noise, 1e-6, 10.0);
   RequireRange("prior_sigma", prior_sigma, 1e-9, 1e6);
+  if (prior_tangent_sigma != 0.0) RequireRange("prior_tangent_sigma", prior_tangent_sigma, 1e-9, 1e6);
   RequireRange("damping", damping, 0.0, 1e12);
   RequireRange("max_step", max_step, 1e-6, 100.0);
   RequireRange("max_retries", max_retries, 0, 100);
@@ -205,16 +206,17 @@ NormalEquations Assemble(const Evaluation& e, int vertices, double robust, bool 
   return n;
 }
 
-// Solves (H + mu diag(H)) dx = -g with H = J^T W J + I / sigma^2 and g = J^T W r + (x - x0) / sigma^2:
+// Solves (H + mu diag(H)) dx = -g with H = J^T W J + P and g = J^T W r + P (x - x0), P the prior's
+// 3 x 3 blocks (PriorBlocks):
 // by sparse Cholesky (Eigen's SimplicialLDLT) when the blocks are kept, else by conjugate
 // gradients preconditioned with the inverse 3 x 3 diagonal blocks, to a relative residual of
 // 1e-10 (at most 1000 iterations; serial, so the same with any thread count).
-Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior_gradient, double prior_weight,
-                          double mu) {
+Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior_gradient,
+                          const std::vector<Eigen::Matrix3d>& prior, double mu) {
   const int size = static_cast<int>(n.gradient.size());
   const int vertices = size / 3;
   Eigen::VectorXd diagonal(size);  // diag(H)
-  for (int i = 0; i < vertices; ++i) diagonal.segment<3>(3 * i) = n.diagonal[i].diagonal().array() + prior_weight;
+  for (int i = 0; i < vertices; ++i) diagonal.segment<3>(3 * i) = (n.diagonal[i] + prior[i]).diagonal();
   const Eigen::VectorXd rhs = -(n.gradient + prior_gradient);
   Eigen::VectorXd step;
   if (n.blocks_kept) {
@@ -223,7 +225,7 @@ Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior
     for (int i = 0; i < vertices; ++i) {
       for (int r = 0; r < 3; ++r) {
         for (int c = 0; c < 3; ++c) {
-          const double value = r == c ? diagonal[3 * i + r] * (1.0 + mu) : n.diagonal[i](r, c);
+          const double value = r == c ? diagonal[3 * i + r] * (1.0 + mu) : n.diagonal[i](r, c) + prior[i](r, c);
           triplets.emplace_back(3 * i + r, 3 * i + c, value);
         }
       }
@@ -245,13 +247,14 @@ Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior
   } else {
     std::vector<Eigen::Matrix3d> preconditioner(vertices);
     for (int i = 0; i < vertices; ++i) {
-      Eigen::Matrix3d m = n.diagonal[i];
+      Eigen::Matrix3d m = n.diagonal[i] + prior[i];
       m.diagonal() = diagonal.segment<3>(3 * i) * (1.0 + mu);
       preconditioner[i] = m.inverse();
     }
     const auto apply = [&](const Eigen::VectorXd& v, Eigen::VectorXd* out) {
       n.Multiply(v, out);
-      *out += prior_weight * v + mu * diagonal.cwiseProduct(v);
+      for (int i = 0; i < vertices; ++i) out->segment<3>(3 * i) += prior[i] * v.segment<3>(3 * i);
+      *out += mu * diagonal.cwiseProduct(v);
     };
     const auto precondition = [&](const Eigen::VectorXd& r) {
       Eigen::VectorXd z(size);
@@ -291,6 +294,31 @@ double MeanEdgeLength(const DifferentiablePathTracer& tracer) {
     }
   }
   return count > 0 ? sum / count : 1.0;
+}
+
+// The prior's information matrix per parameter vertex: 1 / sigma_n^2 along the vertex's starting
+// normal (area-weighted), 1 / sigma_t^2 across it. A move across the surface slides the vertex
+// along it: on a smooth surface the images barely see it, so without a firmer prior there the
+// vertices drift with the render noise (the replica's vertices moved as far across the surface as
+// along the normal). Vertices without a normal (no face) get the isotropic 1 / sigma_n^2.
+std::vector<Eigen::Matrix3d> PriorBlocks(const DifferentiablePathTracer& tracer, const RefineOptions& options) {
+  const double wn = 1.0 / (options.prior_sigma * options.prior_sigma);
+  const double sigma_t = options.prior_tangent_sigma > 0.0 ? options.prior_tangent_sigma : options.prior_sigma;
+  const double wt = 1.0 / (sigma_t * sigma_t);
+  std::vector<Eigen::Matrix3d> blocks(tracer.VertexCount(), wn * Eigen::Matrix3d::Identity());
+  if (wt == wn) return blocks;
+  for (size_t m = 0; m < tracer.scene().meshes.size(); ++m) {
+    if (tracer.ParameterVertex(static_cast<int>(m), 0) < 0) continue;
+    TriangleMesh mesh = tracer.scene().meshes[m].mesh;
+    mesh.ComputeVertexNormals();
+    for (size_t v = 0; v < mesh.vertices.size(); ++v) {
+      const Eigen::Vector3d n = mesh.normals[v].cast<double>();
+      if (n.squaredNorm() < 0.5) continue;  // no incident face
+      blocks[tracer.ParameterVertex(static_cast<int>(m), static_cast<int>(v))] =
+          wt * Eigen::Matrix3d::Identity() + (wn - wt) * n * n.transpose();
+    }
+  }
+  return blocks;
 }
 
 }  // namespace
@@ -339,14 +367,19 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   const std::vector<PixelRef> pixels = SamplePixels(tracer, targets, options.pixels_per_view, options.edge_margin, seed);
   const double rms = ReferenceRms(targets, pixels);
   const double scale = options.noise * rms;
-  const double prior_weight = 1.0 / (options.prior_sigma * options.prior_sigma);
+  const std::vector<Eigen::Matrix3d> prior = PriorBlocks(tracer, options);
   const double channels = 3.0 * pixels.size();
 
   RefineResult result;
   result.initial = tracer.Positions();
   result.pixels = static_cast<int>(pixels.size());
   Eigen::VectorXd x = result.initial;
-  const auto prior_cost = [&](const Eigen::VectorXd& at) { return 0.5 * prior_weight * (at - result.initial).squaredNorm(); };
+  const auto prior_gradient_at = [&](const Eigen::VectorXd& at) {
+    Eigen::VectorXd g(at.size());
+    for (size_t v = 0; v < prior.size(); ++v) g.segment<3>(3 * v) = prior[v] * (at - result.initial).segment<3>(3 * v);
+    return g;
+  };
+  const auto prior_cost = [&](const Eigen::VectorXd& at) { return 0.5 * (at - result.initial).dot(prior_gradient_at(at)); };
   const auto now = [] { return std::chrono::steady_clock::now(); };
   const auto seconds = [](auto since) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count(); };
 
@@ -382,11 +415,11 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
     const NormalEquations equations =
         Assemble(current, tracer.VertexCount(), options.robust, tracer.VertexCount() <= options.direct_max_vertices);
     record.jacobian_nonzeros_per_pixel = equations.nonzeros / pixels.size();
-    const Eigen::VectorXd prior_gradient = prior_weight * (x - result.initial);
+    const Eigen::VectorXd prior_gradient = prior_gradient_at(x);
     const double cost = current.data_cost + prior_cost(x);
     record.cost = cost;
     for (int attempt = 0; attempt <= options.max_retries; ++attempt) {
-      Eigen::VectorXd step = SolveStep(equations, prior_gradient, prior_weight, mu);
+      Eigen::VectorXd step = SolveStep(equations, prior_gradient, prior, mu);
       // Trust region on the largest vertex move: the linear model holds over a fraction of an edge.
       double largest = 0.0;
       for (int v = 0; v < tracer.VertexCount(); ++v) largest = std::max(largest, step.segment<3>(3 * v).norm());

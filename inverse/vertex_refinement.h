@@ -1,12 +1,15 @@
 // Vertex refinement (issue 8, the paper's section IV): vertex positions estimated from images
 // through the differentiable path tracer, by Levenberg-Marquardt on
 //
-//   E(x) = 1/2 sum_pixels sum_c ((I_c(x) - I*_c) / (noise * s))^2 + 1/2 |x - x0|^2 / sigma^2
+//   E(x) = 1/2 sum_pixels sum_c ((I_c(x) - I*_c) / (noise * s))^2 + 1/2 sum_i d_i^T P_i d_i,
+//   d_i = x_i - x0_i,  P_i = n n^T / sigma_n^2 + (I - n n^T) / sigma_t^2
 //
 // where I(x) is the path-traced pixel (options.spp samples with fixed random numbers, so E is a
 // deterministic function of x between visibility changes), I* the reference image, s the RMS of
 // the reference over the sampled pixels, and the second term the weak prior on the starting
-// positions x0 that removes the null spaces of sparse sampling (vertices no sample sees).
+// positions x0 that removes the null spaces of sparse sampling (vertices no sample sees): sigma_n
+// (prior_sigma) along the vertex's starting normal n, sigma_t (prior_tangent_sigma, firmer) across
+// the surface, where a move slides the vertex along a smooth surface and the images barely see it.
 // Each iteration traces every sampled pixel with derivatives (a sparse Jacobian row per channel),
 // forms the normal equations and solves the damped system, by sparse Cholesky factorisation of
 // 3 x 3 blocks per vertex pair (Eigen's SimplicialLDLT) up to `direct_max_vertices` refined
@@ -34,7 +37,8 @@ struct RefineOptions {
   int rr_depth = 5;             // depth at which Russian roulette starts
   double noise = 0.05;          // relative pixel noise that weighs the data term
   double robust = 3.0;          // Huber threshold of the residuals, in noise units (0 = none)
-  double prior_sigma = 0.003;   // standard deviation of the prior on vertex positions, m
+  double prior_sigma = 0.003;   // standard deviation of the prior on vertex positions, m (along the normal)
+  double prior_tangent_sigma = 0.0005;  // the same across the surface, m (0 = prior_sigma: isotropic)
   double damping = 1e-3;        // initial Levenberg-Marquardt damping (times diag of J^T J)
   double max_step = 0.25;       // largest vertex move per step, in mean edge lengths (trust region)
   bool resample = true;         // fresh random numbers every iteration (same within one)
@@ -52,7 +56,9 @@ struct RefineOptions {
     v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
     v("noise", noise, "", "relative pixel noise that weighs the data term");
     v("robust", robust, "", "Huber threshold of the residuals in noise units (0 = plain least squares)");
-    v("prior_sigma", prior_sigma, "m", "standard deviation of the prior on the starting vertex positions");
+    v("prior_sigma", prior_sigma, "m", "standard deviation of the prior on the starting vertex positions, along the normal");
+    v("prior_tangent_sigma", prior_tangent_sigma, "m",
+      "the same across the surface, where a move slides the vertex along the surface (0 = prior_sigma)");
     v("damping", damping, "", "initial Levenberg-Marquardt damping");
     v("max_step", max_step, "edges", "largest vertex move per step, in mean edge lengths");
     v("resample", resample, "", "fresh random numbers every iteration (the same for its trial steps)");
