@@ -19,6 +19,7 @@
 #include <cstring>
 #include <filesystem>
 #include <string>
+#include <utility>
 
 #include "core/frame_source.h"
 #include "core/image_io.h"
@@ -112,17 +113,22 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
     if (std::getenv("RADIAL")) {
       std::printf("   cost %.6g step %.5f rejected %d damping %.3g accepted %d\n", it.cost, it.step_rms, it.rejected,
                   it.damping, it.accepted ? 1 : 0);
+      // Vertex v's error along the sphere's radius (signed) and across it; both spheres are
+      // centred at (0, 0, 0.201).
+      const auto split = [&](int v) {
+        const Eigen::Vector3d e = d.segment<3>(3 * v);
+        const Eigen::Vector3d n = (truth.segment<3>(3 * v) - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
+        return std::make_pair(e.dot(n), (e - e.dot(n) * n).norm());
+      };
       for (int v : watched) {
-        const Eigen::Vector3d t = truth.segment<3>(3 * v), e = d.segment<3>(3 * v);
-        const Eigen::Vector3d n = (t - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
-        std::printf("   v%d radial %+.5f tangential %.5f\n", v, e.dot(n), (e - e.dot(n) * n).norm());
+        const auto [radial, across] = split(v);
+        std::printf("   v%d radial %+.5f tangential %.5f\n", v, radial, across);
       }
       double rad = 0.0, tan = 0.0;
       for (int v = 0; v < at.VertexCount(); ++v) {
-        const Eigen::Vector3d t = truth.segment<3>(3 * v), e = d.segment<3>(3 * v);
-        const Eigen::Vector3d n = (t - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
-        rad += e.dot(n) * e.dot(n);
-        tan += (e - e.dot(n) * n).squaredNorm();
+        const auto [radial, across] = split(v);
+        rad += radial * radial;
+        tan += across * across;
       }
       std::printf("   all: radial RMS %.5f tangential RMS %.5f\n", std::sqrt(rad / at.VertexCount()),
                   std::sqrt(tan / at.VertexCount()));
