@@ -1,7 +1,7 @@
 // The whole chain (issue 11): `genscene demo` killed in every stage and started again gives the
 // model of an uninterrupted run; the exported Mitsuba XML re-imports and renders the same image;
-// the demo's model against its synthetic ground truth. Labelled "pipeline" (run in the Release pass
-// and under ASan + UBSan).
+// the demo's model against its synthetic ground truth. Labelled "slow" (CI runs it under ASan +
+// UBSan).
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
