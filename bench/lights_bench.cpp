@@ -12,6 +12,9 @@
 //     centroid of the voxels against the light.
 // Run by hand:  build/bench/bench_lights [--out DIR] [--size WxH] [--ref-spp N] [--spp N]
 //               [--eval-spp N] [--gamma G] [--weights w1,w2,..] [--threads N]
+//               [--gd-seconds S] [--gd-spp N]
+// --gd-seconds: section 2's time budget for gradient descent (default: 10x the time the cached
+// method took to its last error, so "not reached" means over 10x slower; 0 skips section 2).
 // Diagnostics (environment): VOXEL_TRUTH=1 (the truth is one voxel light the grid can hold),
 // MAXDEPTH=N (references and estimation with that path length), ROUNDS=N, DIRECT=N, MVOX=N.
 #include <chrono>
@@ -28,6 +31,10 @@
 #include "core/parallel.h"
 #include "inverse/light_estimation.h"
 #include "inverse/procedural.h"
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 using namespace genscene;
 using namespace genscene::inverse;
@@ -111,6 +118,342 @@ std::vector<TrainingView> ReadViews(const fs::path& folder) {
   return out;
 }
 
+// ---- Figures (OpenCV: 8-bit BGR canvases, text labels) ----------------------------------------
+
+// Linear RGB to 8-bit BGR, exposure `scale`, gamma 2.2.
+cv::Mat ToBgr(const ImageRgb& image, float scale) {
+  cv::Mat out(image.height(), image.width(), CV_8UC3);
+  for (int v = 0; v < image.height(); ++v) {
+    for (int u = 0; u < image.width(); ++u) {
+      const Eigen::Vector3f c = image(u, v) * scale;
+      auto enc = [](float x) { return cv::saturate_cast<uint8_t>(255.0f * std::pow(std::clamp(x, 0.0f, 1.0f), 1.0f / 2.2f)); };
+      out.at<cv::Vec3b>(v, u) = cv::Vec3b(enc(c.z()), enc(c.y()), enc(c.x()));
+    }
+  }
+  return out;
+}
+
+// The voxel powers (luminance) summed along axis `drop` (2: seen from above, x right, y up; 1:
+// seen from the front, x right, z up), `cell` pixels per voxel, inferno colour map over
+// [0, `scale`], and the true emitters' bounding box `truth` outlined in white.
+cv::Mat PowerMap(const VoxelLightGrid& g, int drop, int cell, double scale, const Eigen::AlignedBox3d& truth) {
+  const int a = 0, b = drop == 2 ? 1 : 2;
+  const int na = g.dims[a], nb = g.dims[b];
+  cv::Mat sum(nb, na, CV_64F, cv::Scalar(0.0));
+  for (int j = 0; j < g.VoxelCount(); ++j) {
+    const int idx[3] = {j % g.dims.x(), (j / g.dims.x()) % g.dims.y(), j / (g.dims.x() * g.dims.y())};
+    sum.at<double>(nb - 1 - idx[b], idx[a]) += Luminance(g.Power(j));
+  }
+  cv::Mat gray;
+  sum.convertTo(gray, CV_8U, scale > 0.0 ? 255.0 / scale : 0.0);
+  cv::Mat big, colour;
+  cv::resize(gray, big, cv::Size(na * cell, nb * cell), 0, 0, cv::INTER_NEAREST);
+  cv::applyColorMap(big, colour, cv::COLORMAP_INFERNO);
+  for (int i = 0; i <= na; ++i) cv::line(colour, {i * cell, 0}, {i * cell, nb * cell}, cv::Scalar(60, 60, 60));
+  for (int i = 0; i <= nb; ++i) cv::line(colour, {0, i * cell}, {na * cell, i * cell}, cv::Scalar(60, 60, 60));
+  if (!truth.isEmpty() && g.VoxelCount() > 1) {
+    // Voxel i's centre is at pixel (i + 0.5) cell along each axis.
+    const Eigen::Vector3d c0 = g.VoxelCenter(0);
+    const Eigen::Vector3d step = g.VoxelCenter(g.VoxelCount() - 1) - c0;
+    auto to_px = [&](int axis, double world) {
+      return (0.5 + (world - c0[axis]) / step[axis] * (g.dims[axis] - 1)) * cell;
+    };
+    const double a0 = to_px(a, truth.min()[a]), a1 = to_px(a, truth.max()[a]);
+    const double b0 = nb * cell - to_px(b, truth.max()[b]), b1 = nb * cell - to_px(b, truth.min()[b]);
+    cv::rectangle(colour, cv::Point(static_cast<int>(std::lround(a0)), static_cast<int>(std::lround(b0))),
+                  cv::Point(static_cast<int>(std::lround(a1)), static_cast<int>(std::lround(b1))), cv::Scalar(255, 255, 255), 1);
+  }
+  return colour;
+}
+
+double MaxProjectedPower(const VoxelLightGrid& g) {
+  double best = 0.0;
+  for (int drop : {1, 2}) {
+    std::vector<double> sum(static_cast<size_t>(g.VoxelCount()), 0.0);
+    for (int j = 0; j < g.VoxelCount(); ++j) {
+      const int x = j % g.dims.x(), y = (j / g.dims.x()) % g.dims.y(), z = j / (g.dims.x() * g.dims.y());
+      best = std::max(best, sum[static_cast<size_t>(x + g.dims.x() * (drop == 2 ? y : z))] += Luminance(g.Power(j)));
+    }
+  }
+  return best;
+}
+
+struct Fig3Row {
+  std::string label;
+  VoxelLightGrid lights;  // empty dims for the reference row
+  ImageRgb render;
+};
+
+// Fig. 3 of the paper: one row per penalty weight (and the reference first): the voxel powers
+// seen from above and from the front (the true emitters outlined), and the first training view
+// rendered with the estimate. `grid`: the estimate's (empty) grid, for the reference row's maps.
+void WriteFig3(const fs::path& path, const std::vector<Fig3Row>& rows, float exposure, const VoxelLightGrid& grid,
+               const Eigen::AlignedBox3d& truth) {
+  const int cell = 24, gap = 6;
+  double scale = 0.0;
+  for (const Fig3Row& r : rows) {
+    if (r.lights.VoxelCount() > 0) scale = std::max(scale, MaxProjectedPower(r.lights));
+  }
+  std::vector<cv::Mat> lines;
+  for (const Fig3Row& r : rows) {
+    const int side = 7 * cell;
+    const VoxelLightGrid& g = r.lights.VoxelCount() > 0 ? r.lights : grid;
+    const cv::Mat top = PowerMap(g, 2, side / g.dims.x(), scale, truth);
+    const cv::Mat front = PowerMap(g, 1, side / g.dims.x(), scale, truth);
+    cv::Mat image = ToBgr(r.render, exposure), image_big;
+    cv::resize(image, image_big, cv::Size(image.cols * top.rows / image.rows, top.rows), 0, 0, cv::INTER_NEAREST);
+    cv::Mat line(top.rows + 24, top.cols + front.cols + image_big.cols + 2 * gap, CV_8UC3, cv::Scalar(255, 255, 255));
+    top.copyTo(line(cv::Rect(0, 24, top.cols, top.rows)));
+    front.copyTo(line(cv::Rect(top.cols + gap, 24, front.cols, front.rows)));
+    image_big.copyTo(line(cv::Rect(top.cols + front.cols + 2 * gap, 24, image_big.cols, image_big.rows)));
+    cv::putText(line, r.label, {4, 17}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+    lines.push_back(line);
+  }
+  cv::Mat canvas;
+  cv::vconcat(lines, canvas);
+  if (!cv::imwrite(path.string(), canvas)) std::fprintf(stderr, "bench_lights: cannot write %s\n", path.c_str());
+}
+
+// ---- Time to error: the cached normal equations against plain gradient descent ----------------
+
+// Per parameter p = 6 j + k, the RGB product L_j lambda_jk (what the cache's rows multiply).
+std::vector<Eigen::Vector3f> Products(const VoxelLightGrid& g) {
+  std::vector<Eigen::Vector3f> x(static_cast<size_t>(6 * g.VoxelCount()));
+  for (int j = 0; j < g.VoxelCount(); ++j) {
+    for (int k = 0; k < 6; ++k) x[static_cast<size_t>(6 * j + k)] = g.intensity[j] * g.weights[j][k];
+  }
+  return x;
+}
+
+// Predicted pixels of `rows` for the products x.
+std::vector<Eigen::Vector3d> PredictProducts(const LightCache& rows, const std::vector<Eigen::Vector3f>& x) {
+  std::vector<Eigen::Vector3d> p(rows.pixels.size(), Eigen::Vector3d::Zero());
+  for (size_t i = 0; i < rows.pixels.size(); ++i) {
+    for (size_t e = rows.row_begin[i]; e < rows.row_begin[i + 1]; ++e) {
+      p[i] += rows.coefficient[e].cwiseProduct(x[static_cast<size_t>(rows.index[e])]).cast<double>();
+    }
+  }
+  return p;
+}
+
+// sqrt(sum |P - I|^2 / sum |I|^2) over the rows' pixels.
+double RelativeError(const LightCache& rows, const std::vector<Eigen::Vector3f>& x) {
+  const std::vector<Eigen::Vector3d> p = PredictProducts(rows, x);
+  double num = 0.0, den = 0.0;
+  for (size_t i = 0; i < p.size(); ++i) {
+    const Eigen::Vector3d observed = rows.pixels[i].observed.cast<double>();
+    num += (p[i] - observed).squaredNorm();
+    den += observed.squaredNorm();
+  }
+  return std::sqrt(num / den);
+}
+
+struct CurvePoint {
+  double seconds = 0.0, error = 0.0;
+};
+
+// First time a curve's error is at or below `target` (NaN: never).
+double TimeTo(const std::vector<CurvePoint>& curve, double target) {
+  for (const CurvePoint& c : curve) {
+    if (c.error <= target) return c.seconds;
+  }
+  return std::nan("");
+}
+
+void WriteCurves(const fs::path& path, const std::vector<CurvePoint>& cached, const std::vector<CurvePoint>& gd,
+                 double max_seconds) {
+  const int w = 640, h = 430, left = 60, right = 20, top = 30, bottom = 50;
+  cv::Mat canvas(h, w, CV_8UC3, cv::Scalar(255, 255, 255));
+  double e_min = 1e30, e_max = 0.0;
+  for (const auto* c : {&cached, &gd}) {
+    for (const CurvePoint& p : *c) e_min = std::min(e_min, p.error), e_max = std::max(e_max, p.error);
+  }
+  const double t0 = 0.1, l0 = std::log10(t0), l1 = std::log10(std::max(max_seconds, 1.0));
+  const double y0 = std::log10(e_min * 0.9), y1 = std::log10(e_max * 1.1);
+  auto px = [&](const CurvePoint& p) {
+    const double x = (std::log10(std::max(p.seconds, t0)) - l0) / (l1 - l0);
+    const double y = (std::log10(p.error) - y0) / (y1 - y0);
+    return cv::Point(left + static_cast<int>(x * (w - left - right)), h - bottom - static_cast<int>(y * (h - top - bottom)));
+  };
+  cv::rectangle(canvas, {left, top}, {w - right, h - bottom}, cv::Scalar(0, 0, 0));
+  for (double t = t0; t <= max_seconds * 1.001; t *= 10.0) {
+    const cv::Point p = px({t, e_min});
+    cv::line(canvas, {p.x, top}, {p.x, h - bottom}, cv::Scalar(220, 220, 220));
+    char text[32];
+    std::snprintf(text, sizeof text, "%g s", t);
+    cv::putText(canvas, text, {p.x - 12, h - bottom + 18}, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  }
+  for (int i = 0; i <= 4; ++i) {
+    const double e = std::pow(10.0, y0 + (y1 - y0) * i / 4.0);
+    const cv::Point p = px({t0, e});
+    char text[32];
+    std::snprintf(text, sizeof text, "%.3f", e);
+    cv::putText(canvas, text, {4, p.y + 4}, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  }
+  const std::pair<const std::vector<CurvePoint>*, cv::Scalar> curves[2] = {{&cached, cv::Scalar(200, 80, 0)},
+                                                                             {&gd, cv::Scalar(0, 0, 220)}};
+  for (const auto& [curve, colour] : curves) {
+    for (size_t i = 0; i < curve->size(); ++i) {
+      const cv::Point p = px((*curve)[i]);
+      cv::circle(canvas, p, 2, colour, cv::FILLED);
+      if (i > 0) cv::line(canvas, px((*curve)[i - 1]), p, colour, 1, cv::LINE_AA);
+    }
+  }
+  cv::putText(canvas, "cached normal equations (trace once, then solve)", {left + 10, (top + h - bottom) / 2},
+              cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(200, 80, 0), 1, cv::LINE_AA);
+  cv::putText(canvas, "gradient descent, re-tracing every step", {left + 10, (top + h - bottom) / 2 + 18}, cv::FONT_HERSHEY_SIMPLEX,
+              0.45, cv::Scalar(0, 0, 220), 1, cv::LINE_AA);
+  cv::putText(canvas, "seconds (log)", {w / 2 - 40, h - 12}, cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1,
+              cv::LINE_AA);
+  cv::putText(canvas, "relative RMSE on the training pixels (log)", {left, top - 10}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
+              cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  if (!cv::imwrite(path.string(), canvas)) std::fprintf(stderr, "bench_lights: cannot write %s\n", path.c_str());
+}
+
+// Section 2. Both methods start from the scene without lights and the same sampled pixels and are
+// judged by the same independent evaluation trace of those pixels (relative RMSE of the
+// prediction; not timed). The cached method traces once (two halves, as EstimateLights's first
+// round) and solves with 1, 2, 5, ... iterations; gradient descent re-traces the pixels with
+// `gd_spp` paths at every step (fresh random numbers: nothing is kept between steps), takes the
+// gradient of the squared relative residual over the products x_jk = L_j lambda_jk >= 0 and a
+// projected step with a backtracking (Armijo) line search on that step's paths.
+// `budget` < 0: ten times the cached method's time.
+void TimeToError(const Replica& replica, const LightEstimationOptions& options, int gd_spp, double budget,
+                 const fs::path& out) {
+  const Scene scene = WithoutLights(replica.scene);
+  const PathTracer tracer(scene);
+  const VoxelLightGrid dark = MakeVoxelGrid(scene, options.grid, options.boundary_inset);
+  VoxelSplitting splitting;
+  splitting.all_until_depth = options.split_depth;
+  splitting.SetPmf(std::vector<double>(static_cast<size_t>(dark.VoxelCount()), 1.0), options.resample_voxels);
+  const std::vector<SampledPixel> pixels = SamplePixels(tracer, replica.train, options, 7);
+  const LightCache eval = TraceLightCache(tracer, dark, splitting, replica.train, pixels, options, 99);
+  std::printf("\ntime to error: replica, %zu pixels, w = %g; error = relative RMSE of the prediction on an independent"
+              " %d-spp trace of the same pixels (%zu nnz)\n", pixels.size(), options.penalty_weight, options.spp,
+              eval.NonZeros());
+  {  // the products and the cache's own prediction agree (a check of Products / PredictProducts)
+    VoxelLightGrid g = dark;
+    for (int j = 0; j < g.VoxelCount(); ++j) g.intensity[j] = Eigen::Vector3f(0.1f, 0.2f, 0.3f) * (1 + j % 3);
+    const std::vector<Eigen::Vector3f> a = eval.Predict(g);
+    const std::vector<Eigen::Vector3d> b = PredictProducts(eval, Products(g));
+    double worst = 0.0;
+    for (size_t i = 0; i < a.size(); ++i) worst = std::max(worst, (a[i].cast<double>() - b[i]).norm() / (b[i].norm() + 1e-12));
+    std::printf("   check: products prediction against LightCache::Predict, max relative difference %.2e\n", worst);
+  }
+
+  // The cached method.
+  std::vector<CurvePoint> cached;
+  double t = Now();
+  LightEstimationOptions half = options;
+  half.spp = options.spp / 2;
+  const LightCache a = TraceLightCache(tracer, dark, splitting, replica.train, pixels, half, 1);
+  const LightCache b = TraceLightCache(tracer, dark, splitting, replica.train, pixels, half, 2);
+  const NormalEquations eq = NormalEquations::FromCaches(a, b, options.noise_correction);
+  const double setup = Now() - t;
+  std::printf("   cached: trace + normal equations %.2f s\n   %-10s %9s %9s\n", setup, "iterations", "seconds", "error");
+  for (int iterations : {1, 2, 3, 5, 10, 20, 50, 100, 300}) {
+    LightEstimationOptions o = options;
+    o.max_iterations = iterations;
+    o.move_passes = 0;
+    VoxelLightGrid g = dark;
+    t = Now();
+    const SolveReport r = SolveLights(eq, o, &g);
+    cached.push_back({setup + Now() - t, RelativeError(eval, Products(g))});
+    std::printf("   %-10d %9.2f %9.4f\n", r.iterations, cached.back().seconds, cached.back().error);
+    if (r.iterations < iterations) break;  // converged: longer solves are the same
+  }
+
+  // Plain gradient descent without the cache.
+  if (budget < 0.0) budget = 10.0 * cached.back().seconds;
+  std::vector<CurvePoint> gd;
+  LightEstimationOptions step_options = options;
+  step_options.spp = gd_spp;
+  step_options.direct_paths = std::min(options.direct_paths, gd_spp / 2);
+  const size_t params = static_cast<size_t>(6 * dark.VoxelCount());
+  std::vector<Eigen::Vector3f> x(params, Eigen::Vector3f::Zero());
+  double elapsed = 0.0, alpha = 0.0;
+  const double target = cached.back().error;
+  std::printf("   gradient descent, %d paths per pixel per step, budget %.0f s\n   %-10s %9s %9s %11s\n", gd_spp, budget,
+              "step", "seconds", "error", "step size");
+  for (int step = 0; elapsed < budget; ++step) {
+    t = Now();
+    const LightCache rows = TraceLightCache(tracer, dark, splitting, replica.train, pixels, step_options, 1000 + step);
+    double energy = 0.0;
+    for (const SampledPixel& p : rows.pixels) energy += p.observed.cast<double>().squaredNorm();
+    if (step == 0) {  // start: the best uniform lighting for these paths (as SolveLights starts)
+      double num = 0.0, den = 0.0;
+      std::vector<Eigen::Vector3d> s(rows.pixels.size(), Eigen::Vector3d::Zero());
+      for (size_t i = 0; i < rows.pixels.size(); ++i) {
+        for (size_t e = rows.row_begin[i]; e < rows.row_begin[i + 1]; ++e) s[i] += rows.coefficient[e].cast<double>();
+        num += s[i].dot(rows.pixels[i].observed.cast<double>());
+        den += s[i].squaredNorm();
+      }
+      std::fill(x.begin(), x.end(), Eigen::Vector3f::Constant(static_cast<float>(num / den)));
+    }
+    auto cost = [&](const std::vector<Eigen::Vector3f>& at, std::vector<Eigen::Vector3d>* residual) {
+      std::vector<Eigen::Vector3d> p = PredictProducts(rows, at);
+      double f = 0.0;
+      for (size_t i = 0; i < p.size(); ++i) {
+        p[i] -= rows.pixels[i].observed.cast<double>();
+        f += p[i].squaredNorm();
+      }
+      if (residual) *residual = std::move(p);
+      return f / energy;
+    };
+    std::vector<Eigen::Vector3d> residual;
+    const double f = cost(x, &residual);
+    std::vector<Eigen::Vector3d> gradient(params, Eigen::Vector3d::Zero());
+    for (size_t i = 0; i < rows.pixels.size(); ++i) {
+      for (size_t e = rows.row_begin[i]; e < rows.row_begin[i + 1]; ++e) {
+        gradient[static_cast<size_t>(rows.index[e])] += 2.0 / energy * rows.coefficient[e].cast<double>().cwiseProduct(residual[i]);
+      }
+    }
+    if (alpha == 0.0) {  // first step size: move the largest product by its own size
+      double g_max = 0.0;
+      for (const Eigen::Vector3d& g : gradient) g_max = std::max(g_max, g.cwiseAbs().maxCoeff());
+      alpha = g_max > 0.0 ? x[0].maxCoeff() / g_max : 1.0;
+    }
+    alpha *= 2.0;
+    std::vector<Eigen::Vector3f> next(params);
+    for (int tries = 0; tries < 40; ++tries, alpha *= 0.5) {
+      double linear = 0.0, square = 0.0;
+      for (size_t q = 0; q < params; ++q) {
+        next[q] = (x[q].cast<double>() - alpha * gradient[q]).cwiseMax(0.0).cast<float>();
+        const Eigen::Vector3d d = (next[q] - x[q]).cast<double>();
+        linear += gradient[q].dot(d);
+        square += d.squaredNorm();
+      }
+      if (cost(next, nullptr) <= f + linear + 0.5 * square / alpha) break;
+    }
+    x.swap(next);
+    elapsed += Now() - t;
+    gd.push_back({elapsed, RelativeError(eval, x)});
+    if (step < 10 || step % 10 == 9) std::printf("   %-10d %9.2f %9.4f %11.3g\n", step + 1, elapsed, gd.back().error, alpha);
+    if (gd.back().error <= target) break;
+  }
+  std::printf("   %-10zu %9.2f %9.4f (last step)\n", gd.size(), gd.back().seconds, gd.back().error);
+
+  std::printf("   %-9s %12s %12s %9s\n", "error", "cached (s)", "descent (s)", "ratio");
+  const double best_gd = std::min_element(gd.begin(), gd.end(), [](auto& l, auto& r) { return l.error < r.error; })->error;
+  for (const CurvePoint& c : cached) {
+    const double ours = TimeTo(cached, c.error), theirs = TimeTo(gd, c.error);
+    if (std::isnan(theirs)) {
+      char ratio[32];
+      std::snprintf(ratio, sizeof ratio, ">%.1fx", gd.back().seconds / ours);
+      std::printf("   %-9.4f %12.2f %12s %9s (descent's best in %.0f s: %.4f)\n", c.error, ours, "not reached", ratio,
+                  gd.back().seconds, best_gd);
+    } else {
+      std::printf("   %-9.4f %12.2f %12.2f %8.1fx\n", c.error, ours, theirs, theirs / ours);
+    }
+  }
+  double last = 0.0;
+  for (const auto* curve : {&cached, &gd}) {
+    for (const CurvePoint& c : *curve) last = std::max(last, c.seconds);
+  }
+  WriteCurves(out / "lights_time_to_error.png", cached, gd, last);
+  std::printf("   plot: %s\n", (out / "lights_time_to_error.png").c_str());
+}
+
 // Section 3: the Cycles Cornell box (../shared/data/cbox-cycles): lights from the 3 training
 // views, judged on the 2 novel views; the power-weighted centroid of the voxels against the light.
 void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, int eval_spp) {
@@ -156,7 +499,8 @@ int main(int argc, char** argv) {
   // Line-buffered even into a file or pipe: a sweep runs for minutes and reports each round.
   std::setvbuf(stdout, nullptr, _IOLBF, 0);
   fs::path out = "bench_out";
-  int width = 160, height = 120, ref_spp = 1024, spp = LightEstimationOptions().spp, eval_spp = 256;
+  int width = 160, height = 120, ref_spp = 1024, spp = LightEstimationOptions().spp, eval_spp = 256, gd_spp = 2;
+  double gd_seconds = -1.0;  // -1: ten times the cached method's time
   double gamma = LightEstimationOptions().noise_correction;
   std::vector<double> weights = {0.0, 1e-4, 1e-3, 1e-2};
   for (int i = 1; i + 1 < argc; i += 2) {
@@ -167,6 +511,8 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--spp")) spp = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--gamma")) gamma = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--eval-spp")) eval_spp = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--gd-seconds")) gd_seconds = std::atof(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--gd-spp")) gd_spp = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--weights")) {
       weights.clear();
       for (const char* p = argv[i + 1]; *p;) {
@@ -229,6 +575,14 @@ int main(int argc, char** argv) {
               ThreadCount());
   std::printf("%-9s %7s %7s %9s %9s %9s %9s %9s %8s\n", "weight", "active", "rounds", "cache", "train", "train*",
               "novel", "novel*", "seconds");
+  std::vector<Fig3Row> fig3 = {{"reference (training view 1)", VoxelLightGrid(), replica.train[0].image}};
+  fig3[0].lights.dims.setZero();
+  std::vector<float> luminance;
+  for (size_t i = 0; i < replica.train[0].image.size(); ++i) {
+    luminance.push_back(static_cast<float>(Luminance(replica.train[0].image.data()[i])));
+  }
+  std::nth_element(luminance.begin(), luminance.begin() + luminance.size() * 95 / 100, luminance.end());
+  const float exposure = 0.8f / std::max(1e-6f, luminance[luminance.size() * 95 / 100]);
   for (double weight : weights) {
     LightEstimationOptions o;
     o.penalty_weight = weight;
@@ -251,8 +605,9 @@ int main(int argc, char** argv) {
     lit.voxel_lights = e.lights;
     const PathTracer lit_tracer(lit);
     double train = 0, train_b = 0, novel = 0, novel_b = 0;
+    ImageRgb render;
     for (size_t i = 0; i < replica.train.size(); ++i) {
-      const ViewError ve = CompareRender(lit_tracer, replica.train[i], o, eval_spp, 5, replica.noise[i]);
+      const ViewError ve = CompareRender(lit_tracer, replica.train[i], o, eval_spp, 5, replica.noise[i], i == 0 ? &render : nullptr);
       train += ve.rmse / 3, train_b += ve.rmse_bias / 3;
     }
     for (size_t i = 0; i < replica.novel.size(); ++i) {
@@ -261,6 +616,26 @@ int main(int argc, char** argv) {
     }
     std::printf("%-9g %7d %7zu %9.4f %9.4f %9.4f %9.4f %9.4f %8.2f\n", weight, e.active_voxels, e.rounds.size(),
                 e.train_rmse, train, train_b, novel, novel_b, seconds);
+    char label[160];
+    std::snprintf(label, sizeof label, "w %g: %d active, novel %.3f, %.0f s", weight, e.active_voxels, novel, seconds);
+    fig3.push_back({label, e.lights, std::move(render)});
+  }
+  Eigen::AlignedBox3d light_box;
+  for (const SceneMesh& m : replica.scene.meshes) {
+    if (!m.IsEmitter()) continue;
+    for (const Eigen::Vector3f& p : m.mesh.vertices) light_box.extend(p.cast<double>());
+  }
+  WriteFig3(out / "fig3_lights.png", fig3, exposure, MakeVoxelGrid(WithoutLights(replica.scene), 7), light_box);
+  std::printf("figure: %s (rows: reference, then each weight; columns: voxel powers from above (x right, y up) and"
+              " from the front (x right, z up) with the true light outlined, training view 1 rendered with the"
+              " estimate)\n",
+              (out / "fig3_lights.png").c_str());
+  if (gd_seconds != 0.0) {
+    LightEstimationOptions o;
+    o.spp = spp;
+    o.noise_correction = gamma;
+    o.penalty_weight = 0.0;  // both methods minimise the data term alone
+    TimeToError(replica, o, gd_spp, gd_seconds, out);
   }
   return 0;
 }
