@@ -2,11 +2,11 @@
 
 #include <cmath>
 #include <iomanip>
-#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "core/check.h"
 #include "core/file_util.h"
+#include "core/json_util.h"
 
 namespace genscene {
 
@@ -74,18 +74,18 @@ std::string CameraIntrinsics::ToString() const {
 namespace {
 
 CameraIntrinsics ReadOpen3dJson(const std::filesystem::path& path, const std::string& text) {
-  nlohmann::json j;
+  json_util::json j;
   try {
-    j = nlohmann::json::parse(text);
+    j = json_util::json::parse(text);
   } catch (const std::exception& e) {
     throw Error(Format(path.string(), ": not valid JSON (", e.what(), ")"));
   }
   CameraIntrinsics k;
   try {
     const auto& m = j.at("intrinsic_matrix");  // 3x3, column-major
-    if (!m.is_array() || m.size() != 9) throw Error("intrinsic_matrix must have 9 numbers");
-    k.width = j.at("width").get<int>();
-    k.height = j.at("height").get<int>();
+    if (!m.is_array() || m.size() != 9) throw Error(Format(path.string(), ": intrinsic_matrix must have 9 numbers"));
+    k.width = json_util::JsonInt(j.at("width"), Format(path.string(), ": width"));
+    k.height = json_util::JsonInt(j.at("height"), Format(path.string(), ": height"));
     k.fx = m[0].get<double>();
     k.fy = m[4].get<double>();
     k.cx = m[6].get<double>();

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <vector>
 
 #include "core/check.h"
@@ -26,6 +27,16 @@ double JsonNumber(const json& j, const std::string& where) {
     throw Error(Format(where, ": expected a finite number, got ", j.dump()));
   }
   return j.get<double>();
+}
+
+int JsonInt(const json& j, const std::string& where) {
+  if (!j.is_number_integer()) throw Error(Format(where, ": expected an integer, got ", j.dump()));
+  const bool fits = j.is_number_unsigned()
+                        ? j.get<unsigned long long>() <= static_cast<unsigned long long>(std::numeric_limits<int>::max())
+                        : j.get<long long>() >= std::numeric_limits<int>::min() &&
+                              j.get<long long>() <= std::numeric_limits<int>::max();
+  if (!fits) throw Error(Format(where, ": ", j.dump(), " is out of range (not a 32-bit integer)"));
+  return static_cast<int>(j.get<long long>());
 }
 
 void ThrowWrongSize(const json& j, int expected, const std::string& where) {

@@ -15,6 +15,9 @@ using json = nlohmann::ordered_json;  // keeps the documented key order when wri
 // Error when `j` is not an object or has a key outside `allowed`.
 void CheckKeys(const json& j, std::initializer_list<const char*> allowed, const std::string& where);
 double JsonNumber(const json& j, const std::string& where);
+// An integer that fits in int: a float (640.5, 4.8e101) or a value beyond 32 bits is an Error
+// naming `where` (nlohmann's get<int> converts those with undefined behaviour).
+int JsonInt(const json& j, const std::string& where);
 json JsonArray(const json& j, const std::string& where);  // a copy: callers pass temporaries
 json ToJson(const Eigen::Ref<const Eigen::VectorXd>& v);
 // Floats as the double of their shortest decimal text: "0.725", not "0.7250000238418579".

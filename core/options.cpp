@@ -1,5 +1,6 @@
 #include "core/options.h"
 
+#include <climits>
 #include <nlohmann/json.hpp>
 
 #include "core/file_util.h"
@@ -78,6 +79,10 @@ void ConfigFile::SetValue(const std::string& section, const std::string& key, do
 void ConfigFile::SetValue(const std::string& section, const std::string& key, int* value) {
   if (const auto* j = Find(section, key)) {
     if (!j->is_number_integer()) TypeError(path_, section, key, "an integer", *j);
+    // An unsigned value beyond 2^63 would wrap to a negative long long: refuse it first.
+    if (j->is_number_unsigned() && j->get<unsigned long long>() > INT32_MAX) {
+      TypeError(path_, section, key, "a 32-bit integer", *j);
+    }
     const long long v = j->get<long long>();
     if (v < INT32_MIN || v > INT32_MAX) TypeError(path_, section, key, "a 32-bit integer", *j);
     *value = static_cast<int>(v);
@@ -87,6 +92,9 @@ void ConfigFile::SetValue(const std::string& section, const std::string& key, in
 void ConfigFile::SetValue(const std::string& section, const std::string& key, long long* value) {
   if (const auto* j = Find(section, key)) {
     if (!j->is_number_integer()) TypeError(path_, section, key, "an integer", *j);
+    if (j->is_number_unsigned() && j->get<unsigned long long>() > static_cast<unsigned long long>(LLONG_MAX)) {
+      TypeError(path_, section, key, "a 64-bit signed integer", *j);
+    }
     *value = j->get<long long>();
   }
 }

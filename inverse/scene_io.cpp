@@ -100,13 +100,7 @@ RenderSettings ParseRender(const json& j, const std::string& where) {
   RenderSettings s;
   const auto integer = [&](const char* key) -> std::optional<int> {
     if (!j.contains(key)) return std::nullopt;
-    if (!j[key].is_number_integer()) throw Error(Format(where, ".", key, ": expected an integer"));
-    const bool fits = j[key].is_number_unsigned()
-                          ? j[key].get<unsigned long long>() <= static_cast<unsigned long long>(std::numeric_limits<int>::max())
-                          : j[key].get<long long>() >= std::numeric_limits<int>::min() &&
-                                j[key].get<long long>() <= std::numeric_limits<int>::max();
-    if (!fits) throw Error(Format(where, ".", key, ": ", j[key].dump(), " is out of range (not a 32-bit integer)"));
-    return j[key].get<int>();
+    return JsonInt(j[key], Format(where, ".", key));
   };
   const auto number = [&](const char* key) -> std::optional<double> {
     if (!j.contains(key)) return std::nullopt;

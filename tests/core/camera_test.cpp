@@ -99,6 +99,27 @@ TEST(Camera, NamedIntrinsics) {
   EXPECT_THROW(ResolveIntrinsics("no-such-file-or-name"), Error);
 }
 
+// Fuzzing found "height": 4.8e101 converted to int with undefined behaviour (UBSan); a size must be
+// an integer that fits, and every other malformation names the file.
+TEST(Camera, RejectsMalformedOpen3dJson) {
+  test::TempDir dir;
+  const std::string matrix = R"("intrinsic_matrix": [525, 0, 0, 0, 525, 0, 319.5, 239.5, 1])";
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {R"({"width": 640, "height": 4.8e101, )" + matrix + "}", "height: expected an integer, got 4.8e+101"},
+      {R"({"width": 640.5, "height": 480, )" + matrix + "}", "width: expected an integer, got 640.5"},
+      {R"({"width": 640, "height": 1099511627776, )" + matrix + "}", "height: 1099511627776 is out of range"},
+      {R"({"width": 640, "height": -4294967296, )" + matrix + "}", "height: -4294967296 is out of range"},
+      {R"({"width": 640, "height": 480, "intrinsic_matrix": [525, 0]})", "intrinsic_matrix must have 9 numbers"},
+      {R"({"width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, "x", 0, 319.5, 239.5, 1]})",
+       "not an Open3D camera intrinsic file"}};
+  for (const auto& [text, message] : bad) {
+    std::ofstream(dir / "camera.json") << text << "\n";
+    const std::string error = test::ErrorOf([&] { ReadIntrinsicsFile(dir / "camera.json"); });
+    EXPECT_CONTAINS(error, "camera.json: ");
+    EXPECT_CONTAINS(error, message);
+  }
+}
+
 TEST(Camera, ReadsOpen3dCameraJson) {
   GS_REQUIRE_SHARED_DATA(data);
   const CameraIntrinsics k = ReadIntrinsicsFile(data / "real/open3d-testdata-rgbd/camera_primesense.json");

@@ -49,6 +49,14 @@ TEST(Options, UnknownSectionAndWrongTypeAndBadJson) {
   SourceOptions source;
   EXPECT_NE(ErrorOf([&] { b.Apply(source); }).find("'source.max_frames' must be an integer"), std::string::npos);
 
+  // 2^64 - 1 once wrapped to -1 through long long, and -1 was taken without an error.
+  for (const char* big : {"18446744073709551615", "4294967297"}) {
+    std::ofstream(dir / "b.json") << R"({"source": {"max_frames": )" << big << "}}";
+    ConfigFile big_config(dir / "b.json");
+    EXPECT_CONTAINS(ErrorOf([&] { big_config.Apply(source); }),
+                    std::string("'source.max_frames' must be a 32-bit integer, got ") + big);
+  }
+
   std::ofstream(dir / "c.json") << R"({"source": {"max_frames": 3)";
   EXPECT_NE(ErrorOf([&] { ConfigFile c(dir / "c.json"); }).find("not valid JSON"), std::string::npos);
   EXPECT_NE(ErrorOf([&] { ConfigFile d(dir / "missing.json"); }).find("not found"), std::string::npos);
