@@ -39,6 +39,7 @@ void FusionOptions::Validate() const {
   RequireRange("memory_cap", memory_cap, 1.0, 1e7);
   RequireOneOf("tracking", tracking, {"icp", "known"});
   RequireRange("min_valid_fraction", min_valid_fraction, 0.0, 1.0);
+  RequireRange("model_subsample", model_subsample, 1, 4);
   preprocess.Validate();
   icp.Validate();
   keyframes.Validate();
@@ -73,6 +74,7 @@ KinectFusion::KinectFusion(const FusionOptions& options, const CameraIntrinsics&
       keyframe_selector_(options.keyframes) {
   options_.Validate();
   intrinsics_.Validate();
+  model_intrinsics_ = intrinsics_.Scaled(1.0 / options_.model_subsample);
 }
 
 FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
@@ -126,7 +128,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     report.seconds_preprocess = SecondsSince(start);
     start = std::chrono::steady_clock::now();
     Eigen::Isometry3d model_from_live = Eigen::Isometry3d::Identity();  // predict: no motion
-    report.icp = TrackFrameToModel(pyramid, model_, k, options_.icp, &model_from_live);
+    report.icp = TrackFrameToModel(pyramid, model_, model_intrinsics_, options_.icp, &model_from_live);
     report.seconds_track = SecondsSince(start);
     const double moved = model_from_live.translation().norm();
     const double turned = RotationAngle(model_from_live) * 180.0 / M_PI;
@@ -165,7 +167,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   report.fused = true;
   report.seconds_integrate = SecondsSince(start);
   start = std::chrono::steady_clock::now();
-  model_ = RaycastVolume(volume_, k, pose, options_.preprocess.min_depth, options_.preprocess.max_depth,
+  model_ = RaycastVolume(volume_, model_intrinsics_, pose, options_.preprocess.min_depth, options_.preprocess.max_depth,
                          /*with_color=*/false);
   report.seconds_raycast = SecondsSince(start);
   last_good_ = pose;

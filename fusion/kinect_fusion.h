@@ -37,6 +37,7 @@ struct FusionOptions {
   double memory_cap = 4000.0;     // MB the TSDF may allocate; exceeding it is an error
   std::string tracking = "icp";   // icp (estimate the poses) or known (fuse with the source's poses)
   double min_valid_fraction = 0.05;  // frames with fewer valid depth pixels are blank (skipped)
+  int model_subsample = 1;        // the model is raycast at 1/N of the depth's resolution for ICP
   PreprocessOptions preprocess;
   IcpOptions icp;
   KeyframeOptions keyframes;
@@ -49,6 +50,7 @@ struct FusionOptions {
     v("memory_cap", memory_cap, "MB", "memory the TSDF may allocate (error beyond)");
     v("tracking", tracking, "", "icp (estimate poses) or known (use the source's poses)");
     v("min_valid_fraction", min_valid_fraction, "", "frames with fewer valid depth pixels are skipped as blank");
+    v("model_subsample", model_subsample, "", "raycast the model for tracking at 1/N resolution (1 = full)");
     v("depth_min", preprocess.min_depth, "m", "nearer depth is invalid");
     v("depth_max", preprocess.max_depth, "m", "farther depth is invalid");
     v("bilateral_radius", preprocess.bilateral_radius, "px", "bilateral filter half-width for tracking (0 = off)");
@@ -125,6 +127,7 @@ class KinectFusion {
   bool started_ = false;
   Eigen::Isometry3d last_good_ = Eigen::Isometry3d::Identity();  // pose the model was raycast at
   RaycastResult model_;
+  CameraIntrinsics model_intrinsics_;  // the model's raycast camera (intrinsics at 1/model_subsample)
   Trajectory trajectory_;
   std::vector<FrameReport> reports_;
   KeyframeSelector keyframe_selector_;

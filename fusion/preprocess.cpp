@@ -92,7 +92,8 @@ ImageDepth DownsampleDepth(const ImageDepth& depth, double sigma_depth) {
   const int w = depth.width() / 2, h = depth.height() / 2;
   ImageDepth out(w, h);
   const float max_diff = static_cast<float>(3.0 * sigma_depth);
-  for (int v = 0; v < h; ++v) {
+  ParallelFor(0, static_cast<size_t>(h), [&](size_t row) {
+    const int v = static_cast<int>(row);
     for (int u = 0; u < w; ++u) {
       float reference = 0.0f, sum = 0.0f;
       int count = 0;
@@ -106,7 +107,7 @@ ImageDepth DownsampleDepth(const ImageDepth& depth, double sigma_depth) {
       }
       if (count > 0) out(u, v) = sum / static_cast<float>(count);
     }
-  }
+  }, 16);
   return out;
 }
 
@@ -114,12 +115,13 @@ PointImage ComputeVertexMap(const ImageDepth& depth, const CameraIntrinsics& k) 
   PointImage out(depth.width(), depth.height());
   const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy);
   const float cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
-  for (int v = 0; v < depth.height(); ++v) {
+  ParallelFor(0, static_cast<size_t>(depth.height()), [&](size_t row) {
+    const int v = static_cast<int>(row);
     for (int u = 0; u < depth.width(); ++u) {
       const float z = depth(u, v);
       if (z > 0.0f) out(u, v) = Eigen::Vector3f((u - cx) / fx * z, (v - cy) / fy * z, z);
     }
-  }
+  }, 16);
   return out;
 }
 
@@ -128,7 +130,9 @@ PointImage ComputeNormalMap(const PointImage& vertices, double max_jump, int ste
   PointImage out(w, h);
   const float jump = static_cast<float>(max_jump);
   const int s = step;
-  for (int v = s; v + s < h; ++v) {
+  if (h <= 2 * s) return out;
+  ParallelFor(static_cast<size_t>(s), static_cast<size_t>(h - s), [&](size_t row) {
+    const int v = static_cast<int>(row);
     for (int u = s; u + s < w; ++u) {
       const Eigen::Vector3f& c = vertices(u, v);
       if (c.z() <= 0.0f) continue;
@@ -150,7 +154,7 @@ PointImage ComputeNormalMap(const PointImage& vertices, double max_jump, int ste
       if (n.dot(c) > 0.0f) n = -n;  // face the camera
       out(u, v) = n;
     }
-  }
+  }, 8);
   return out;
 }
 
