@@ -110,29 +110,47 @@ TsdfVoxel* TsdfVolume::FindVoxel(const Eigen::Vector3i& v) {
   return const_cast<TsdfVoxel*>(static_cast<const TsdfVolume*>(this)->FindVoxel(v));
 }
 
+const Eigen::Vector3f* TsdfVolume::FindColor(const Eigen::Vector3i& v) const {
+  const Eigen::Vector3i b = BlockOf(v);
+  const auto index = table_.Find(b);
+  if (!index) return nullptr;
+  const Eigen::Vector3i local = v - kTsdfBlockSide * b;
+  return &blocks_[*index].colors[TsdfBlock::Index(local.x(), local.y(), local.z())];
+}
+
 namespace {
 
-// Gathers the 8 voxels around a continuous lattice point; false when one is missing.
-bool GatherCorners(const TsdfVolume& volume, const Eigen::Vector3f& lattice,
-                   const TsdfVoxel* corners[8], Eigen::Vector3f* frac) {
+struct Corner {
+  const TsdfBlock* block;
+  int index;
+};
+
+// Gathers the 8 voxels around a continuous lattice point; false when one is missing or unobserved.
+bool GatherCorners(const TsdfVolume& volume, const Eigen::Vector3f& lattice, Corner corners[8],
+                   Eigen::Vector3f* frac) {
   const Eigen::Vector3f floor = lattice.array().floor();
   if (!floor.allFinite() || floor.cwiseAbs().maxCoeff() > 1e9f) return false;
   const Eigen::Vector3i base = floor.cast<int>();
   *frac = lattice - floor;
   for (int c = 0; c < 8; ++c) {
     const Eigen::Vector3i v = base + Eigen::Vector3i(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-    corners[c] = volume.FindVoxel(v);
-    if (corners[c] == nullptr || corners[c]->weight <= 0.0f) return false;
+    const Eigen::Vector3i b = TsdfVolume::BlockOf(v);
+    const auto index = volume.FindBlock(b);
+    if (!index) return false;
+    const Eigen::Vector3i local = v - kTsdfBlockSide * b;
+    corners[c] = {&volume.block(static_cast<size_t>(*index)),
+                  TsdfBlock::Index(local.x(), local.y(), local.z())};
+    if (corners[c].block->voxels[corners[c].index].weight <= 0.0f) return false;
   }
   return true;
 }
 
 template <typename T, typename Get>
-T Trilinear(const TsdfVoxel* const corners[8], const Eigen::Vector3f& f, const Get& get) {
-  const T x00 = get(*corners[0]) * (1 - f.x()) + get(*corners[1]) * f.x();
-  const T x10 = get(*corners[2]) * (1 - f.x()) + get(*corners[3]) * f.x();
-  const T x01 = get(*corners[4]) * (1 - f.x()) + get(*corners[5]) * f.x();
-  const T x11 = get(*corners[6]) * (1 - f.x()) + get(*corners[7]) * f.x();
+T Trilinear(const Corner corners[8], const Eigen::Vector3f& f, const Get& get) {
+  const T x00 = get(corners[0]) * (1 - f.x()) + get(corners[1]) * f.x();
+  const T x10 = get(corners[2]) * (1 - f.x()) + get(corners[3]) * f.x();
+  const T x01 = get(corners[4]) * (1 - f.x()) + get(corners[5]) * f.x();
+  const T x11 = get(corners[6]) * (1 - f.x()) + get(corners[7]) * f.x();
   const T y0 = x00 * (1 - f.y()) + x10 * f.y();
   const T y1 = x01 * (1 - f.y()) + x11 * f.y();
   return y0 * (1 - f.z()) + y1 * f.z();
@@ -141,18 +159,18 @@ T Trilinear(const TsdfVoxel* const corners[8], const Eigen::Vector3f& f, const G
 }  // namespace
 
 std::optional<float> TsdfVolume::InterpolateSdf(const Eigen::Vector3f& lattice) const {
-  const TsdfVoxel* corners[8];
+  Corner corners[8];
   Eigen::Vector3f f;
   if (!GatherCorners(*this, lattice, corners, &f)) return std::nullopt;
-  return Trilinear<float>(corners, f, [](const TsdfVoxel& v) { return v.sdf; });
+  return Trilinear<float>(corners, f, [](const Corner& c) { return c.block->voxels[c.index].sdf; });
 }
 
 std::optional<Eigen::Vector3f> TsdfVolume::InterpolateColor(const Eigen::Vector3f& lattice) const {
-  const TsdfVoxel* corners[8];
+  Corner corners[8];
   Eigen::Vector3f f;
   if (!GatherCorners(*this, lattice, corners, &f)) return std::nullopt;
-  return Trilinear<Eigen::Vector3f>(corners, f,
-                                    [](const TsdfVoxel& v) -> Eigen::Vector3f { return v.color; });
+  return Trilinear<Eigen::Vector3f>(
+      corners, f, [](const Corner& c) -> Eigen::Vector3f { return c.block->colors[c.index]; });
 }
 
 std::optional<Eigen::Vector3f> TsdfVolume::SdfGradient(const Eigen::Vector3f& lattice) const {
@@ -206,10 +224,11 @@ void WriteTsdfVolume(const std::filesystem::path& path, const TsdfVolume& volume
   for (size_t b = 0; b < volume.num_blocks(); ++b) {
     const Eigen::Vector3i& key = volume.block_key(b);
     for (int i = 0; i < 3; ++i) PutBinary(out, static_cast<int32_t>(key[i]));
-    for (const TsdfVoxel& v : volume.block(b).voxels) {
-      PutBinary(out, v.sdf);
-      PutBinary(out, v.weight);
-      for (int c = 0; c < 3; ++c) PutBinary(out, v.color[c]);
+    const TsdfBlock& block = volume.block(b);
+    for (int i = 0; i < kTsdfBlockVoxels; ++i) {
+      PutBinary(out, block.voxels[i].sdf);
+      PutBinary(out, block.voxels[i].weight);
+      for (int c = 0; c < 3; ++c) PutBinary(out, block.colors[i][c]);
     }
   }
   WriteFileAtomically(path, [&](const std::filesystem::path& tmp) {
@@ -257,11 +276,13 @@ TsdfVolume ReadTsdfVolume(const std::filesystem::path& path, double memory_cap_b
       throw Error(Format(where, ": block ", b, " repeats key ", key.transpose()));
     }
     TsdfBlock& block = volume.block(volume.AllocateBlock(key));
-    for (TsdfVoxel& v : block.voxels) {
+    for (int i = 0; i < kTsdfBlockVoxels; ++i) {
+      TsdfVoxel& v = block.voxels[i];
+      Eigen::Vector3f& color = block.colors[i];
       v.sdf = reader.Get<float>("voxel");
       v.weight = reader.Get<float>("voxel");
-      for (int c = 0; c < 3; ++c) v.color[c] = reader.Get<float>("voxel");
-      if (!std::isfinite(v.sdf) || !std::isfinite(v.weight) || !v.color.allFinite() ||
+      for (int c = 0; c < 3; ++c) color[c] = reader.Get<float>("voxel");
+      if (!std::isfinite(v.sdf) || !std::isfinite(v.weight) || !color.allFinite() ||
           v.weight < 0.0f) {
         throw Error(Format(where, ": block ", b, " holds a non-finite or negative-weight voxel"));
       }

@@ -9,7 +9,10 @@
 //
 // Each voxel stores the truncated signed distance in metres (positive in front of the surface,
 // i.e. on the camera's side; clamped to [-truncation, truncation]), the accumulated weight
-// (0 = never observed) and a weighted running average of the linear RGB colour.
+// (0 = never observed) and a weighted running average of the linear RGB colour. A block keeps the
+// geometry (sdf, weight: 8 bytes a voxel) apart from the colours: the raycast for tracking and
+// marching cubes' classification read only the geometry, and an x-row of eight voxels is then one
+// 64-byte cache line (a trilinear sample reads four lines, and a block's geometry is 4 KB).
 //
 // The world origin of the lattice is a double-precision offset, so that a scene 1 km from the
 // world origin keeps millimetre precision in the float voxel arithmetic.
@@ -35,17 +38,21 @@ inline int FloorToInt(float x) {
   return i - (x < static_cast<float>(i));
 }
 
+// The geometry of one voxel; its colour is TsdfBlock::colors at the same index.
 struct TsdfVoxel {
   float sdf = 0.0f;     // truncated signed distance, metres, in [-truncation, truncation]
   float weight = 0.0f;  // accumulated integration weight; 0 = unobserved
-  Eigen::Vector3f color = Eigen::Vector3f::Zero();  // weighted mean linear RGB
 };
 
 constexpr int kTsdfBlockSide = 8;
 constexpr int kTsdfBlockVoxels = kTsdfBlockSide * kTsdfBlockSide * kTsdfBlockSide;
 
-struct TsdfBlock {
+struct alignas(64) TsdfBlock {
+  TsdfBlock() {
+    for (Eigen::Vector3f& c : colors) c.setZero();
+  }
   std::array<TsdfVoxel, kTsdfBlockVoxels> voxels;
+  std::array<Eigen::Vector3f, kTsdfBlockVoxels> colors;  // weighted mean linear RGB
   // Index of the local voxel (x, y, z), each in [0, 8).
   static int Index(int x, int y, int z) { return x + kTsdfBlockSide * (y + kTsdfBlockSide * z); }
 };
@@ -107,6 +114,8 @@ class TsdfVolume {
   // The voxel at lattice index v, or nullptr when its block is not allocated.
   const TsdfVoxel* FindVoxel(const Eigen::Vector3i& v) const;
   TsdfVoxel* FindVoxel(const Eigen::Vector3i& v);
+  // Its colour, or nullptr when its block is not allocated.
+  const Eigen::Vector3f* FindColor(const Eigen::Vector3i& v) const;
 
   // Lattice <-> world.
   Eigen::Vector3d VoxelToWorld(const Eigen::Vector3i& v) const {

@@ -24,9 +24,11 @@ struct IcpOptions {
   double max_angle = 30.0;      // degrees between normals; larger is rejected
   double huber_delta = 0.01;    // m; robust (Huber) weight beyond this point-to-plane residual
   // A level's iterations stop once a step moves the pose less than this (|xi|: metres and
-  // radians). On the 150-frame synthetic room 1e-5 took 14 instead of 19 steps a frame (tracking
-  // 17.6 -> 10.7 ms) for the same ATE (5.13 mm); 1e-7 ran every iteration.
-  double min_step = 1e-5;
+  // radians). On the 150-frame synthetic room (Kinect-like noise) 1e-5 took 14 instead of 19
+  // steps a frame (tracking 17.6 -> 10.7 ms) for the same ATE (5.13 mm); 1e-7 ran every
+  // iteration. Session 17: 5e-5 takes 11.7 steps (tracking -20 %) for ATE 5.149 mm against 5.141
+  // (2e-4: 9.7 steps, 5.19 mm); TUM fr1/desk 9 frames 1.774 mm against 1.773.
+  double min_step = 5e-5;
   // Eigenvalue / largest below this = unconstrained direction (rotation scaled to metres).
   // Measured at full resolution: a pure plane's three free directions reach 4.1e-4 (noise of
   // the raycast normals); the weakest direction of the small Cornell room at 160x120 is 1.3e-3,

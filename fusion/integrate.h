@@ -30,17 +30,18 @@ struct IntegrationStats {
 //   otherwise sdf_obs = min(eta, truncation), and the running average
 //   sdf' = (w sdf + w_obs sdf_obs) / (w + w_obs), w' = min(w + w_obs, max_weight).
 // Returns false when the voxel is not updated.
-inline bool UpdateVoxel(TsdfVoxel& voxel, float eta, float truncation, float max_weight,
-                        const Eigen::Vector3f* color) {
+inline bool UpdateVoxel(TsdfVoxel& voxel, Eigen::Vector3f& voxel_color, float eta, float truncation,
+                        float max_weight, const Eigen::Vector3f* color) {
   if (eta < -truncation) return false;
   const float sdf_obs = eta < truncation ? eta : truncation;
   constexpr float kObservationWeight = 1.0f;
   const float w = voxel.weight;
   const float w_new = w + kObservationWeight;
-  voxel.sdf = (w * voxel.sdf + kObservationWeight * sdf_obs) / w_new;
+  const float inv_w_new = 1.0f / w_new;  // one division, not four
+  voxel.sdf = (w * voxel.sdf + kObservationWeight * sdf_obs) * inv_w_new;
   // Colour only inside the band: the colour of free space in front of a surface is not its colour.
   if (color != nullptr && eta < truncation) {
-    voxel.color = (w * voxel.color + kObservationWeight * *color) / w_new;
+    voxel_color = (w * voxel_color + kObservationWeight * *color) * inv_w_new;
   }
   voxel.weight = w_new < max_weight ? w_new : max_weight;
   return true;

@@ -176,6 +176,8 @@ RaycastResult RaycastVolume(const TsdfVolume& volume, const CameraIntrinsics& k,
       const Eigen::Vector3f ray(static_cast<float>((u - k.cx) / k.fx),
                                 static_cast<float>((v - k.cy) / k.fy), 1.0f);
       const Eigen::Vector3f dir = rotation * ray;  // lattice units per metre of planar depth
+      // Planar depth per lattice unit along each axis (inf along an axis the ray does not move on).
+      const Eigen::Vector3f inv_dir(1.0f / dir.x(), 1.0f / dir.y(), 1.0f / dir.z());
       const float voxel_step = 1.0f / dir.norm();  // planar depth of one voxel along the ray
       const float unobserved_step = std::max(1.0f, 0.5f * trunc_voxels) * voxel_step;
       float z = z_begin, prev_z = 0.0f, prev_sdf = 0.0f;
@@ -188,8 +190,8 @@ RaycastResult RaycastVolume(const TsdfVolume& volume, const CameraIntrinsics& k,
           // Skip to where the ray leaves this empty block.
           float exit = std::numeric_limits<float>::infinity();
           for (int i = 0; i < 3; ++i) {
-            if (dir[i] > 0.0f) exit = std::min(exit, (8.0f * (key[i] + 1) - p[i]) / dir[i]);
-            if (dir[i] < 0.0f) exit = std::min(exit, (8.0f * key[i] - p[i]) / dir[i]);
+            if (dir[i] > 0.0f) exit = std::min(exit, (8.0f * (key[i] + 1) - p[i]) * inv_dir[i]);
+            if (dir[i] < 0.0f) exit = std::min(exit, (8.0f * key[i] - p[i]) * inv_dir[i]);
           }
           z += std::max(exit, 0.0f) + 0.01f * voxel_step;
           prev_valid = false;

@@ -310,10 +310,13 @@ MeshingResult ExtractMesh(const TsdfVolume& volume, const MeshingOptions& option
           first_vertex[b * kVoxels + i] = next;
           const Eigen::Vector3i v = LocalOf(i);
           const TsdfVoxel& p = volume.block(b).voxels[i];
+          const Eigen::Vector3f& p_color = volume.block(b).colors[i];
           const Eigen::Vector3f gradient_p = LatticeGradient(hood, b, v, p.sdf, min_weight);
           for (int axis = 0; axis < 3; ++axis) {
             if (!(mask & (1u << axis))) continue;
             const TsdfVoxel& q = *hood.Observed(b, v + Unit(axis), min_weight);
+            const int64_t q_id = hood.PointId(b, v + Unit(axis));
+            const Eigen::Vector3f& q_color = volume.block(q_id / kVoxels).colors[q_id % kVoxels];
             const float t = EdgeCrossing(p.sdf, q.sdf, iso);
             Eigen::Vector3d lattice = (block_origin + v).cast<double>();
             lattice[axis] += t;
@@ -321,7 +324,7 @@ MeshingResult ExtractMesh(const TsdfVolume& volume, const MeshingOptions& option
             const Eigen::Vector3f gradient_q =
                 LatticeGradient(hood, b, v + Unit(axis), q.sdf, min_weight);
             mesh.normals[next] = EdgeNormal(gradient_p, gradient_q, t, axis, p.sdf < iso);
-            mesh.vertex_colors[next] = (1.0f - t) * p.color + t * q.color;
+            mesh.vertex_colors[next] = (1.0f - t) * p_color + t * q_color;
             ++next;
           }
         }

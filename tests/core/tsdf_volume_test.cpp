@@ -20,10 +20,11 @@ TsdfVolume MakeVolume() {
   int n = 0;
   for (const Eigen::Vector3i& key : {Eigen::Vector3i(0, 0, 0), Eigen::Vector3i(-1, 2, -3), Eigen::Vector3i(5, -7, 1)}) {
     TsdfBlock& block = volume.block(volume.AllocateBlock(key));
-    for (TsdfVoxel& v : block.voxels) {
+    for (int i = 0; i < kTsdfBlockVoxels; ++i) {
+      TsdfVoxel& v = block.voxels[i];
       v.sdf = 0.001f * static_cast<float>(n % 97) - 0.03f;
       v.weight = static_cast<float>(n % 5);
-      v.color = Eigen::Vector3f(0.1f, 0.2f, 0.3f) * static_cast<float>(n % 7);
+      block.colors[i] = Eigen::Vector3f(0.1f, 0.2f, 0.3f) * static_cast<float>(n % 7);
       ++n;
     }
   }
@@ -45,7 +46,7 @@ TEST(TsdfVolume, FileRoundTripIsBitExact) {
   EXPECT_EQ(back.voxel_size(), volume.voxel_size());
   for (size_t b = 0; b < volume.num_blocks(); ++b) {
     EXPECT_EQ(back.block_key(b), volume.block_key(b));
-    EXPECT_EQ(0, std::memcmp(&back.block(b).voxels, &volume.block(b).voxels, sizeof(TsdfBlock)));
+    EXPECT_EQ(0, std::memcmp(&back.block(b), &volume.block(b), sizeof(TsdfBlock)));
   }
   WriteTsdfVolume(dir / "b.gsv", back);
   EXPECT_EQ(Bytes(dir / "a.gsv"), Bytes(dir / "b.gsv"));

@@ -252,8 +252,10 @@ TEST(FusionHardCases, NanAndInfDepthAreMasked) {
   EXPECT_GE(run.fusion->reports()[3].mask.non_finite, 390u);
   EXPECT_LT(ComputeAte(run.fusion->trajectory(), GroundTruth(frames)).rmse, 0.01);
   for (size_t b = 0; b < run.fusion->volume().num_blocks(); ++b) {
-    for (const TsdfVoxel& v : run.fusion->volume().block(b).voxels) {
-      ASSERT_TRUE(std::isfinite(v.sdf) && std::isfinite(v.weight) && v.color.allFinite());
+    const TsdfBlock& block = run.fusion->volume().block(b);
+    for (int i = 0; i < kTsdfBlockVoxels; ++i) {
+      const TsdfVoxel& v = block.voxels[i];
+      ASSERT_TRUE(std::isfinite(v.sdf) && std::isfinite(v.weight) && block.colors[i].allFinite());
     }
   }
 }

@@ -79,7 +79,7 @@ inline TsdfVolume MakeAnalyticVolume(
           TsdfVoxel& voxel = block.voxels[i];
           voxel.sdf = static_cast<float>(std::clamp(d, -spec.truncation, spec.truncation));
           voxel.weight = 1.0f;
-          voxel.color = TestColor(world);
+          block.colors[i] = TestColor(world);
           near_surface |= std::abs(d) < spec.truncation;
         }
         if (spec.sparse && !near_surface) continue;
