@@ -36,6 +36,9 @@ def surface_error(mesh, gt_scene, samples=200000):
     return float(np.sqrt(np.mean(d * d))), float(np.mean(d)), float(np.percentile(d, 90))
 
 
+EXTRA = os.environ.get("GS_EXTRA", "").split()
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("folder")
@@ -80,7 +83,7 @@ def main():
     with tempfile.TemporaryDirectory() as ws:
         env = dict(os.environ)
         subprocess.run([os.path.join(a.build, "apps", "genscene-fuse"), "--input", a.folder, ws, "--tracking", "known",
-                        "--voxel-size", str(a.voxel), "--truncation", str(a.trunc), "--depth-max", "6",
+                        "--voxel-size", str(a.voxel), "--truncation", str(a.trunc), "--depth-max", "6", *EXTRA,
                         "--threads", str(a.threads)], check=True, env=env, capture_output=True)
         report = json.load(open(os.path.join(ws, "fusion.json")))
         gs_seconds = sum(f["ms_integrate"] for f in report["frames"]) / 1e3

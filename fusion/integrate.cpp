@@ -38,10 +38,18 @@ std::vector<Eigen::Vector3i> BlocksInTruncationBand(const TsdfVolume& volume, co
   const float block_metres = static_cast<float>(kTsdfBlockSide * vs);
   const float inv_side = 1.0f / kTsdfBlockSide;
 
+  // Per pixel, samples half a block apart along the ray over the band, a truncation either side
+  // of the surface along the ray: planar depths [d - trunc / lambda, d + trunc / lambda], lambda =
+  // |(x, y, 1)|. The count does not depend on lambda.
+  const int samples = static_cast<int>(std::ceil(4.0f * trunc / block_metres)) + 1;
+  std::vector<float> ray_x(static_cast<size_t>(w));
+  for (int u = 0; u < w; ++u) ray_x[static_cast<size_t>(u)] = static_cast<float>((u - k.cx) / k.fx);
+
   const int rows = (h + pixel_stride - 1) / pixel_stride;
   std::vector<std::vector<Eigen::Vector3i>> per_row(static_cast<size_t>(rows));
   ParallelFor(0, static_cast<size_t>(rows), [&](size_t r) {
     const int v = static_cast<int>(r) * pixel_stride;
+    const float ray_y = static_cast<float>((v - k.cy) / k.fy);
     std::vector<Eigen::Vector3i>& keys = per_row[r];
     // Neighbouring pixels' bands pass through the same few blocks: a key already pushed for this
     // row is remembered in one of 64 slots (by its coordinates modulo 4), so the row's list holds
@@ -51,15 +59,11 @@ std::vector<Eigen::Vector3i> BlocksInTruncationBand(const TsdfVolume& volume, co
     for (int u = 0; u < w; u += pixel_stride) {
       const float d = depth(u, v);
       if (d <= 0.0f) continue;
-      const Eigen::Vector3f ray(static_cast<float>((u - k.cx) / k.fx),
-                                static_cast<float>((v - k.cy) / k.fy), 1.0f);
-      // Samples half a block apart along the ray over the band, a truncation either side of the
-      // surface along the ray: planar depths [d - trunc / lambda, d + trunc / lambda].
+      const Eigen::Vector3f ray(ray_x[static_cast<size_t>(u)], ray_y, 1.0f);
       const Eigen::Vector3f dir = rotation * ray;  // lattice units per metre of planar depth
-      const float lambda = ray.norm();
-      const float band = trunc / lambda;
-      const float step = 0.5f * block_metres / lambda;
-      const int samples = static_cast<int>(std::ceil(2.0f * band / step)) + 1;
+      const float inv_lambda = 1.0f / ray.norm();
+      const float band = trunc * inv_lambda;
+      const float step = 0.5f * block_metres * inv_lambda;
       for (int s = 0; s < samples; ++s) {
         const float z = std::min(d + band, d - band + step * static_cast<float>(s));
         if (z <= 0.0f) continue;
@@ -140,6 +144,9 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
   const float max_weight = volume.params().max_weight;
   const float wf = static_cast<float>(depth.width()), hf = static_cast<float>(depth.height());
 
+  const float* depth_pixels = depth.pixels().data();
+  const Eigen::Vector3f* color_pixels = with_color ? color.pixels().data() : nullptr;
+  const int w = depth.width();
   std::vector<size_t> updated(keys.size(), 0);
   ParallelFor(0, keys.size(), [&](size_t i) {
     TsdfBlock& block = volume.block(static_cast<size_t>(indices[i]));
@@ -148,8 +155,10 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
     size_t count = 0;
     for (int z = 0; z < kTsdfBlockSide; ++z) {
       for (int y = 0; y < kTsdfBlockSide; ++y) {
-        // The projection of a row of eight voxels as plain arrays, which the compiler turns into
-        // SIMD (divisions and square roots four at a time); the updates follow one by one.
+        // A row of eight voxels as plain arrays, which the compiler turns into SIMD: the
+        // projection (divisions and square roots four at a time), then the pixels' depths (one
+        // by one), then UpdateVoxel's distance update; the colours of the updated voxels inside
+        // the band follow one by one.
         const Eigen::Vector3f row = base + a_f * Eigen::Vector3f(0.0f, y, z);
         float pz[kTsdfBlockSide], uf[kTsdfBlockSide], vf[kTsdfBlockSide], lambda[kTsdfBlockSide];
         for (int x = 0; x < kTsdfBlockSide; ++x) {
@@ -161,17 +170,37 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
           vf[x] = fy * ry + cy + 0.5f;
           lambda[x] = std::sqrt(1.0f + rx * rx + ry * ry);
         }
+        float d[kTsdfBlockSide];
+        int pixel[kTsdfBlockSide];
         for (int x = 0; x < kTsdfBlockSide; ++x) {
-          if (pz[x] <= 0.0f) continue;
+          d[x] = 0.0f;
           // Nearest pixel: footprints are [u - 0.5, u + 0.5); the range test comes before the
           // integer conversion (which truncates, equal to floor for non-negative values).
-          if (!(uf[x] >= 0.0f && vf[x] >= 0.0f && uf[x] < wf && vf[x] < hf)) continue;
-          const int u = static_cast<int>(uf[x]), v = static_cast<int>(vf[x]);
-          const float d = depth(u, v);
-          if (d <= 0.0f) continue;
-          const int index = TsdfBlock::Index(x, y, z);
-          count += UpdateVoxel(block.voxels[index], block.colors[index], (d - pz[x]) * lambda[x], trunc, max_weight,
-                               with_color ? &color(u, v) : nullptr);
+          if (!(pz[x] > 0.0f && uf[x] >= 0.0f && vf[x] >= 0.0f && uf[x] < wf && vf[x] < hf)) continue;
+          pixel[x] = static_cast<int>(vf[x]) * w + static_cast<int>(uf[x]);
+          d[x] = depth_pixels[pixel[x]];
+        }
+        TsdfVoxel* voxels = &block.voxels[TsdfBlock::Index(0, y, z)];
+        float old_weight[kTsdfBlockSide], eta[kTsdfBlockSide];
+        bool update[kTsdfBlockSide];
+        for (int x = 0; x < kTsdfBlockSide; ++x) {
+          eta[x] = (d[x] - pz[x]) * lambda[x];
+          update[x] = d[x] > 0.0f && eta[x] >= -trunc;  // not hidden behind the surface
+          const float sdf_obs = eta[x] < trunc ? eta[x] : trunc;
+          const float weight = voxels[x].weight;
+          const float w_new = weight + kObservationWeight;
+          const float sdf = (weight * voxels[x].sdf + kObservationWeight * sdf_obs) * (1.0f / w_new);
+          old_weight[x] = weight;
+          voxels[x].sdf = update[x] ? sdf : voxels[x].sdf;
+          voxels[x].weight = update[x] ? (w_new < max_weight ? w_new : max_weight) : weight;
+        }
+        for (int x = 0; x < kTsdfBlockSide; ++x) {
+          count += update[x];
+          // Colour only inside the band: the colour of free space in front of a surface is not
+          // its colour.
+          if (!with_color || !update[x] || !(eta[x] < trunc)) continue;
+          Eigen::Vector3f& c = block.colors[static_cast<size_t>(TsdfBlock::Index(x, y, z))];
+          c = (old_weight[x] * c + kObservationWeight * color_pixels[pixel[x]]) * (1.0f / (old_weight[x] + kObservationWeight));
         }
       }
     }

@@ -19,7 +19,8 @@ struct IntegrationStats {
   size_t voxels_updated = 0;
 };
 
-// Kernel: the new (sdf, weight) of one voxel after one observation.
+// The update of one voxel by one observation (IntegrateFrame applies it to a row of eight voxels
+// at a time, as SIMD):
 //   eta = distance along the voxel's viewing ray from the voxel to the measured surface:
 //   (measured depth - the voxel's planar depth) * lambda, lambda = |(x/z, y/z, 1)| >= 1
 //   (KinectFusion's eta = |t - p| / lambda^-1 form). The planar difference alone shrinks the
@@ -27,25 +28,11 @@ struct IntegrationStats {
 //   (1 cm voxels, exact depth) the mesh's RMS error was 1.59 mm with it, 1.47 mm with the ray
 //   distance (Open3D, which also measures along the ray: 1.48 mm);
 //   eta < -truncation: the voxel is hidden behind the surface, no update;
-//   otherwise sdf_obs = min(eta, truncation), and the running average
-//   sdf' = (w sdf + w_obs sdf_obs) / (w + w_obs), w' = min(w + w_obs, max_weight).
-// Returns false when the voxel is not updated.
-inline bool UpdateVoxel(TsdfVoxel& voxel, Eigen::Vector3f& voxel_color, float eta, float truncation,
-                        float max_weight, const Eigen::Vector3f* color) {
-  if (eta < -truncation) return false;
-  const float sdf_obs = eta < truncation ? eta : truncation;
-  constexpr float kObservationWeight = 1.0f;
-  const float w = voxel.weight;
-  const float w_new = w + kObservationWeight;
-  const float inv_w_new = 1.0f / w_new;  // one division, not four
-  voxel.sdf = (w * voxel.sdf + kObservationWeight * sdf_obs) * inv_w_new;
-  // Colour only inside the band: the colour of free space in front of a surface is not its colour.
-  if (color != nullptr && eta < truncation) {
-    voxel_color = (w * voxel_color + kObservationWeight * *color) * inv_w_new;
-  }
-  voxel.weight = w_new < max_weight ? w_new : max_weight;
-  return true;
-}
+//   otherwise sdf_obs = min(eta, truncation), and the running average with w_obs = 1
+//   sdf' = (w sdf + w_obs sdf_obs) / (w + w_obs), w' = min(w + w_obs, max_weight);
+//   the colour is averaged the same way, only inside the band (eta < truncation): the colour of
+//   free space in front of a surface is not its colour.
+constexpr float kObservationWeight = 1.0f;
 
 // Keys of the blocks the truncation band of `depth` passes through, sorted and unique (so the
 // allocation order does not depend on the thread count). Pixels are sampled every `pixel_stride`.

@@ -167,8 +167,12 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   report.fused = true;
   report.seconds_integrate = SecondsSince(start);
   start = std::chrono::steady_clock::now();
+  // Normals over +-2 pixels at full resolution, +-1 for a subsampled model (the same baseline in
+  // metres: +-2 at half resolution smoothed the model's normals and raised the room's ATE from
+  // 0.52 to 0.66 cm).
+  const int normal_step = std::max(1, 2 / options_.model_subsample);
   model_ = RaycastVolume(volume_, model_intrinsics_, pose, options_.preprocess.min_depth, options_.preprocess.max_depth,
-                         /*with_color=*/false);
+                         /*with_color=*/false, normal_step);
   report.seconds_raycast = SecondsSince(start);
   last_good_ = pose;
   report.world_from_camera = pose;

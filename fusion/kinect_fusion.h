@@ -37,7 +37,11 @@ struct FusionOptions {
   double memory_cap = 4000.0;     // MB the TSDF may allocate; exceeding it is an error
   std::string tracking = "icp";   // icp (estimate the poses) or known (fuse with the source's poses)
   double min_valid_fraction = 0.05;  // frames with fewer valid depth pixels are blank (skipped)
-  int model_subsample = 1;        // the model is raycast at 1/N of the depth's resolution for ICP
+  // The model is raycast at 1/N of the depth's resolution for ICP (normals over the same
+  // baseline in metres). Session 17, synthetic room 150 frames: N = 2 gives ATE 0.521 cm against
+  // 0.515 at full resolution (320x240) and 0.337 against 0.338 (640x480), TUM fr1/desk 0.1773
+  // against 0.1774 cm, for a third of the raycast time; N = 3: 0.581 / 0.359 cm.
+  int model_subsample = 2;
   PreprocessOptions preprocess;
   IcpOptions icp;
   KeyframeOptions keyframes;
@@ -50,7 +54,7 @@ struct FusionOptions {
     v("memory_cap", memory_cap, "MB", "memory the TSDF may allocate (error beyond)");
     v("tracking", tracking, "", "icp (estimate poses) or known (use the source's poses)");
     v("min_valid_fraction", min_valid_fraction, "", "frames with fewer valid depth pixels are skipped as blank");
-    v("model_subsample", model_subsample, "", "raycast the model for tracking at 1/N resolution (1 = full)");
+    v("model_subsample", model_subsample, "", "raycast the model for tracking at 1/N of the depth's resolution (1 = full)");
     v("depth_min", preprocess.min_depth, "m", "nearer depth is invalid");
     v("depth_max", preprocess.max_depth, "m", "farther depth is invalid");
     v("bilateral_radius", preprocess.bilateral_radius, "px", "bilateral filter half-width for tracking (0 = off)");

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 
+#include "core/check.h"
 #include "core/parallel.h"
 
 namespace genscene::fusion {
@@ -150,7 +151,8 @@ TileRanges ComputeTileRanges(const TsdfVolume& volume, const CameraIntrinsics& k
 
 RaycastResult RaycastVolume(const TsdfVolume& volume, const CameraIntrinsics& k,
                             const Eigen::Isometry3d& world_from_camera, double min_depth,
-                            double max_depth, bool with_color) {
+                            double max_depth, bool with_color, int normal_step) {
+  GS_CHECK_GE(normal_step, 1);
   const int w = k.width, h = k.height;
   RaycastResult out;
   out.depth = ImageDepth(w, h);
@@ -220,9 +222,7 @@ RaycastResult RaycastVolume(const TsdfVolume& volume, const CameraIntrinsics& k,
       out.points(u, v) = ray * hit;
     }
   }, 4);
-  // Normals over a +-2 pixel baseline: the raycast points carry the TSDF's small interpolation
-  // errors, which a 1-pixel baseline turns into normal noise (and false constraints in ICP).
-  out.normals = ComputeNormalMap(out.points, 0.1, 2);
+  out.normals = ComputeNormalMap(out.points, 0.1, normal_step);
   if (!with_color) return out;
   ParallelFor(0, static_cast<size_t>(h), [&](size_t row) {
     const int v = static_cast<int>(row);

@@ -22,9 +22,12 @@ struct RaycastResult {
 };
 
 // Rays start no nearer than min_depth and stop at max_depth (metres, planar z). The colour
-// image is left black unless with_color (tracking does not need it).
+// image is left black unless with_color (tracking does not need it). Normals are taken over a
+// baseline of +-normal_step pixels: the raycast points carry the TSDF's small interpolation
+// errors, which a 1-pixel baseline turns into normal noise at full resolution; a model raycast at
+// half resolution takes 1 (the same baseline in metres).
 RaycastResult RaycastVolume(const TsdfVolume& volume, const CameraIntrinsics& intrinsics,
                             const Eigen::Isometry3d& world_from_camera, double min_depth = 0.1,
-                            double max_depth = 10.0, bool with_color = true);
+                            double max_depth = 10.0, bool with_color = true, int normal_step = 2);
 
 }  // namespace genscene::fusion

@@ -169,19 +169,22 @@ TEST(Fusion, TracksTheRoomWithExactDepth) {
   EXPECT_LT(run.fusion->volume().num_blocks(), bounding_blocks);
 }
 
-// The model raycast at half resolution (model_subsample 2: a quarter of the rays) still tracks
-// every frame of the room; its raycast has the halved size.
-TEST(Fusion, TracksTheRoomWithTheModelAtHalfResolution) {
+// The model raycast at half resolution (model_subsample 2, the default: a quarter of the rays)
+// and at full resolution both track every frame of the room; the raycast has the size asked for.
+TEST(Fusion, TracksTheRoomWithTheModelAtHalfAndFullResolution) {
   const std::vector<RgbdFrame> frames = Render(Room(), Orbit(40), Camera(160, 120));
   FusionOptions o = DefaultOptions();
-  o.model_subsample = 2;
-  const FusionRun run = Fuse(frames, o);
-  EXPECT_EQ(run.counts.at(FrameStatus::kTracked), 39);
-  EXPECT_EQ(run.fusion->model().depth.width(), 80);
-  EXPECT_EQ(run.fusion->model().depth.height(), 60);
-  const AteResult ate = ComputeAte(run.fusion->trajectory(), GroundTruth(frames));
-  std::cout << "room, 40 frames 160x120, model at 80x60: ATE " << 100 * ate.rmse << " cm\n";
-  EXPECT_LT(ate.rmse, 0.01);
+  EXPECT_EQ(o.model_subsample, 2);
+  for (int subsample : {2, 1}) {
+    o.model_subsample = subsample;
+    const FusionRun run = Fuse(frames, o);
+    EXPECT_EQ(run.counts.at(FrameStatus::kTracked), 39);
+    EXPECT_EQ(run.fusion->model().depth.width(), 160 / subsample);
+    EXPECT_EQ(run.fusion->model().depth.height(), 120 / subsample);
+    const AteResult ate = ComputeAte(run.fusion->trajectory(), GroundTruth(frames));
+    std::cout << "room, 40 frames 160x120, model 1/" << subsample << ": ATE " << 100 * ate.rmse << " cm\n";
+    EXPECT_LT(ate.rmse, 0.01);
+  }
   o.model_subsample = 0;
   EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }), "model_subsample");
 }
