@@ -53,7 +53,7 @@ std::vector<Eigen::Vector3i> BlocksInTruncationBand(const TsdfVolume& volume, co
     std::vector<Eigen::Vector3i>& keys = per_row[r];
     // Neighbouring pixels' bands pass through the same few blocks: a key already pushed for this
     // row is remembered in one of 64 slots (by its coordinates modulo 4), so the row's list holds
-    // few repeats and its sort is short (it was 600 keys a row for 30 distinct ones).
+    // few repeats (on the synthetic room 320x240: 91 keys a row, none repeated).
     std::array<Eigen::Vector3i, 64> recent;
     for (Eigen::Vector3i& key : recent) key.setConstant(INT_MIN);
     for (int u = 0; u < w; u += pixel_stride) {
@@ -157,8 +157,8 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
       for (int y = 0; y < kTsdfBlockSide; ++y) {
         // A row of eight voxels as plain arrays, which the compiler turns into SIMD: the
         // projection (divisions and square roots four at a time), then the pixels' depths (one
-        // by one), then UpdateVoxel's distance update; the colours of the updated voxels inside
-        // the band follow one by one.
+        // by one), then the distance update of integrate.h's kernel; the colours of the updated
+        // voxels inside the band follow one by one.
         const Eigen::Vector3f row = base + a_f * Eigen::Vector3f(0.0f, y, z);
         float pz[kTsdfBlockSide], uf[kTsdfBlockSide], vf[kTsdfBlockSide], lambda[kTsdfBlockSide];
         for (int x = 0; x < kTsdfBlockSide; ++x) {
