@@ -98,32 +98,35 @@ int32_t TsdfVolume::AllocateBlock(const Eigen::Vector3i& key) {
   return index;
 }
 
-const TsdfVoxel* TsdfVolume::FindVoxel(const Eigen::Vector3i& v) const {
-  const Eigen::Vector3i b = BlockOf(v);
-  const auto index = table_.Find(b);
-  if (!index) return nullptr;
+namespace {
+
+// A voxel's place: its block and its index in the block's arrays (voxels and colors).
+struct Corner {
+  const TsdfBlock* block;
+  int index;
+};
+
+// The place of lattice point v; nullopt when its block is not allocated.
+std::optional<Corner> Locate(const TsdfVolume& volume, const Eigen::Vector3i& v) {
+  const Eigen::Vector3i b = TsdfVolume::BlockOf(v);
+  const auto index = volume.FindBlock(b);
+  if (!index) return std::nullopt;
   const Eigen::Vector3i local = v - kTsdfBlockSide * b;
-  return &blocks_[*index].voxels[TsdfBlock::Index(local.x(), local.y(), local.z())];
+  return Corner{&volume.block(static_cast<size_t>(*index)), TsdfBlock::Index(local.x(), local.y(), local.z())};
+}
+
+}  // namespace
+
+const TsdfVoxel* TsdfVolume::FindVoxel(const Eigen::Vector3i& v) const {
+  const auto place = Locate(*this, v);
+  return place ? &place->block->voxels[place->index] : nullptr;
 }
 
 TsdfVoxel* TsdfVolume::FindVoxel(const Eigen::Vector3i& v) {
   return const_cast<TsdfVoxel*>(static_cast<const TsdfVolume*>(this)->FindVoxel(v));
 }
 
-const Eigen::Vector3f* TsdfVolume::FindColor(const Eigen::Vector3i& v) const {
-  const Eigen::Vector3i b = BlockOf(v);
-  const auto index = table_.Find(b);
-  if (!index) return nullptr;
-  const Eigen::Vector3i local = v - kTsdfBlockSide * b;
-  return &blocks_[*index].colors[TsdfBlock::Index(local.x(), local.y(), local.z())];
-}
-
 namespace {
-
-struct Corner {
-  const TsdfBlock* block;
-  int index;
-};
 
 // Gathers the 8 voxels around a continuous lattice point; false when one is missing or unobserved.
 bool GatherCorners(const TsdfVolume& volume, const Eigen::Vector3f& lattice, Corner corners[8],
@@ -133,14 +136,9 @@ bool GatherCorners(const TsdfVolume& volume, const Eigen::Vector3f& lattice, Cor
   const Eigen::Vector3i base = floor.cast<int>();
   *frac = lattice - floor;
   for (int c = 0; c < 8; ++c) {
-    const Eigen::Vector3i v = base + Eigen::Vector3i(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-    const Eigen::Vector3i b = TsdfVolume::BlockOf(v);
-    const auto index = volume.FindBlock(b);
-    if (!index) return false;
-    const Eigen::Vector3i local = v - kTsdfBlockSide * b;
-    corners[c] = {&volume.block(static_cast<size_t>(*index)),
-                  TsdfBlock::Index(local.x(), local.y(), local.z())};
-    if (corners[c].block->voxels[corners[c].index].weight <= 0.0f) return false;
+    const auto place = Locate(volume, base + Eigen::Vector3i(c & 1, (c >> 1) & 1, (c >> 2) & 1));
+    if (!place || place->block->voxels[place->index].weight <= 0.0f) return false;
+    corners[c] = *place;
   }
   return true;
 }

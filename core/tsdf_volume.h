@@ -114,8 +114,6 @@ class TsdfVolume {
   // The voxel at lattice index v, or nullptr when its block is not allocated.
   const TsdfVoxel* FindVoxel(const Eigen::Vector3i& v) const;
   TsdfVoxel* FindVoxel(const Eigen::Vector3i& v);
-  // Its colour, or nullptr when its block is not allocated.
-  const Eigen::Vector3f* FindColor(const Eigen::Vector3i& v) const;
 
   // Lattice <-> world.
   Eigen::Vector3d VoxelToWorld(const Eigen::Vector3i& v) const {

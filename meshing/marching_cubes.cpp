@@ -314,9 +314,11 @@ MeshingResult ExtractMesh(const TsdfVolume& volume, const MeshingOptions& option
           const Eigen::Vector3f gradient_p = LatticeGradient(hood, b, v, p.sdf, min_weight);
           for (int axis = 0; axis < 3; ++axis) {
             if (!(mask & (1u << axis))) continue;
-            const TsdfVoxel& q = *hood.Observed(b, v + Unit(axis), min_weight);
+            // The edge's other end: observed (the edge mask says so), so it exists.
             const int64_t q_id = hood.PointId(b, v + Unit(axis));
-            const Eigen::Vector3f& q_color = volume.block(q_id / kVoxels).colors[q_id % kVoxels];
+            const TsdfBlock& q_block = volume.block(q_id / kVoxels);
+            const TsdfVoxel& q = q_block.voxels[q_id % kVoxels];
+            const Eigen::Vector3f& q_color = q_block.colors[q_id % kVoxels];
             const float t = EdgeCrossing(p.sdf, q.sdf, iso);
             Eigen::Vector3d lattice = (block_origin + v).cast<double>();
             lattice[axis] += t;
