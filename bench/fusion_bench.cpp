@@ -21,15 +21,18 @@ int Run(int argc, char** argv) {
   std::vector<std::string> folders;
   int threads = 0;
   int model_subsample = fusion::FusionOptions().model_subsample;
+  int allocation_stride = fusion::FusionOptions().allocation_stride;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
-      std::printf("usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N]\n"
+      std::printf("usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] [--allocation-stride N]\n"
                   "  FOLDER: a TUM-layout sequence with groundtruth.txt (e.g. from genscene-synth)\n"
                   "  prints per-frame times of each step, fps, ATE, and integration alone (known poses)\n");
       return 0;
     }
     if (std::strcmp(argv[i], "--model-subsample") == 0 && i + 1 < argc) {
       model_subsample = std::atoi(argv[++i]);
+    } else if (std::strcmp(argv[i], "--allocation-stride") == 0 && i + 1 < argc) {
+      allocation_stride = std::atoi(argv[++i]);
     } else if (std::strcmp(argv[i], "--threads") == 0 && i + 1 < argc) {
       threads = std::atoi(argv[++i]);
     } else {
@@ -37,11 +40,12 @@ int Run(int argc, char** argv) {
     }
   }
   if (folders.empty()) {
-    std::fprintf(stderr, "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N]\n");
+    std::fprintf(stderr, "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] [--allocation-stride N]\n");
     return 2;
   }
   SetThreadCount(threads);
-  std::printf("threads %d, model raycast at 1/%d resolution\n", ThreadCount(), model_subsample);
+  std::printf("threads %d, model raycast at 1/%d resolution, blocks allocated along every %d. pixel's band\n",
+              ThreadCount(), model_subsample, allocation_stride);
   std::printf("%-28s %9s %7s | %8s %8s %8s %8s %8s | %9s | %8s %9s\n", "sequence", "size", "frames", "prep ms",
               "track ms", "integ ms", "ray ms", "fps", "ATE cm", "integ fps", "blocks");
   for (const std::string& folder : folders) {
@@ -54,6 +58,8 @@ int Run(int argc, char** argv) {
       fusion::FusionOptions options;
       options.tracking = mode == 0 ? "icp" : "known";
       options.model_subsample = model_subsample;
+      options.allocation_stride = allocation_stride;
+      options.Validate();
       fusion::KinectFusion kf(options, source->Intrinsics());
       for (const RgbdFrame& f : frames) {
         const fusion::FrameReport r = kf.ProcessFrame(f);

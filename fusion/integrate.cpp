@@ -101,7 +101,7 @@ std::vector<Eigen::Vector3i> BlocksInTruncationBand(const TsdfVolume& volume, co
 
 IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, const ImageRgb& color,
                                 const CameraIntrinsics& k,
-                                const Eigen::Isometry3d& world_from_camera) {
+                                const Eigen::Isometry3d& world_from_camera, int allocation_stride) {
   if (!depth.SameSize(k.width, k.height)) {
     throw Error(Format("IntegrateFrame: depth ", depth.width(), "x", depth.height(),
                        " but intrinsics say ", k.width, "x", k.height));
@@ -112,7 +112,8 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
                        depth.width(), "x", depth.height()));
   }
   IntegrationStats stats;
-  const std::vector<Eigen::Vector3i> keys = BlocksInTruncationBand(volume, depth, k, world_from_camera);
+  const std::vector<Eigen::Vector3i> keys =
+      BlocksInTruncationBand(volume, depth, k, world_from_camera, allocation_stride);
   stats.blocks_touched = keys.size();
   // One look-up per key: found blocks keep their index, the missing ones are counted (for the
   // memory cap, checked before anything is allocated) and allocated after.

@@ -1,7 +1,8 @@
 // TSDF integration (Curless & Levoy 1996 as in KinectFusion) into the sparse volume of
-// core/tsdf_volume.h: blocks are allocated along the truncation band of every valid depth pixel
-// (voxel-block hashing, Niessner et al. 2013), then every voxel of those blocks is projected into
-// the depth map and updated with a weighted running average of distance and colour.
+// core/tsdf_volume.h: blocks are allocated along the truncation band of the valid depth pixels,
+// every `allocation_stride`-th in each direction (voxel-block hashing, Niessner et al. 2013), then
+// every voxel of those blocks is projected into the depth map and updated with a weighted running
+// average of distance and colour.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -41,11 +42,12 @@ std::vector<Eigen::Vector3i> BlocksInTruncationBand(const TsdfVolume& volume, co
                                                     const Eigen::Isometry3d& world_from_camera,
                                                     int pixel_stride = 1);
 
-// Allocates the band's blocks and integrates `depth` (masked: 0 = invalid) and, when not empty,
+// Allocates the band's blocks (of every `allocation_stride`-th pixel in each direction, >= 1) and
+// integrates `depth` (masked: 0 = invalid) and, when not empty,
 // `color` (linear RGB, same size) observed from `world_from_camera`. Throws Error (volume
 // unchanged) when the allocation would exceed the volume's memory cap.
 IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, const ImageRgb& color,
                                 const CameraIntrinsics& intrinsics,
-                                const Eigen::Isometry3d& world_from_camera);
+                                const Eigen::Isometry3d& world_from_camera, int allocation_stride);
 
 }  // namespace genscene::fusion

@@ -40,6 +40,7 @@ void FusionOptions::Validate() const {
   RequireOneOf("tracking", tracking, {"icp", "known"});
   RequireRange("min_valid_fraction", min_valid_fraction, 0.0, 1.0);
   RequireRange("model_subsample", model_subsample, 1, 4);
+  RequireRange("allocation_stride", allocation_stride, 1, 8);
   preprocess.Validate();
   icp.Validate();
   keyframes.Validate();
@@ -163,7 +164,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     started_ = true;
   }
   start = std::chrono::steady_clock::now();
-  report.integration = IntegrateFrame(volume_, depth, frame.color, k, pose);
+  report.integration = IntegrateFrame(volume_, depth, frame.color, k, pose, options_.allocation_stride);
   report.fused = true;
   report.seconds_integrate = SecondsSince(start);
   start = std::chrono::steady_clock::now();

@@ -50,9 +50,9 @@ TEST(GensceneFuse, BadInputIsOneClearLineAndNoOutput) {
   EXPECT_NE(r.exit_code, 0);
   EXPECT_CONTAINS(r.output, "voxel_size = 0.0005 is not in");
   r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
-                 " --voxel-size 0.002 --truncation 0.006 --memory-cap 5");
+                 " --voxel-size 0.002 --truncation 0.006 --memory-cap 1");
   EXPECT_NE(r.exit_code, 0);
-  EXPECT_CONTAINS(r.output, "memory cap of 5 MB exceeded");
+  EXPECT_CONTAINS(r.output, "memory cap of 1 MB exceeded");
   EXPECT_FALSE(fs::exists(dir / "ws" / "tsdf.gsv"));
   EXPECT_FALSE(fs::exists(dir / "ws" / "trajectory.txt"));
 }

@@ -189,6 +189,47 @@ TEST(Fusion, TracksTheRoomWithTheModelAtHalfAndFullResolution) {
   EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }), "model_subsample");
 }
 
+// Blocks allocated along the band of every second pixel (allocation_stride 2, the default) are a
+// subset of those every pixel's band gives, fewer, and the model seen from the cameras loses almost
+// nothing: every pixel still updates the voxels of allocated blocks.
+TEST(Fusion, SparserAllocationKeepsASubsetOfTheBlocksAndTheSurface) {
+  const std::vector<RgbdFrame> frames = Render(Room(), Orbit(20), Camera(160, 120));
+  FusionOptions o = DefaultOptions();
+  EXPECT_EQ(o.allocation_stride, 2);
+  o.tracking = "known";
+  o.allocation_stride = 1;
+  const FusionRun every = Fuse(frames, o);
+  o.allocation_stride = 2;
+  const FusionRun sparse = Fuse(frames, o);
+  const TsdfVolume& all = every.fusion->volume();
+  const TsdfVolume& some = sparse.fusion->volume();
+  for (size_t b = 0; b < some.num_blocks(); ++b) {
+    ASSERT_TRUE(all.FindBlock(some.block_key(b)).has_value()) << some.block_key(b).transpose();
+  }
+  EXPECT_LT(some.num_blocks(), all.num_blocks());
+  size_t hits_every = 0, hits_sparse = 0;
+  const Eigen::Isometry3d pose = *frames[10].world_from_camera;
+  const RaycastResult a = RaycastVolume(all, frames[10].intrinsics, pose);
+  const RaycastResult b = RaycastVolume(some, frames[10].intrinsics, pose);
+  size_t both = 0, differ = 0;
+  for (size_t i = 0; i < a.depth.size(); ++i) {
+    const float da = a.depth.pixels()[i], db = b.depth.pixels()[i];
+    hits_every += da > 0.0f;
+    hits_sparse += db > 0.0f;
+    if (da > 0.0f && db > 0.0f) {
+      ++both;
+      differ += std::abs(da - db) > 0.5 * o.voxel_size;
+    }
+  }
+  std::cout << "blocks " << all.num_blocks() << " (every pixel) / " << some.num_blocks()
+            << " (every second); raycast hits " << hits_every << " / " << hits_sparse << "; of "
+            << both << " pixels both hit, " << differ << " differ by more than half a voxel\n";
+  EXPECT_GT(hits_sparse, 0.99 * hits_every);
+  EXPECT_LT(differ, both / 100);
+  o.allocation_stride = 0;
+  EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }), "allocation_stride");
+}
+
 // Hard case: a pure plane leaves three pose directions unconstrained.
 TEST(FusionHardCases, PurePlaneIsDetectedAsDegenerateNotAWildPose) {
   SyntheticScene scene;
