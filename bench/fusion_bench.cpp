@@ -44,7 +44,7 @@ int Run(int argc, char** argv) {
     return 2;
   }
   SetThreadCount(threads);
-  std::printf("threads %d, model raycast at 1/%d resolution, blocks allocated along every %d. pixel's band\n",
+  std::printf("threads %d, model raycast at 1/%d resolution, allocation stride %d (0 = width / 160)\n",
               ThreadCount(), model_subsample, allocation_stride);
   std::printf("%-28s %9s %7s | %8s %8s %8s %8s %8s | %9s | %8s %9s\n", "sequence", "size", "frames", "prep ms",
               "track ms", "integ ms", "ray ms", "fps", "ATE cm", "integ fps", "blocks");

@@ -150,9 +150,17 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
   const int w = depth.width();
   std::vector<size_t> updated(keys.size(), 0);
   ParallelFor(0, keys.size(), [&](size_t i) {
+    // Local copies of the frame's constants: the closure's references would be reloaded after
+    // every float store (a store to a voxel may alias them as far as the compiler knows).
+    const float* const depth_at = depth_pixels;
+    const Eigen::Vector3f* const color_at = color_pixels;
+    const int width = w;
+    const float fx_l = fx, fy_l = fy, cx_l = cx, cy_l = cy, wf_l = wf, hf_l = hf;
+    const float trunc_l = trunc, max_weight_l = max_weight;
+    const Eigen::Matrix3f a_l = a_f;
     TsdfBlock& block = volume.block(static_cast<size_t>(indices[i]));
     const Eigen::Vector3f base = (a * (kTsdfBlockSide * keys[i]).cast<double>() + b).cast<float>();
-    const Eigen::Vector3f dx = a_f.col(0);  // camera-frame step of one voxel along x
+    const Eigen::Vector3f dx = a_l.col(0);  // camera-frame step of one voxel along x
     size_t count = 0;
     for (int z = 0; z < kTsdfBlockSide; ++z) {
       for (int y = 0; y < kTsdfBlockSide; ++y) {
@@ -160,15 +168,15 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
         // projection (divisions and square roots four at a time), then the pixels' depths (one
         // by one), then the distance update of integrate.h's kernel; the colours of the updated
         // voxels inside the band follow one by one.
-        const Eigen::Vector3f row = base + a_f * Eigen::Vector3f(0.0f, y, z);
+        const Eigen::Vector3f row = base + a_l * Eigen::Vector3f(0.0f, y, z);
         float pz[kTsdfBlockSide], uf[kTsdfBlockSide], vf[kTsdfBlockSide], lambda[kTsdfBlockSide];
         for (int x = 0; x < kTsdfBlockSide; ++x) {
           const float px = row.x() + x * dx.x(), py = row.y() + x * dx.y();
           pz[x] = row.z() + x * dx.z();
           const float inv_z = 1.0f / pz[x];
           const float rx = px * inv_z, ry = py * inv_z;  // the voxel's ray, (rx, ry, 1)
-          uf[x] = fx * rx + cx + 0.5f;
-          vf[x] = fy * ry + cy + 0.5f;
+          uf[x] = fx_l * rx + cx_l + 0.5f;
+          vf[x] = fy_l * ry + cy_l + 0.5f;
           lambda[x] = std::sqrt(1.0f + rx * rx + ry * ry);
         }
         float d[kTsdfBlockSide];
@@ -177,31 +185,34 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
           d[x] = 0.0f;
           // Nearest pixel: footprints are [u - 0.5, u + 0.5); the range test comes before the
           // integer conversion (which truncates, equal to floor for non-negative values).
-          if (!(pz[x] > 0.0f && uf[x] >= 0.0f && vf[x] >= 0.0f && uf[x] < wf && vf[x] < hf)) continue;
-          pixel[x] = static_cast<int>(vf[x]) * w + static_cast<int>(uf[x]);
-          d[x] = depth_pixels[pixel[x]];
+          if (!(pz[x] > 0.0f && uf[x] >= 0.0f && vf[x] >= 0.0f && uf[x] < wf_l && vf[x] < hf_l)) {
+            continue;
+          }
+          pixel[x] = static_cast<int>(vf[x]) * width + static_cast<int>(uf[x]);
+          d[x] = depth_at[pixel[x]];
         }
         TsdfVoxel* voxels = &block.voxels[TsdfBlock::Index(0, y, z)];
-        float old_weight[kTsdfBlockSide], eta[kTsdfBlockSide];
+        float old_weight[kTsdfBlockSide], inv_weight[kTsdfBlockSide], eta[kTsdfBlockSide];
         bool update[kTsdfBlockSide];
         for (int x = 0; x < kTsdfBlockSide; ++x) {
           eta[x] = (d[x] - pz[x]) * lambda[x];
-          update[x] = d[x] > 0.0f && eta[x] >= -trunc;  // not hidden behind the surface
-          const float sdf_obs = eta[x] < trunc ? eta[x] : trunc;
+          update[x] = d[x] > 0.0f && eta[x] >= -trunc_l;  // not hidden behind the surface
+          const float sdf_obs = eta[x] < trunc_l ? eta[x] : trunc_l;
           const float weight = voxels[x].weight;
           const float w_new = weight + kObservationWeight;
-          const float sdf = (weight * voxels[x].sdf + kObservationWeight * sdf_obs) * (1.0f / w_new);
+          inv_weight[x] = 1.0f / w_new;
+          const float sdf = (weight * voxels[x].sdf + kObservationWeight * sdf_obs) * inv_weight[x];
           old_weight[x] = weight;
           voxels[x].sdf = update[x] ? sdf : voxels[x].sdf;
-          voxels[x].weight = update[x] ? (w_new < max_weight ? w_new : max_weight) : weight;
+          voxels[x].weight = update[x] ? (w_new < max_weight_l ? w_new : max_weight_l) : weight;
         }
         for (int x = 0; x < kTsdfBlockSide; ++x) {
           count += update[x];
           // Colour only inside the band: the colour of free space in front of a surface is not
           // its colour.
-          if (!with_color || !update[x] || !(eta[x] < trunc)) continue;
+          if (!color_at || !update[x] || !(eta[x] < trunc_l)) continue;
           Eigen::Vector3f& c = block.colors[static_cast<size_t>(TsdfBlock::Index(x, y, z))];
-          c = (old_weight[x] * c + kObservationWeight * color_pixels[pixel[x]]) * (1.0f / (old_weight[x] + kObservationWeight));
+          c = (old_weight[x] * c + kObservationWeight * color_at[pixel[x]]) * inv_weight[x];
         }
       }
     }

@@ -1,5 +1,6 @@
 #include "fusion/kinect_fusion.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -40,7 +41,7 @@ void FusionOptions::Validate() const {
   RequireOneOf("tracking", tracking, {"icp", "known"});
   RequireRange("min_valid_fraction", min_valid_fraction, 0.0, 1.0);
   RequireRange("model_subsample", model_subsample, 1, 4);
-  RequireRange("allocation_stride", allocation_stride, 1, 8);
+  RequireRange("allocation_stride", allocation_stride, 0, 16);
   preprocess.Validate();
   icp.Validate();
   keyframes.Validate();
@@ -68,6 +69,11 @@ const char* ToString(FrameStatus status) {
   return "?";
 }
 
+int FusionOptions::AllocationStride(int width) const {
+  if (allocation_stride > 0) return allocation_stride;
+  return std::max(1, static_cast<int>(std::lround(width / 160.0)));
+}
+
 KinectFusion::KinectFusion(const FusionOptions& options, const CameraIntrinsics& intrinsics)
     : options_(options),
       intrinsics_(intrinsics),
@@ -76,6 +82,7 @@ KinectFusion::KinectFusion(const FusionOptions& options, const CameraIntrinsics&
   options_.Validate();
   intrinsics_.Validate();
   model_intrinsics_ = intrinsics_.Scaled(1.0 / options_.model_subsample);
+  allocation_stride_ = options_.AllocationStride(intrinsics_.width);
 }
 
 FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
@@ -164,17 +171,19 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     started_ = true;
   }
   start = std::chrono::steady_clock::now();
-  report.integration = IntegrateFrame(volume_, depth, frame.color, k, pose, options_.allocation_stride);
+  report.integration = IntegrateFrame(volume_, depth, frame.color, k, pose, allocation_stride_);
   report.fused = true;
   report.seconds_integrate = SecondsSince(start);
-  start = std::chrono::steady_clock::now();
-  // Normals over +-2 pixels at full resolution, +-1 for a subsampled model (the same baseline in
-  // metres: +-2 at half resolution smoothed the model's normals and raised the room's ATE from
-  // 0.52 to 0.66 cm).
-  const int normal_step = std::max(1, 2 / options_.model_subsample);
-  model_ = RaycastVolume(volume_, model_intrinsics_, pose, options_.preprocess.min_depth, options_.preprocess.max_depth,
-                         /*with_color=*/false, normal_step);
-  report.seconds_raycast = SecondsSince(start);
+  if (options_.tracking != "known") {  // with known poses nothing tracks against the model
+    start = std::chrono::steady_clock::now();
+    // Normals over +-2 pixels at full resolution, +-1 for a subsampled model (the same baseline
+    // in metres: +-2 at half resolution smoothed the model's normals and raised the room's ATE
+    // from 0.52 to 0.66 cm).
+    const int normal_step = std::max(1, 2 / options_.model_subsample);
+    model_ = RaycastVolume(volume_, model_intrinsics_, pose, options_.preprocess.min_depth,
+                           options_.preprocess.max_depth, /*with_color=*/false, normal_step);
+    report.seconds_raycast = SecondsSince(start);
+  }
   last_good_ = pose;
   report.world_from_camera = pose;
   trajectory_.Add(frame.timestamp, pose);

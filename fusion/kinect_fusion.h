@@ -45,12 +45,16 @@ struct FusionOptions {
   // Blocks are allocated along the truncation band of every Nth pixel in each direction; every
   // pixel still updates the voxels of the allocated blocks (integrate.h). A block that only a
   // lone pixel's band reaches (the rim of an observed region, a flying pixel) then waits until
-  // more of the surface is seen. Session 18, synthetic room 150 frames 320x240 with Kinect noise,
-  // known poses (bench/compare_open3d_fusion.py): N = 1: 8301 blocks, mesh RMS 4.77 mm, 93 fps;
-  // N = 2: 7959 blocks, 4.68 mm, 127 fps; N = 3: 7664, 4.60 mm, 140 fps (Open3D, which samples
-  // every 4th pixel: 4.72 mm); the share of the true surface within 1 cm of the mesh stays
-  // 18.1 %; tracked ATE 0.521 / 0.531 / 0.528 cm.
-  int allocation_stride = 2;
+  // more of the surface is seen. 0 = by the image's width, the same angular spacing at every
+  // resolution: width / 160 rounded, at least 1 (2 at 320x240, 4 at 640x480; AllocationStride).
+  // Session 18, synthetic room 150 frames with Kinect noise, known poses
+  // (bench/compare_open3d_fusion.py; Open3D samples every 4th pixel):
+  //   320x240: N = 1: 8301 blocks, mesh RMS 4.77 mm, 93 fps; N = 2: 7959, 4.68 mm, 127 fps;
+  //            N = 3: 7664, 4.60 mm, 140 fps; Open3D 4.72 mm; tracked ATE 0.521 / 0.531 / 0.528 cm;
+  //   640x480: N = 1: 8644 blocks, 4.27 mm, 55 fps; N = 2: 8304, 4.28 mm, 91 fps; N = 4: 7966,
+  //            4.23 mm, 93-111 fps; Open3D 4.27 mm; ATE 0.337 / 0.337 / 0.340 cm;
+  // the share of the true surface within 1 cm of the mesh moved by less than 0.05 % throughout.
+  int allocation_stride = 0;
   PreprocessOptions preprocess;
   IcpOptions icp;
   KeyframeOptions keyframes;
@@ -64,7 +68,7 @@ struct FusionOptions {
     v("tracking", tracking, "", "icp (estimate poses) or known (use the source's poses)");
     v("min_valid_fraction", min_valid_fraction, "", "frames with fewer valid depth pixels are skipped as blank");
     v("model_subsample", model_subsample, "", "raycast the model for tracking at 1/N of the depth's resolution (1 = full)");
-    v("allocation_stride", allocation_stride, "px", "allocate TSDF blocks along the band of every Nth pixel (1 = all)");
+    v("allocation_stride", allocation_stride, "px", "allocate TSDF blocks along the band of every Nth pixel (1 = all, 0 = width / 160)");
     v("depth_min", preprocess.min_depth, "m", "nearer depth is invalid");
     v("depth_max", preprocess.max_depth, "m", "farther depth is invalid");
     v("bilateral_radius", preprocess.bilateral_radius, "px", "bilateral filter half-width for tracking (0 = off)");
@@ -88,6 +92,8 @@ struct FusionOptions {
     v("max_keyframes", keyframes.max_keyframes, "", "keyframe limit");
   }
   void Validate() const;
+  // allocation_stride for images `width` pixels wide (0 resolved: width / 160 rounded, >= 1).
+  int AllocationStride(int width) const;
   TsdfVolumeParams VolumeParams(const Eigen::Vector3d& origin) const;
 };
 
@@ -131,7 +137,8 @@ class KinectFusion {
   const std::vector<RgbdFrame>& keyframes() const { return keyframe_selector_.keyframes(); }
   const CameraIntrinsics& intrinsics() const { return intrinsics_; }
   const FusionOptions& options() const { return options_; }
-  // The model as seen from the last good pose (for previews); empty before the first frame.
+  // The model as seen from the last good pose, which ICP tracks against; empty before the first
+  // frame and with tracking = known (no raycast is made then).
   const RaycastResult& model() const { return model_; }
 
  private:
@@ -142,6 +149,7 @@ class KinectFusion {
   Eigen::Isometry3d last_good_ = Eigen::Isometry3d::Identity();  // pose the model was raycast at
   RaycastResult model_;
   CameraIntrinsics model_intrinsics_;  // the model's raycast camera (intrinsics at 1/model_subsample)
+  int allocation_stride_ = 1;          // options_.allocation_stride, 0 resolved by the image width
   Trajectory trajectory_;
   std::vector<FrameReport> reports_;
   KeyframeSelector keyframe_selector_;

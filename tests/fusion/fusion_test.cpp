@@ -189,13 +189,17 @@ TEST(Fusion, TracksTheRoomWithTheModelAtHalfAndFullResolution) {
   EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }), "model_subsample");
 }
 
-// Blocks allocated along the band of every second pixel (allocation_stride 2, the default) are a
-// subset of those every pixel's band gives, fewer, and the model seen from the cameras loses almost
-// nothing: every pixel still updates the voxels of allocated blocks.
+// Blocks allocated along the band of every second pixel (allocation_stride 2) are a subset of those
+// every pixel's band gives, fewer, and the model seen from the cameras loses almost nothing: every
+// pixel still updates the voxels of allocated blocks. The default (0) picks the stride by width.
 TEST(Fusion, SparserAllocationKeepsASubsetOfTheBlocksAndTheSurface) {
   const std::vector<RgbdFrame> frames = Render(Room(), Orbit(20), Camera(160, 120));
   FusionOptions o = DefaultOptions();
-  EXPECT_EQ(o.allocation_stride, 2);
+  EXPECT_EQ(o.allocation_stride, 0);
+  EXPECT_EQ(o.AllocationStride(160), 1);
+  EXPECT_EQ(o.AllocationStride(320), 2);
+  EXPECT_EQ(o.AllocationStride(640), 4);
+  EXPECT_EQ(o.AllocationStride(64), 1);
   o.tracking = "known";
   o.allocation_stride = 1;
   const FusionRun every = Fuse(frames, o);
@@ -207,6 +211,7 @@ TEST(Fusion, SparserAllocationKeepsASubsetOfTheBlocksAndTheSurface) {
     ASSERT_TRUE(all.FindBlock(some.block_key(b)).has_value()) << some.block_key(b).transpose();
   }
   EXPECT_LT(some.num_blocks(), all.num_blocks());
+  EXPECT_TRUE(sparse.fusion->model().depth.empty());  // known poses: no model raycast for ICP
   size_t hits_every = 0, hits_sparse = 0;
   const Eigen::Isometry3d pose = *frames[10].world_from_camera;
   const RaycastResult a = RaycastVolume(all, frames[10].intrinsics, pose);
@@ -226,7 +231,8 @@ TEST(Fusion, SparserAllocationKeepsASubsetOfTheBlocksAndTheSurface) {
             << both << " pixels both hit, " << differ << " differ by more than half a voxel\n";
   EXPECT_GT(hits_sparse, 0.99 * hits_every);
   EXPECT_LT(differ, both / 100);
-  o.allocation_stride = 0;
+  EXPECT_EQ(o.AllocationStride(640), 2);  // a set stride is kept at every width
+  o.allocation_stride = -1;
   EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }), "allocation_stride");
 }
 
