@@ -22,15 +22,18 @@ int Run(int argc, char** argv) {
   int threads = 0;
   int model_subsample = fusion::FusionOptions().model_subsample;
   int allocation_stride = fusion::FusionOptions().allocation_stride;
+  std::string weighting = fusion::FusionOptions().weighting;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
-      std::printf("usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] [--allocation-stride N]\n"
+      std::printf("usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] [--allocation-stride N] [--weighting noise|uniform]\n"
                   "  FOLDER: a TUM-layout sequence with groundtruth.txt (e.g. from genscene-synth)\n"
                   "  prints per-frame times of each step, fps, ATE, and integration alone (known poses)\n");
       return 0;
     }
     if (std::strcmp(argv[i], "--model-subsample") == 0 && i + 1 < argc) {
       model_subsample = std::atoi(argv[++i]);
+    } else if (std::strcmp(argv[i], "--weighting") == 0 && i + 1 < argc) {
+      weighting = argv[++i];
     } else if (std::strcmp(argv[i], "--allocation-stride") == 0 && i + 1 < argc) {
       allocation_stride = std::atoi(argv[++i]);
     } else if (std::strcmp(argv[i], "--threads") == 0 && i + 1 < argc) {
@@ -40,12 +43,12 @@ int Run(int argc, char** argv) {
     }
   }
   if (folders.empty()) {
-    std::fprintf(stderr, "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] [--allocation-stride N]\n");
+    std::fprintf(stderr, "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] [--allocation-stride N] [--weighting noise|uniform]\n");
     return 2;
   }
   SetThreadCount(threads);
-  std::printf("threads %d, model raycast at 1/%d resolution, allocation stride %d (0 = width / 160)\n",
-              ThreadCount(), model_subsample, allocation_stride);
+  std::printf("threads %d, model raycast at 1/%d resolution, allocation stride %d (0 = width / 160), %s weights\n",
+              ThreadCount(), model_subsample, allocation_stride, weighting.c_str());
   std::printf("%-28s %9s %7s | %8s %8s %8s %8s %8s | %9s | %8s %9s\n", "sequence", "size", "frames", "prep ms",
               "track ms", "integ ms", "ray ms", "fps", "ATE cm", "integ fps", "blocks");
   for (const std::string& folder : folders) {
@@ -59,6 +62,7 @@ int Run(int argc, char** argv) {
       options.tracking = mode == 0 ? "icp" : "known";
       options.model_subsample = model_subsample;
       options.allocation_stride = allocation_stride;
+      options.weighting = weighting;
       options.Validate();
       fusion::KinectFusion kf(options, source->Intrinsics());
       for (const RgbdFrame& f : frames) {

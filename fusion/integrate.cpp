@@ -101,7 +101,8 @@ std::vector<Eigen::Vector3i> BlocksInTruncationBand(const TsdfVolume& volume, co
 
 IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, const ImageRgb& color,
                                 const CameraIntrinsics& k,
-                                const Eigen::Isometry3d& world_from_camera, int allocation_stride) {
+                                const Eigen::Isometry3d& world_from_camera,
+                                const IntegrationOptions& options) {
   if (!depth.SameSize(k.width, k.height)) {
     throw Error(Format("IntegrateFrame: depth ", depth.width(), "x", depth.height(),
                        " but intrinsics say ", k.width, "x", k.height));
@@ -113,7 +114,7 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
   }
   IntegrationStats stats;
   const std::vector<Eigen::Vector3i> keys =
-      BlocksInTruncationBand(volume, depth, k, world_from_camera, allocation_stride);
+      BlocksInTruncationBand(volume, depth, k, world_from_camera, options.allocation_stride);
   stats.blocks_touched = keys.size();
   // One look-up per key: found blocks keep their index, the missing ones are counted (for the
   // memory cap, checked before anything is allocated) and allocated after.
@@ -157,6 +158,7 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
     const int width = w;
     const float fx_l = fx, fy_l = fy, cx_l = cx, cy_l = cy, wf_l = wf, hf_l = hf;
     const float trunc_l = trunc, max_weight_l = max_weight;
+    const bool noise_weights = options.noise_weights;
     const Eigen::Matrix3f a_l = a_f;
     TsdfBlock& block = volume.block(static_cast<size_t>(indices[i]));
     const Eigen::Vector3f base = (a * (kTsdfBlockSide * keys[i]).cast<double>() + b).cast<float>();
@@ -193,15 +195,17 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
         }
         TsdfVoxel* voxels = &block.voxels[TsdfBlock::Index(0, y, z)];
         float old_weight[kTsdfBlockSide], inv_weight[kTsdfBlockSide], eta[kTsdfBlockSide];
+        float w_obs[kTsdfBlockSide];
         bool update[kTsdfBlockSide];
         for (int x = 0; x < kTsdfBlockSide; ++x) {
           eta[x] = (d[x] - pz[x]) * lambda[x];
           update[x] = d[x] > 0.0f && eta[x] >= -trunc_l;  // not hidden behind the surface
           const float sdf_obs = eta[x] < trunc_l ? eta[x] : trunc_l;
           const float weight = voxels[x].weight;
-          const float w_new = weight + kObservationWeight;
+          w_obs[x] = noise_weights ? ObservationWeight(d[x]) : 1.0f;
+          const float w_new = weight + w_obs[x];
           inv_weight[x] = 1.0f / w_new;
-          const float sdf = (weight * voxels[x].sdf + kObservationWeight * sdf_obs) * inv_weight[x];
+          const float sdf = (weight * voxels[x].sdf + w_obs[x] * sdf_obs) * inv_weight[x];
           old_weight[x] = weight;
           voxels[x].sdf = update[x] ? sdf : voxels[x].sdf;
           voxels[x].weight = update[x] ? (w_new < max_weight_l ? w_new : max_weight_l) : weight;
@@ -212,7 +216,7 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
           // its colour.
           if (!color_at || !update[x] || !(eta[x] < trunc_l)) continue;
           Eigen::Vector3f& c = block.colors[static_cast<size_t>(TsdfBlock::Index(x, y, z))];
-          c = (old_weight[x] * c + kObservationWeight * color_at[pixel[x]]) * inv_weight[x];
+          c = (old_weight[x] * c + w_obs[x] * color_at[pixel[x]]) * inv_weight[x];
         }
       }
     }

@@ -42,6 +42,7 @@ void FusionOptions::Validate() const {
   RequireRange("min_valid_fraction", min_valid_fraction, 0.0, 1.0);
   RequireRange("model_subsample", model_subsample, 1, 4);
   RequireRange("allocation_stride", allocation_stride, 0, 16);
+  RequireOneOf("weighting", weighting, {"noise", "uniform"});
   preprocess.Validate();
   icp.Validate();
   keyframes.Validate();
@@ -82,7 +83,8 @@ KinectFusion::KinectFusion(const FusionOptions& options, const CameraIntrinsics&
   options_.Validate();
   intrinsics_.Validate();
   model_intrinsics_ = intrinsics_.Scaled(1.0 / options_.model_subsample);
-  allocation_stride_ = options_.AllocationStride(intrinsics_.width);
+  integration_.allocation_stride = options_.AllocationStride(intrinsics_.width);
+  integration_.noise_weights = options_.weighting == "noise";
 }
 
 FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
@@ -171,7 +173,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     started_ = true;
   }
   start = std::chrono::steady_clock::now();
-  report.integration = IntegrateFrame(volume_, depth, frame.color, k, pose, allocation_stride_);
+  report.integration = IntegrateFrame(volume_, depth, frame.color, k, pose, integration_);
   report.fused = true;
   report.seconds_integrate = SecondsSince(start);
   if (options_.tracking != "known") {  // with known poses nothing tracks against the model

@@ -33,7 +33,7 @@ struct FusionOptions {
 
   double voxel_size = 0.01;       // m between TSDF lattice points
   double truncation = 0.04;       // m; TSDF truncation band (>= 2 voxels; KinectFusion-like 4)
-  double max_weight = 128.0;      // running-average weight limit
+  double max_weight = 128.0;      // running-average weight limit (in measurements at 1 m)
   double memory_cap = 4000.0;     // MB the TSDF may allocate; exceeding it is an error
   std::string tracking = "icp";   // icp (estimate the poses) or known (fuse with the source's poses)
   double min_valid_fraction = 0.05;  // frames with fewer valid depth pixels are blank (skipped)
@@ -55,6 +55,9 @@ struct FusionOptions {
   //            4.23 mm, 93-111 fps; Open3D 4.27 mm; ATE 0.337 / 0.337 / 0.340 cm;
   // the share of the true surface within 1 cm of the mesh moved by less than 0.05 % throughout.
   int allocation_stride = 0;
+  // Measurements weighted by the inverse variance of a structured-light sensor's depth noise
+  // ("noise", integrate.h's ObservationWeight) or all alike ("uniform", as Open3D does).
+  std::string weighting = "noise";
   PreprocessOptions preprocess;
   IcpOptions icp;
   KeyframeOptions keyframes;
@@ -69,6 +72,7 @@ struct FusionOptions {
     v("min_valid_fraction", min_valid_fraction, "", "frames with fewer valid depth pixels are skipped as blank");
     v("model_subsample", model_subsample, "", "raycast the model for tracking at 1/N of the depth's resolution (1 = full)");
     v("allocation_stride", allocation_stride, "px", "allocate TSDF blocks along the band of every Nth pixel (1 = all, 0 = width / 160)");
+    v("weighting", weighting, "", "TSDF measurement weights: noise (1 / sigma(z)^2 of Kinect-like depth noise) or uniform");
     v("depth_min", preprocess.min_depth, "m", "nearer depth is invalid");
     v("depth_max", preprocess.max_depth, "m", "farther depth is invalid");
     v("bilateral_radius", preprocess.bilateral_radius, "px", "bilateral filter half-width for tracking (0 = off)");
@@ -149,7 +153,7 @@ class KinectFusion {
   Eigen::Isometry3d last_good_ = Eigen::Isometry3d::Identity();  // pose the model was raycast at
   RaycastResult model_;
   CameraIntrinsics model_intrinsics_;  // the model's raycast camera (intrinsics at 1/model_subsample)
-  int allocation_stride_ = 1;          // options_.allocation_stride, 0 resolved by the image width
+  IntegrationOptions integration_;  // allocation stride (resolved by the image width) and weights
   Trajectory trajectory_;
   std::vector<FrameReport> reports_;
   KeyframeSelector keyframe_selector_;

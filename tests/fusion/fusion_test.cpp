@@ -236,6 +236,46 @@ TEST(Fusion, SparserAllocationKeepsASubsetOfTheBlocksAndTheSurface) {
   EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }), "allocation_stride");
 }
 
+// Noise weights: a wall measured once from 0.8 m (exactly) and once from 3 m (2 cm too far, a
+// typical error there) ends where the near measurement put it; uniform weights split the
+// difference.
+TEST(Fusion, NoiseWeightsTrustTheNearMeasurement) {
+  EXPECT_NEAR(ObservationWeight(1.0f), 1.0f, 1e-6f);
+  EXPECT_GT(ObservationWeight(0.5f), 2.0f);
+  EXPECT_LT(ObservationWeight(3.0f), 0.02f);
+  const CameraIntrinsics k = Camera(64, 48);
+  for (const bool noise : {true, false}) {
+    TsdfVolumeParams params;
+    params.voxel_size = 0.01;
+    params.truncation = 0.04;
+    params.origin = Eigen::Vector3d(0.0, 0.0, 0.003);  // the wall between lattice planes
+    TsdfVolume volume(params);
+    IntegrationOptions options;
+    options.noise_weights = noise;
+    // The wall is the plane z = 0.8 m; cameras on the z axis look along +z.
+    for (const double distance : {0.8, 3.0}) {
+      const Eigen::Isometry3d pose(Eigen::Translation3d(0.0, 0.0, 0.8 - distance));
+      ImageDepth depth(k.width, k.height);
+      for (float& d : depth.pixels()) d = static_cast<float>(distance + (distance > 1.0 ? 0.02 : 0.0));
+      IntegrateFrame(volume, depth, ImageRgb(), k, pose, options);
+    }
+    // The fused wall's position on the optical axis: where the sdf crosses zero along z.
+    const Eigen::Vector3d lattice = volume.WorldToLattice(Eigen::Vector3d(0.0, 0.0, 0.8));
+    const auto before = volume.InterpolateSdf(Eigen::Vector3f(lattice.x(), lattice.y(), std::floor(lattice.z())));
+    const auto after = volume.InterpolateSdf(Eigen::Vector3f(lattice.x(), lattice.y(), std::floor(lattice.z()) + 1));
+    ASSERT_TRUE(before && after);
+    const double t = *before / (*before - *after);
+    const double wall = volume.VoxelToWorld(Eigen::Vector3i(0, 0, static_cast<int>(std::floor(lattice.z())))).z() +
+                        t * params.voxel_size;
+    std::cout << (noise ? "noise" : "uniform") << " weights: wall at " << wall << " m (truth 0.8)\n";
+    if (noise) {
+      EXPECT_NEAR(wall, 0.8, 0.001);
+    } else {
+      EXPECT_NEAR(wall, 0.81, 0.001);
+    }
+  }
+}
+
 // Hard case: a pure plane leaves three pose directions unconstrained.
 TEST(FusionHardCases, PurePlaneIsDetectedAsDegenerateNotAWildPose) {
   SyntheticScene scene;
