@@ -47,7 +47,7 @@ struct FusionOptions {
   // lone pixel's band reaches (the rim of an observed region, a flying pixel) then waits until
   // more of the surface is seen. 0 = by the image's width, the same angular spacing at every
   // resolution: width / 160 rounded, at least 1 (2 at 320x240, 4 at 640x480; AllocationStride).
-  // Session 18, synthetic room 150 frames with Kinect noise, known poses
+  // Session 18, synthetic room 150 frames with Kinect noise, known poses, uniform weights
   // (bench/compare_open3d_fusion.py; Open3D samples every 4th pixel):
   //   320x240: N = 1: 8301 blocks, mesh RMS 4.77 mm, 93 fps; N = 2: 7959, 4.68 mm, 127 fps;
   //            N = 3: 7664, 4.60 mm, 140 fps; Open3D 4.72 mm; tracked ATE 0.521 / 0.531 / 0.528 cm;
