@@ -17,6 +17,10 @@ using namespace genscene;
 
 namespace {
 
+constexpr const char* kUsage =
+    "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] [--allocation-stride N]"
+    " [--weighting noise|uniform]\n";
+
 int Run(int argc, char** argv) {
   std::vector<std::string> folders;
   int threads = 0;
@@ -25,9 +29,10 @@ int Run(int argc, char** argv) {
   std::string weighting = fusion::FusionOptions().weighting;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
-      std::printf("usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] [--allocation-stride N] [--weighting noise|uniform]\n"
+      std::printf("%s"
                   "  FOLDER: a TUM-layout sequence with groundtruth.txt (e.g. from genscene-synth)\n"
-                  "  prints per-frame times of each step, fps, ATE, and integration alone (known poses)\n");
+                  "  prints per-frame times of each step, fps, ATE, and integration alone (known poses)\n",
+                  kUsage);
       return 0;
     }
     if (std::strcmp(argv[i], "--model-subsample") == 0 && i + 1 < argc) {
@@ -43,7 +48,7 @@ int Run(int argc, char** argv) {
     }
   }
   if (folders.empty()) {
-    std::fprintf(stderr, "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] [--allocation-stride N] [--weighting noise|uniform]\n");
+    std::fprintf(stderr, "%s", kUsage);
     return 2;
   }
   SetThreadCount(threads);

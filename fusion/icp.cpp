@@ -162,20 +162,21 @@ IcpReport TrackFrameToModel(const std::vector<PyramidLevel>& live, const Raycast
     const int iterations = per_level[std::min(level, 2)];
     for (int it = 0; it < iterations; ++it) {
       NormalEquations ne = Accumulate(live[static_cast<size_t>(level)], model, model_intrinsics, pose, options);
-      if (ne.inliers < 6) {
-        if (level == 0) final_ne = std::move(ne);
-        break;
+      // The level stops when too few inliers or no constrained direction leave no step, or when
+      // the step was below min_step.
+      bool stop = ne.inliers < 6;
+      if (!stop) {
+        const Step step = SolveConstrained(ne, options.degenerate_eigen_ratio);
+        stop = step.constrained == 0;
+        if (!stop) {
+          pose = ExpSE3(step.xi) * pose;
+          ++report.iterations;
+          stop = step.xi.norm() < options.min_step;
+        }
       }
-      const Step step = SolveConstrained(ne, options.degenerate_eigen_ratio);
-      if (step.constrained == 0) {
-        if (level == 0) final_ne = std::move(ne);
-        break;
-      }
-      pose = ExpSE3(step.xi) * pose;
-      ++report.iterations;
-      if (step.xi.norm() < options.min_step) {
-        // Converged: the pose moved by less than min_step since these sums, which serve as the
-        // quality figures (saves a full-resolution pass on most frames).
+      if (stop) {
+        // The pose moved by less than min_step since these sums, which then serve as the quality
+        // figures at full resolution (saves a pass on most frames).
         if (level == 0) final_ne = std::move(ne);
         break;
       }
