@@ -5,12 +5,26 @@
 #include <climits>
 #include <iterator>
 #include <cmath>
+#include <cstring>
 
 #include "core/check.h"
 #include "core/parallel.h"
 
 namespace genscene::fusion {
 namespace {
+
+// Four floats and their comparison masks (lanes all ones or zero) as GCC vector types, which
+// GCC and clang compile to one SSE or NEON register.
+typedef float Row4 __attribute__((vector_size(16)));
+typedef int Mask4 __attribute__((vector_size(16)));
+static_assert(sizeof(TsdfVoxel) == 2 * sizeof(float), "two voxels are one Row4");
+
+// integrate.h's ObservationWeight, four at once.
+inline Row4 ObservationWeights(Row4 depth) {
+  constexpr float kSigmaAtOneMetre = 0.0012f + 0.0019f * 0.6f * 0.6f;
+  const Row4 sigma = 0.0012f + 0.0019f * (depth - 0.4f) * (depth - 0.4f);
+  return (kSigmaAtOneMetre * kSigmaAtOneMetre) / (sigma * sigma);
+}
 
 struct KeyLess {
   bool operator()(const Eigen::Vector3i& a, const Eigen::Vector3i& b) const {
@@ -161,16 +175,26 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
     const bool noise_weights = options.noise_weights;
     const Eigen::Matrix3f a_l = a_f;
     TsdfBlock& block = volume.block(static_cast<size_t>(indices[i]));
+    const char* next_block = i + 1 < keys.size()
+        ? reinterpret_cast<const char*>(&volume.block(static_cast<size_t>(indices[i + 1]))) : nullptr;
     const Eigen::Vector3f base = (a * (kTsdfBlockSide * keys[i]).cast<double>() + b).cast<float>();
     const Eigen::Vector3f dx = a_l.col(0);  // camera-frame step of one voxel along x
     size_t count = 0;
     for (int z = 0; z < kTsdfBlockSide; ++z) {
       for (int y = 0; y < kTsdfBlockSide; ++y) {
-        // A row of eight voxels as plain arrays, which the compiler turns into SIMD: the
-        // projection (divisions and square roots four at a time), then the pixels' depths (one
-        // by one), then the distance update of integrate.h's kernel; the colours of the updated
-        // voxels inside the band follow one by one.
+        // A row of eight voxels: the projection as plain arrays, which the compiler turns into
+        // SIMD (divisions and square roots four at a time), then the pixels' depths (one by one),
+        // then integrate.h's kernel four voxels at a time, then the colours.
         const Eigen::Vector3f row = base + a_l * Eigen::Vector3f(0.0f, y, z);
+        // The blocks lie scattered in memory, and the hardware prefetcher starts over on each
+        // (4 KB of distances and weights, 6 KB of colours): every row fetches ahead the same row
+        // of the next block. Synthetic room 320x240, 1 thread, integration 63-71 -> 74-80 fps.
+        if (next_block) {
+          const int r = y + kTsdfBlockSide * z;
+          __builtin_prefetch(next_block + offsetof(TsdfBlock, voxels) + 64 * r, 1);
+          __builtin_prefetch(next_block + offsetof(TsdfBlock, colors) + 96 * r, 1);
+          __builtin_prefetch(next_block + offsetof(TsdfBlock, colors) + 96 * r + 64, 1);
+        }
         float pz[kTsdfBlockSide], uf[kTsdfBlockSide], vf[kTsdfBlockSide], lambda[kTsdfBlockSide];
         for (int x = 0; x < kTsdfBlockSide; ++x) {
           const float px = row.x() + x * dx.x(), py = row.y() + x * dx.y();
@@ -185,6 +209,7 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
         int pixel[kTsdfBlockSide];
         for (int x = 0; x < kTsdfBlockSide; ++x) {
           d[x] = 0.0f;
+          pixel[x] = 0;  // a valid index for the colour pass, which leaves such voxels unchanged
           // Nearest pixel: footprints are [u - 0.5, u + 0.5); the range test comes before the
           // integer conversion (which truncates, equal to floor for non-negative values).
           if (!(pz[x] > 0.0f && uf[x] >= 0.0f && vf[x] >= 0.0f && uf[x] < wf_l && vf[x] < hf_l)) {
@@ -193,30 +218,57 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
           pixel[x] = static_cast<int>(vf[x]) * width + static_cast<int>(uf[x]);
           d[x] = depth_at[pixel[x]];
         }
+        // The update, four voxels at a time as GCC vector types: two voxels (sdf, weight, sdf,
+        // weight) per 16-byte load, split into distances and weights by shuffles, and merged
+        // back the same way; kept voxels are written back unchanged. As scalar code the compiler
+        // kept a division per voxel (two with noise weights) and a branch per voxel store.
         TsdfVoxel* voxels = &block.voxels[TsdfBlock::Index(0, y, z)];
-        float old_weight[kTsdfBlockSide], inv_weight[kTsdfBlockSide], eta[kTsdfBlockSide];
-        float w_obs[kTsdfBlockSide];
-        bool update[kTsdfBlockSide];
-        for (int x = 0; x < kTsdfBlockSide; ++x) {
-          eta[x] = (d[x] - pz[x]) * lambda[x];
-          update[x] = d[x] > 0.0f && eta[x] >= -trunc_l;  // not hidden behind the surface
-          const float sdf_obs = eta[x] < trunc_l ? eta[x] : trunc_l;
-          const float weight = voxels[x].weight;
-          w_obs[x] = noise_weights ? ObservationWeight(d[x]) : 1.0f;
-          const float w_new = weight + w_obs[x];
-          inv_weight[x] = 1.0f / w_new;
-          const float sdf = (weight * voxels[x].sdf + w_obs[x] * sdf_obs) * inv_weight[x];
-          old_weight[x] = weight;
-          voxels[x].sdf = update[x] ? sdf : voxels[x].sdf;
-          voxels[x].weight = update[x] ? (w_new < max_weight_l ? w_new : max_weight_l) : weight;
-        }
-        for (int x = 0; x < kTsdfBlockSide; ++x) {
-          count += update[x];
+        // The colour's running average as keep * c + take * observed, times scale: for the voxels
+        // it leaves alone (outside the band, hidden, unobserved) 1, 0 and 1, which gives c
+        // exactly, so the colour pass has no branch per voxel (branches on whether a voxel is in
+        // the band were mispredicted; 1 thread 74-80 -> 84-86 fps).
+        alignas(16) float keep[kTsdfBlockSide], take[kTsdfBlockSide], scale[kTsdfBlockSide];
+        Mask4 any_colour = Mask4{};
+        for (int h = 0; h < kTsdfBlockSide; h += 4) {
+          Row4 lo, hi;
+          std::memcpy(&lo, &voxels[h], sizeof(lo));
+          std::memcpy(&hi, &voxels[h + 2], sizeof(hi));
+          const Row4 sdf_old = __builtin_shufflevector(lo, hi, 0, 2, 4, 6);
+          const Row4 weight_old = __builtin_shufflevector(lo, hi, 1, 3, 5, 7);
+          const Row4 dv = {d[h], d[h + 1], d[h + 2], d[h + 3]};
+          Row4 pzv, lambdav;
+          std::memcpy(&pzv, &pz[h], sizeof(pzv));
+          std::memcpy(&lambdav, &lambda[h], sizeof(lambdav));
+          Row4 w = Row4{} + 1.0f;
+          if (noise_weights) w = ObservationWeights(dv);
+          const Row4 e = (dv - pzv) * lambdav;
+          const Mask4 upd = (dv > 0.0f) & (e >= -trunc_l);  // not hidden behind the surface
+          const Row4 sdf_obs = e < trunc_l ? e : Row4{} + trunc_l;
+          const Row4 w_new = weight_old + w;
+          const Row4 inv = 1.0f / w_new;
+          const Row4 sdf = (weight_old * sdf_old + w * sdf_obs) * inv;
+          const Row4 sdf_out = upd ? sdf : sdf_old;
+          const Row4 weight_out = upd ? (w_new < max_weight_l ? w_new : Row4{} + max_weight_l) : weight_old;
+          lo = __builtin_shufflevector(sdf_out, weight_out, 0, 4, 1, 5);
+          hi = __builtin_shufflevector(sdf_out, weight_out, 2, 6, 3, 7);
+          std::memcpy(static_cast<void*>(&voxels[h]), &lo, sizeof(lo));
+          std::memcpy(static_cast<void*>(&voxels[h + 2]), &hi, sizeof(hi));
           // Colour only inside the band: the colour of free space in front of a surface is not
           // its colour.
-          if (!color_at || !update[x] || !(eta[x] < trunc_l)) continue;
-          Eigen::Vector3f& c = block.colors[static_cast<size_t>(TsdfBlock::Index(x, y, z))];
-          c = (old_weight[x] * c + w_obs[x] * color_at[pixel[x]]) * inv_weight[x];
+          const Mask4 colour = upd & (e < trunc_l);
+          const Row4 keep_v = colour ? weight_old : Row4{} + 1.0f;
+          const Row4 take_v = colour ? w : Row4{};
+          const Row4 scale_v = colour ? inv : Row4{} + 1.0f;
+          std::memcpy(&keep[h], &keep_v, sizeof(keep_v));
+          std::memcpy(&take[h], &take_v, sizeof(take_v));
+          std::memcpy(&scale[h], &scale_v, sizeof(scale_v));
+          count += static_cast<size_t>(-(upd[0] + upd[1] + upd[2] + upd[3]));  // true lanes are -1
+          any_colour |= colour;
+        }
+        if (!color_at || !(any_colour[0] | any_colour[1] | any_colour[2] | any_colour[3])) continue;
+        Eigen::Vector3f* colours = &block.colors[static_cast<size_t>(TsdfBlock::Index(0, y, z))];
+        for (int x = 0; x < kTsdfBlockSide; ++x) {
+          colours[x] = (keep[x] * colours[x] + take[x] * color_at[pixel[x]]) * scale[x];
         }
       }
     }

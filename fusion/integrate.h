@@ -20,8 +20,8 @@ struct IntegrationStats {
   size_t voxels_updated = 0;
 };
 
-// The update of one voxel by one observation (IntegrateFrame applies it to a row of eight voxels
-// at a time, as SIMD):
+// The update of one voxel by one observation (IntegrateFrame applies it to four voxels at a time,
+// as SIMD; tests/fusion's EveryVoxelFollowsTheKernel recomputes it voxel by voxel):
 //   eta = distance along the voxel's viewing ray from the voxel to the measured surface:
 //   (measured depth - the voxel's planar depth) * lambda, lambda = |(x/z, y/z, 1)| >= 1
 //   (KinectFusion's eta = |t - p| / lambda^-1 form). The planar difference alone shrinks the

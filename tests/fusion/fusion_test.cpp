@@ -2,6 +2,9 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <map>
+#include <set>
+#include <tuple>
 
 #include "core/parallel.h"
 #include "core/se3.h"
@@ -274,6 +277,107 @@ TEST(Fusion, NoiseWeightsTrustTheNearMeasurement) {
       EXPECT_NEAR(wall, 0.81, 0.001);
     }
   }
+}
+
+// IntegrateFrame runs its update four voxels at a time; every voxel must still follow
+// integrate.h's kernel, recomputed here one voxel at a time in double precision from the volume
+// before the frame (a second frame over a first one, so old weights, sdfs and colours all count).
+TEST(Fusion, EveryVoxelFollowsTheKernel) {
+  const CameraIntrinsics k = Camera(64, 48);
+  const std::vector<RgbdFrame> frames = Render(Room(), Orbit(8), k);
+  TsdfVolumeParams params;
+  params.voxel_size = 0.02;
+  params.truncation = 0.08;
+  params.max_weight = 1.5f;  // the second measurement of near voxels saturates
+  TsdfVolume volume(params);
+  IntegrationOptions options;
+  IntegrateFrame(volume, frames[0].depth, frames[0].color, k, *frames[0].world_from_camera, options);
+  std::map<std::tuple<int, int, int>, TsdfBlock> before;
+  for (size_t i = 0; i < volume.num_blocks(); ++i) {
+    const Eigen::Vector3i& key = volume.block_key(i);
+    before[{key.x(), key.y(), key.z()}] = volume.block(i);
+  }
+  const RgbdFrame& frame = frames[5];
+  IntegrateFrame(volume, frame.depth, frame.color, k, *frame.world_from_camera, options);
+  // Only the blocks of this frame's band are updated, the others keep their voxels.
+  std::set<std::tuple<int, int, int>> band;
+  for (const Eigen::Vector3i& key :
+       BlocksInTruncationBand(volume, frame.depth, k, *frame.world_from_camera, options.allocation_stride)) {
+    band.insert({key.x(), key.y(), key.z()});
+  }
+
+  const Eigen::Isometry3d camera_from_world = frame.world_from_camera->inverse();
+  const double trunc = params.truncation;
+  const TsdfBlock empty;
+  size_t updated = 0, coloured = 0, saturated = 0, kept = 0, borderline = 0;
+  for (size_t i = 0; i < volume.num_blocks(); ++i) {
+    const Eigen::Vector3i& key = volume.block_key(i);
+    const auto old = before.find({key.x(), key.y(), key.z()});
+    const TsdfBlock& was = old == before.end() ? empty : old->second;
+    const TsdfBlock& now = volume.block(i);
+    for (int z = 0; z < kTsdfBlockSide; ++z) {
+      for (int y = 0; y < kTsdfBlockSide; ++y) {
+        for (int x = 0; x < kTsdfBlockSide; ++x) {
+          const int index = TsdfBlock::Index(x, y, z);
+          const TsdfVoxel& v0 = was.voxels[index];
+          const TsdfVoxel& v1 = now.voxels[index];
+          const Eigen::Vector3f& c0 = was.colors[index];
+          const Eigen::Vector3f& c1 = now.colors[index];
+          const Eigen::Vector3d p =
+              camera_from_world * volume.VoxelToWorld(kTsdfBlockSide * key + Eigen::Vector3i(x, y, z));
+          const double u = k.fx * p.x() / p.z() + k.cx + 0.5, v = k.fy * p.y() / p.z() + k.cy + 0.5;
+          // Voxels on a pixel footprint's edge may fall either side in float: not checked.
+          const auto near_edge = [](double t) { return std::abs(t - std::round(t)) < 1e-3; };
+          if (p.z() > 0.0 && (near_edge(u) || near_edge(v))) {
+            ++borderline;
+            continue;
+          }
+          double depth = 0.0;
+          if (p.z() > 0.0 && u >= 0.0 && v >= 0.0 && u < k.width && v < k.height) {
+            depth = frame.depth(static_cast<int>(u), static_cast<int>(v));
+          }
+          const double lambda = (p / p.z()).norm();
+          const double eta = (depth - p.z()) * lambda;
+          if (band.count({key.x(), key.y(), key.z()}) && depth > 0.0 && (std::abs(eta + trunc) < 1e-5 || std::abs(eta - trunc) < 1e-5)) {
+            ++borderline;
+            continue;
+          }
+          if (!band.count({key.x(), key.y(), key.z()}) || depth <= 0.0 || eta < -trunc) {
+            // No update: bit for bit the old voxel.
+            ASSERT_EQ(v1.sdf, v0.sdf) << "block " << i << " voxel " << index;
+            ASSERT_EQ(v1.weight, v0.weight) << "block " << i << " voxel " << index;
+            ASSERT_EQ(c1, c0) << "block " << i << " voxel " << index;
+            ++kept;
+            continue;
+          }
+          const double w_obs = ObservationWeight(static_cast<float>(depth));
+          const double w_new = v0.weight + w_obs;
+          const double sdf = (v0.weight * v0.sdf + w_obs * std::min(eta, trunc)) / w_new;
+          ASSERT_NEAR(v1.sdf, sdf, 1e-5) << "block " << i << " voxel " << index;
+          ASSERT_NEAR(v1.weight, std::min(w_new, double{params.max_weight}), 1e-5 * w_new)
+              << "block " << i << " voxel " << index;
+          saturated += w_new > params.max_weight;
+          ++updated;
+          if (eta < trunc) {
+            const Eigen::Vector3d observed = frame.color(static_cast<int>(u), static_cast<int>(v)).cast<double>();
+            const Eigen::Vector3d colour = (v0.weight * c0.cast<double>() + w_obs * observed) / w_new;
+            ASSERT_LT((c1.cast<double>() - colour).cwiseAbs().maxCoeff(), 1e-5)
+                << "block " << i << " voxel " << index;
+            ++coloured;
+          } else {
+            ASSERT_EQ(c1, c0) << "free space keeps its colour: block " << i << " voxel " << index;
+          }
+        }
+      }
+    }
+  }
+  std::cout << volume.num_blocks() << " blocks: " << updated << " voxels updated (" << coloured << " coloured, "
+            << saturated << " saturated), " << kept << " kept, " << borderline << " on an edge\n";
+  EXPECT_GT(updated, 10000u);
+  EXPECT_GT(coloured, 2000u);
+  EXPECT_GT(saturated, 1000u);
+  EXPECT_GT(kept, 10000u);
+  EXPECT_LT(borderline, (updated + kept) / 50);
 }
 
 // Hard case: a pure plane leaves three pose directions unconstrained.
