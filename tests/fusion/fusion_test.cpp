@@ -282,9 +282,14 @@ TEST(Fusion, NoiseWeightsTrustTheNearMeasurement) {
 // IntegrateFrame runs its update four voxels at a time; every voxel must still follow
 // integrate.h's kernel, recomputed here one voxel at a time in double precision from the volume
 // before the frame (a second frame over a first one, so old weights, sdfs and colours all count).
-TEST(Fusion, EveryVoxelFollowsTheKernel) {
+// With `nan_colour` the second frame's colours are all NaN (an EXR may hold them): the voxels it
+// colours become NaN, every other voxel keeps its colour bit for bit.
+void CheckEveryVoxelFollowsTheKernel(bool nan_colour) {
   const CameraIntrinsics k = Camera(64, 48);
-  const std::vector<RgbdFrame> frames = Render(Room(), Orbit(8), k);
+  std::vector<RgbdFrame> frames = Render(Room(), Orbit(8), k);
+  if (nan_colour) {
+    for (Eigen::Vector3f& c : frames[5].color.pixels()) c.setConstant(std::numeric_limits<float>::quiet_NaN());
+  }
   TsdfVolumeParams params;
   params.voxel_size = 0.02;
   params.truncation = 0.08;
@@ -361,8 +366,12 @@ TEST(Fusion, EveryVoxelFollowsTheKernel) {
           if (eta < trunc) {
             const Eigen::Vector3d observed = frame.color(static_cast<int>(u), static_cast<int>(v)).cast<double>();
             const Eigen::Vector3d colour = (v0.weight * c0.cast<double>() + w_obs * observed) / w_new;
-            ASSERT_LT((c1.cast<double>() - colour).cwiseAbs().maxCoeff(), 1e-5)
-                << "block " << i << " voxel " << index;
+            if (nan_colour) {
+              ASSERT_TRUE(c1.array().isNaN().all()) << "block " << i << " voxel " << index;
+            } else {
+              ASSERT_LT((c1.cast<double>() - colour).cwiseAbs().maxCoeff(), 1e-5)
+                  << "block " << i << " voxel " << index;
+            }
             ++coloured;
           } else {
             ASSERT_EQ(c1, c0) << "free space keeps its colour: block " << i << " voxel " << index;
@@ -379,6 +388,10 @@ TEST(Fusion, EveryVoxelFollowsTheKernel) {
   EXPECT_GT(kept, 10000u);
   EXPECT_LT(borderline, (updated + kept) / 50);
 }
+
+TEST(Fusion, EveryVoxelFollowsTheKernel) { CheckEveryVoxelFollowsTheKernel(false); }
+
+TEST(Fusion, NanColourStaysInTheVoxelsItColours) { CheckEveryVoxelFollowsTheKernel(true); }
 
 // Hard case: a pure plane leaves three pose directions unconstrained.
 TEST(FusionHardCases, PurePlaneIsDetectedAsDegenerateNotAWildPose) {
