@@ -175,8 +175,8 @@ IcpReport TrackFrameToModel(const std::vector<PyramidLevel>& live, const Raycast
         }
       }
       if (stop) {
-        // The pose moved by less than min_step since these sums, which then serve as the quality
-        // figures at full resolution (saves a pass on most frames).
+        // The pose moved by less than min_step since these sums (or not at all), which then
+        // serve as the quality figures at full resolution (saves a pass on most frames).
         if (level == 0) final_ne = std::move(ne);
         break;
       }

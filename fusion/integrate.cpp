@@ -21,13 +21,6 @@ typedef float Row4 __attribute__((vector_size(16)));
 typedef int Mask4 __attribute__((vector_size(16)));
 static_assert(sizeof(TsdfVoxel) == 2 * sizeof(float), "two voxels are one Row4");
 
-// integrate.h's ObservationWeight, four at once.
-inline Row4 ObservationWeights(Row4 depth) {
-  constexpr float kSigmaAtOneMetre = 0.0012f + 0.0019f * 0.6f * 0.6f;
-  const Row4 sigma = 0.0012f + 0.0019f * (depth - 0.4f) * (depth - 0.4f);
-  return (kSigmaAtOneMetre * kSigmaAtOneMetre) / (sigma * sigma);
-}
-
 struct KeyLess {
   bool operator()(const Eigen::Vector3i& a, const Eigen::Vector3i& b) const {
     if (a.z() != b.z()) return a.z() < b.z();
@@ -244,7 +237,7 @@ IntegrationStats IntegrateFrame(TsdfVolume& volume, const ImageDepth& depth, con
           std::memcpy(&pzv, &pz[h], sizeof(pzv));
           std::memcpy(&lambdav, &lambda[h], sizeof(lambdav));
           Row4 w = Row4{} + 1.0f;
-          if (noise_weights) w = ObservationWeights(dv);
+          if (noise_weights) w = ObservationWeight(dv);
           const Row4 e = (dv - pzv) * lambdav;
           const Mask4 upd = (dv > 0.0f) & (e >= -trunc_l);  // not hidden behind the surface
           const Row4 sdf_obs = e < trunc_l ? e : Row4{} + trunc_l;

@@ -297,11 +297,10 @@ void CheckEveryVoxelFollowsTheKernel(bool nan_colour) {
   TsdfVolume volume(params);
   IntegrationOptions options;
   IntegrateFrame(volume, frames[0].depth, frames[0].color, k, *frames[0].world_from_camera, options);
-  std::map<std::tuple<int, int, int>, TsdfBlock> before;
-  for (size_t i = 0; i < volume.num_blocks(); ++i) {
-    const Eigen::Vector3i& key = volume.block_key(i);
-    before[{key.x(), key.y(), key.z()}] = volume.block(i);
-  }
+  // Blocks keep their index when more are allocated: block i of the volume after the second
+  // frame was block i before it, or new (i >= before.size()).
+  std::vector<TsdfBlock> before;
+  for (size_t i = 0; i < volume.num_blocks(); ++i) before.push_back(volume.block(i));
   const RgbdFrame& frame = frames[5];
   IntegrateFrame(volume, frame.depth, frame.color, k, *frame.world_from_camera, options);
   // Only the blocks of this frame's band are updated, the others keep their voxels.
@@ -317,8 +316,7 @@ void CheckEveryVoxelFollowsTheKernel(bool nan_colour) {
   size_t updated = 0, coloured = 0, saturated = 0, kept = 0, borderline = 0;
   for (size_t i = 0; i < volume.num_blocks(); ++i) {
     const Eigen::Vector3i& key = volume.block_key(i);
-    const auto old = before.find({key.x(), key.y(), key.z()});
-    const TsdfBlock& was = old == before.end() ? empty : old->second;
+    const TsdfBlock& was = i < before.size() ? before[i] : empty;
     const TsdfBlock& now = volume.block(i);
     for (int z = 0; z < kTsdfBlockSide; ++z) {
       for (int y = 0; y < kTsdfBlockSide; ++y) {
