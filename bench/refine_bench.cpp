@@ -10,7 +10,8 @@
 //     flipped faces.
 // Run by hand:  build/bench/bench_refine [--out DIR] [--ref-spp N] [--spp N] [--iterations N]
 //               [--max-depth D] [--threads N] [--sections 123] [--seed N] [--prior M]
-//               [--prior-tangent M] [--perturbation F] [--flat 0|1]
+//               [--prior-tangent M] [--prior-robust K] [--robust K] [--damping D]
+//               [--refined-only 0|1] [--refine-unseen 0|1] [--perturbation F] [--flat 0|1]
 // RADIAL=1 also prints, per iteration, the Levenberg-Marquardt state and the vertex errors split
 // along the sphere's radius and across it.
 #include <chrono>
@@ -37,10 +38,15 @@ namespace {
 
 struct Settings {
   fs::path out = "bench_out";
-  int ref_spp = 1024, spp = 16, iterations = 5, max_depth = -1;
+  int ref_spp = 1024, spp = RefineOptions().spp, iterations = 5, max_depth = -1;
   double perturbation = 0.2;  // of the radius
   double prior_sigma = RefineOptions().prior_sigma;
   double prior_tangent_sigma = RefineOptions().prior_tangent_sigma;
+  double robust = RefineOptions().robust;
+  double damping = RefineOptions().damping;
+  double prior_robust = RefineOptions().prior_robust;
+  bool refined_only = RefineOptions().refined_pixels_only;
+  bool refine_unseen = RefineOptions().refine_unseen;
   bool smooth = true;         // the replica's sphere shades with area-weighted vertex normals
   std::string sections = "123";
   uint64_t seed = 1;          // of the refinement's random numbers
@@ -65,6 +71,11 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
   options.max_depth = s.max_depth;
   options.prior_sigma = s.prior_sigma;
   options.prior_tangent_sigma = s.prior_tangent_sigma;
+  options.robust = s.robust;
+  options.damping = s.damping;
+  options.prior_robust = s.prior_robust;
+  options.refined_pixels_only = s.refined_only;
+  options.refine_unseen = s.refine_unseen;
   const std::vector<TrainingView> targets = {{view, reference}};
   DifferentiablePathTracer at_truth(scene, refined);
   RefineOptions none = options;
@@ -129,6 +140,16 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
         const auto [radial, across] = split(v);
         rad += radial * radial;
         tan += across * across;
+      }
+      if (std::string(std::getenv("RADIAL")) == "2") {
+        std::printf("   radial mm:");
+        const Eigen::Vector3d eye = view.world_from_camera.translation().cast<double>();
+        for (int v = 0; v < at.VertexCount(); ++v) {
+          const Eigen::Vector3d p = truth.segment<3>(3 * v), n = (p - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
+          std::printf(" %d%s:%+.1f", v, n.dot((eye - p).normalized()) > 0.3 ? "F" : n.dot(eye - p) > 0 ? "s" : "b",
+                      1000.0 * split(v).first);
+        }
+        std::printf("\n");
       }
       std::printf("   all: radial RMS %.5f tangential RMS %.5f\n", std::sqrt(rad / at.VertexCount()),
                   std::sqrt(tan / at.VertexCount()));
@@ -225,6 +246,11 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--perturbation")) s.perturbation = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--prior")) s.prior_sigma = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--prior-tangent")) s.prior_tangent_sigma = std::atof(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--robust")) s.robust = std::atof(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--refine-unseen")) s.refine_unseen = std::atoi(argv[i + 1]) != 0;
+    if (!std::strcmp(argv[i], "--refined-only")) s.refined_only = std::atoi(argv[i + 1]) != 0;
+    if (!std::strcmp(argv[i], "--prior-robust")) s.prior_robust = std::atof(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--damping")) s.damping = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--seed")) s.seed = std::strtoull(argv[i + 1], nullptr, 10);
     if (!std::strcmp(argv[i], "--flat")) s.smooth = !std::atoi(argv[i + 1]);
   }

@@ -29,6 +29,7 @@ void RefineOptions::Validate() const {
   RequireRange("max_retries", max_retries, 0, 100);
   RequireRange("tolerance", tolerance, 0.0, 1.0);
   RequireRange("robust", robust, 0.0, 1e6);
+  RequireRange("prior_robust", prior_robust, 0.0, 1e6);
   RequireRange("edge_margin", edge_margin, 0, 100);
   RequireRange("direct_max_vertices", direct_max_vertices, 0, 1 << 30);
 }
@@ -52,7 +53,7 @@ struct PixelRef {
 // changes, in the starting geometry): their residuals come from visibility, which the derivatives
 // do not see, and would pull the vertices the wrong way.
 std::vector<PixelRef> SamplePixels(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
-                                   int per_view, int margin, uint64_t seed) {
+                                   int per_view, int margin, bool refined_only, uint64_t seed) {
   std::vector<PixelRef> pixels;
   const PathTracer ids(tracer.scene());
   RenderOptions one;
@@ -71,6 +72,10 @@ std::vector<PixelRef> SamplePixels(const DifferentiablePathTracer& tracer, const
     };
     std::vector<int> order;
     for (int p = 0; p < w * h; ++p) {
+      if (refined_only) {
+        const int m = object(p % w, p / w);
+        if (m < 0 || tracer.ParameterVertex(m, 0) < 0) continue;
+      }
       if (margin <= 0 || !near_edge(p % w, p / w)) order.push_back(p);
     }
     if (per_view > 0 && per_view < static_cast<int>(order.size())) {
@@ -83,7 +88,7 @@ std::vector<PixelRef> SamplePixels(const DifferentiablePathTracer& tracer, const
     }
     for (int p : order) pixels.push_back({static_cast<int>(t), p % w, p / w});
   }
-  if (pixels.empty()) throw Error("vertex refinement: no pixels to fit (every pixel is near a silhouette)");
+  if (pixels.empty()) throw Error("vertex refinement: no pixels to fit (no pixel sees a refined mesh away from a silhouette)");
   return pixels;
 }
 
@@ -321,24 +326,52 @@ std::vector<Eigen::Matrix3d> PriorBlocks(const DifferentiablePathTracer& tracer,
   return blocks;
 }
 
+// A prior this many times the usual one holds a vertex in place (its steps come out ~1e-10 of
+// the others') without taking it out of the linear system.
+constexpr double kHeld = 1e10;
+
+// The vertices that a sampled pixel sees directly: those its first hit's shading depends on (the
+// hit triangle's vertices and, with smooth normals, their one-rings), found as the derivatives of a
+// direct-light-only trace (one sample per pixel, paths of two segments). The others show only
+// through indirect light, whose derivatives are mostly Monte Carlo noise.
+std::vector<bool> SeenVertices(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
+                               const std::vector<PixelRef>& pixels, const RefineOptions& options, uint64_t seed) {
+  RenderOptions direct = options.Render();
+  direct.spp = 1;
+  direct.max_depth = 2;
+  std::vector<std::vector<int>> touched(pixels.size());
+  ParallelFor(0, pixels.size(), [&](size_t i) {
+    const PixelRef& p = pixels[i];
+    const DualRgb row = tracer.Pixel(targets[p.target].view, p.u, p.v, direct, seed, true);
+    for (const SparseDual& c : row) {
+      for (const auto& d : c.partials()) {
+        if (d.d.squaredNorm() > 0.0) touched[i].push_back(d.vertex);  // merges keep zero entries
+      }
+    }
+  }, 8);
+  std::vector<bool> seen(tracer.VertexCount(), false);
+  for (const auto& t : touched) {
+    for (int v : t) seen[v] = true;
+  }
+  return seen;
+}
+
 }  // namespace
 
 RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
                                         const RefineOptions& options, uint64_t seed, const Eigen::VectorXd* direction) {
-  const std::vector<PixelRef> pixels = SamplePixels(tracer, targets, options.pixels_per_view, options.edge_margin, seed);
+  const std::vector<PixelRef> pixels = SamplePixels(tracer, targets, options.pixels_per_view, options.edge_margin,
+                                                    options.refined_pixels_only, seed);
   const double scale = options.noise * ReferenceRms(targets, pixels);
   const Evaluation e = Evaluate(tracer, targets, pixels, options, seed, scale, true);
   RefineLinearization l;
   l.cost = e.data_cost;
-  l.gradient = Assemble(e, tracer.VertexCount(), options.robust, false).gradient;
+  const NormalEquations n = Assemble(e, tracer.VertexCount(), options.robust, false);
+  l.gradient = n.gradient;
   if (direction) {
-    for (const DualRgb& row : e.rows) {
-      for (const SparseDual& r : row) {
-        double jd = 0.0;
-        for (const auto& p : r.partials()) jd += p.d.dot(direction->segment<3>(3 * p.vertex));
-        l.curvature += HuberWeight(r.value(), options.robust) * jd * jd;
-      }
-    }
+    Eigen::VectorXd product;
+    n.Multiply(*direction, &product);
+    l.curvature = direction->dot(product);
   }
   return l;
 }
@@ -364,22 +397,55 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   }
   if (tracer.VertexCount() == 0) throw Error("vertex refinement: no vertices to refine");
 
-  const std::vector<PixelRef> pixels = SamplePixels(tracer, targets, options.pixels_per_view, options.edge_margin, seed);
+  const std::vector<PixelRef> pixels = SamplePixels(tracer, targets, options.pixels_per_view, options.edge_margin,
+                                                    options.refined_pixels_only, seed);
   const double rms = ReferenceRms(targets, pixels);
   const double scale = options.noise * rms;
-  const std::vector<Eigen::Matrix3d> prior = PriorBlocks(tracer, options);
+  std::vector<Eigen::Matrix3d> prior = PriorBlocks(tracer, options);
+  std::vector<bool> held(prior.size(), false);
+  if (!options.refine_unseen) {
+    const std::vector<bool> seen = SeenVertices(tracer, targets, pixels, options, seed);
+    for (size_t v = 0; v < seen.size(); ++v) {
+      if (!seen[v]) prior[v] *= kHeld, held[v] = true;
+    }
+  }
   const double channels = 3.0 * pixels.size();
 
   RefineResult result;
   result.initial = tracer.Positions();
   result.pixels = static_cast<int>(pixels.size());
   Eigen::VectorXd x = result.initial;
+  // The prior's cost per vertex is Huber's loss of its Mahalanobis distance s = sqrt(d^T P d) from
+  // the start (threshold prior_robust): quadratic for the small moves that noise makes, linear for
+  // a large move that the images support, which a quadratic prior would pull back in proportion
+  // (on the replica a 3 mm prior left the 40 mm spike 4-5 mm short). Held vertices stay quadratic.
+  const auto prior_weight = [&](const Eigen::VectorXd& at, size_t v) {
+    if (held[v] || options.prior_robust <= 0.0) return 1.0;
+    const Eigen::Vector3d d = (at - result.initial).segment<3>(3 * v);
+    return HuberWeight(std::sqrt(d.dot(prior[v] * d)), options.prior_robust);
+  };
   const auto prior_gradient_at = [&](const Eigen::VectorXd& at) {
     Eigen::VectorXd g(at.size());
-    for (size_t v = 0; v < prior.size(); ++v) g.segment<3>(3 * v) = prior[v] * (at - result.initial).segment<3>(3 * v);
+    for (size_t v = 0; v < prior.size(); ++v) {
+      g.segment<3>(3 * v) = prior_weight(at, v) * (prior[v] * (at - result.initial).segment<3>(3 * v));
+    }
     return g;
   };
-  const auto prior_cost = [&](const Eigen::VectorXd& at) { return 0.5 * (at - result.initial).dot(prior_gradient_at(at)); };
+  const auto prior_cost = [&](const Eigen::VectorXd& at) {
+    double sum = 0.0;
+    for (size_t v = 0; v < prior.size(); ++v) {
+      const Eigen::Vector3d d = (at - result.initial).segment<3>(3 * v);
+      const double m = std::sqrt(d.dot(prior[v] * d));
+      sum += held[v] || options.prior_robust <= 0.0 ? 0.5 * m * m : HuberCost(m, options.prior_robust);
+    }
+    return sum;
+  };
+  // The prior's matrix at `at` for the step: P times the IRLS weight.
+  const auto prior_blocks_at = [&](const Eigen::VectorXd& at) {
+    std::vector<Eigen::Matrix3d> blocks(prior.size());
+    for (size_t v = 0; v < prior.size(); ++v) blocks[v] = prior_weight(at, v) * prior[v];
+    return blocks;
+  };
   const auto now = [] { return std::chrono::steady_clock::now(); };
   const auto seconds = [](auto since) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count(); };
 
@@ -416,10 +482,11 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
         Assemble(current, tracer.VertexCount(), options.robust, tracer.VertexCount() <= options.direct_max_vertices);
     record.jacobian_nonzeros_per_pixel = equations.nonzeros / pixels.size();
     const Eigen::VectorXd prior_gradient = prior_gradient_at(x);
+    const std::vector<Eigen::Matrix3d> prior_here = prior_blocks_at(x);
     const double cost = current.data_cost + prior_cost(x);
     record.cost = cost;
     for (int attempt = 0; attempt <= options.max_retries; ++attempt) {
-      Eigen::VectorXd step = SolveStep(equations, prior_gradient, prior, mu);
+      Eigen::VectorXd step = SolveStep(equations, prior_gradient, prior_here, mu);
       // Trust region on the largest vertex move: the linear model holds over a fraction of an edge.
       double largest = 0.0;
       for (int v = 0; v < tracer.VertexCount(); ++v) largest = std::max(largest, step.segment<3>(3 * v).norm());

@@ -1,7 +1,7 @@
 // Vertex refinement (issue 8, the paper's section IV): vertex positions estimated from images
 // through the differentiable path tracer, by Levenberg-Marquardt on
 //
-//   E(x) = 1/2 sum_pixels sum_c ((I_c(x) - I*_c) / (noise * s))^2 + 1/2 sum_i d_i^T P_i d_i,
+//   E(x) = sum_pixels sum_c rho((I_c(x) - I*_c) / (noise * s)) + sum_i huber(sqrt(d_i^T P_i d_i)),
 //   d_i = x_i - x0_i,  P_i = n n^T / sigma_n^2 + (I - n n^T) / sigma_t^2
 //
 // where I(x) is the path-traced pixel (options.spp samples with fixed random numbers, so E is a
@@ -9,7 +9,11 @@
 // the reference over the sampled pixels, and the second term the weak prior on the starting
 // positions x0 that removes the null spaces of sparse sampling (vertices no sample sees): sigma_n
 // (prior_sigma) along the vertex's starting normal n, sigma_t (prior_tangent_sigma, firmer) across
-// the surface, where a move slides the vertex along a smooth surface and the images barely see it.
+// the surface, where a move slides the vertex along a smooth surface and the images barely see it;
+// Huber's loss of the distance (threshold prior_robust) holds noise-sized moves quadratically and
+// pulls a large move the images support with a constant force, not in proportion. rho is Huber's
+// loss of the residual (threshold robust). The pixels are those that see a refined mesh (by
+// default), and vertices that no fitted pixel sees directly are held in place (by default).
 // Each iteration traces every sampled pixel with derivatives (a sparse Jacobian row per channel),
 // forms the normal equations and solves the damped system, by sparse Cholesky factorisation of
 // 3 x 3 blocks per vertex pair (Eigen's SimplicialLDLT) up to `direct_max_vertices` refined
@@ -30,8 +34,10 @@ struct RefineOptions {
   static constexpr const char* kSection = "refine";
 
   int iterations = 5;           // Levenberg-Marquardt iterations (accepted or not)
-  int spp = 16;                 // path samples per pixel and evaluation
+  int spp = 64;                 // path samples per pixel and evaluation
   int pixels_per_view = 0;      // pixels sampled per view (0 = every pixel)
+  bool refine_unseen = false;   // also move vertices that no sampled pixel sees directly
+  bool refined_pixels_only = true;  // fit only pixels whose camera ray sees a refined mesh
   int edge_margin = 1;          // pixels within this distance of a silhouette are left out
   int max_depth = -1;           // longest path, Mitsuba convention (-1 = Russian roulette)
   int rr_depth = 5;             // depth at which Russian roulette starts
@@ -39,6 +45,7 @@ struct RefineOptions {
   double robust = 3.0;          // Huber threshold of the residuals, in noise units (0 = none)
   double prior_sigma = 0.003;   // standard deviation of the prior on vertex positions, m (along the normal)
   double prior_tangent_sigma = 0.0005;  // the same across the surface, m (0 = prior_sigma: isotropic)
+  double prior_robust = 2.0;    // Huber threshold of the prior, in standard deviations (0 = quadratic)
   double damping = 1e-3;        // initial Levenberg-Marquardt damping (times diag of J^T J)
   double max_step = 0.25;       // largest vertex move per step, in mean edge lengths (trust region)
   bool resample = true;         // fresh random numbers every iteration (same within one)
@@ -51,6 +58,10 @@ struct RefineOptions {
     v("iterations", iterations, "", "Levenberg-Marquardt iterations");
     v("spp", spp, "", "path samples per pixel and evaluation");
     v("pixels_per_view", pixels_per_view, "", "pixels sampled per view (0 = every pixel)");
+    v("refine_unseen", refine_unseen, "",
+      "also move the vertices no sampled pixel sees directly (only indirect light, mostly noise, speaks of them)");
+    v("refined_pixels_only", refined_pixels_only, "",
+      "fit only the pixels whose camera ray first hits a mesh being refined (elsewhere a vertex shows only through shadows and indirect light)");
     v("edge_margin", edge_margin, "px", "pixels this close to a silhouette are left out (0 = none)");
     v("max_depth", max_depth, "segments", "longest path (Mitsuba convention; -1 = unlimited)");
     v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
@@ -59,6 +70,8 @@ struct RefineOptions {
     v("prior_sigma", prior_sigma, "m", "standard deviation of the prior on the starting vertex positions, along the normal");
     v("prior_tangent_sigma", prior_tangent_sigma, "m",
       "the same across the surface, where a move slides the vertex along the surface (0 = prior_sigma)");
+    v("prior_robust", prior_robust, "sigma",
+      "Huber threshold of the prior's distance from the start, in standard deviations (0 = quadratic)");
     v("damping", damping, "", "initial Levenberg-Marquardt damping");
     v("max_step", max_step, "edges", "largest vertex move per step, in mean edge lengths");
     v("resample", resample, "", "fresh random numbers every iteration (the same for its trial steps)");

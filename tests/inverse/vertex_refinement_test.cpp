@@ -2,6 +2,7 @@
 // in the Cornell box, one 106 x 80 view rendered by our path tracer), the prior, bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -29,11 +30,11 @@ struct Replica {
 };
 
 // The replica of the paper's Fig. 4 at test size (direct light, 16 samples per pixel, 3000 pixels,
-// 3 iterations). What holds here: the image error falls, the spike and the dent come back more than
-// half way (measured: 22 % and 1.5 % of the perturbation left; 36 % and 32 % before the prior
-// held vertices firmer across the surface than along it), no face flips and the vertices the
-// view does not see stay put. The acceptance figure (both within 10 % after 5 iterations) is not
-// reached every time yet: see bench_refine and the README.
+// 3 iterations). What holds here: the image error falls, the spike and the dent come back most of
+// the way (measured: 9.3 % and 6.5 % of the perturbation left; 22 % and 1.5 % with the quadratic
+// prior of session 19, 36 % and 32 % before the prior held vertices firmer across the surface than
+// along it), no face flips and the vertices the view does not see stay put. bench_refine runs the
+// acceptance case (5 iterations at the defaults, every path length).
 TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   Replica replica(256, 2);
   DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
@@ -59,7 +60,7 @@ TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   std::printf("spike: error %.4f m, dent: error %.4f m, of %.4f m perturbations\n", error(a), error(b), size);
   EXPECT_LT(error(a), 0.5 * size);
   EXPECT_LT(error(b), 0.5 * size);
-  EXPECT_LT(std::max(error(a), error(b)), 0.3 * size);
+  EXPECT_LT(std::max(error(a), error(b)), 0.15 * size);
   EXPECT_EQ(FlippedFaces(start_mesh, tracer.scene().meshes[replica.box.sphere].mesh), 0);
   // Vertices on the far side, which no pixel sees, stay where the prior holds them.
   for (int v = 0; v < tracer.VertexCount(); ++v) {
@@ -183,6 +184,95 @@ TEST(VertexRefinement, ThePriorHoldsVerticesFirmerAcrossTheSurfaceThanAlongTheNo
   EXPECT_LT(RefineOptions().prior_tangent_sigma, RefineOptions().prior_sigma);
   EXPECT_LT(held, 0.5 * isotropic);
   EXPECT_LT(held, 2.0 * RefineOptions().prior_tangent_sigma);
+}
+
+// The spike and the dent of the replica at test size, refined with `options` from the start.
+double LargerErrorOfTheReplica(const Replica& replica, const RefineOptions& options) {
+  DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
+  const Eigen::VectorXd truth = tracer.Positions();
+  const double size = 0.2 * replica.box.radius;
+  const SpikeAndDent perturbed = PerturbFacingVertices(replica.box.scene.meshes[replica.box.sphere].mesh,
+                                                       replica.box.center, replica.box.radius, replica.eye, size);
+  tracer.SetPositions(perturbed.positions);
+  const Eigen::VectorXd x = RefineVertices(tracer, replica.targets, options).positions;
+  return std::max((x - truth).segment<3>(3 * perturbed.spike).norm(), (x - truth).segment<3>(3 * perturbed.dent).norm());
+}
+
+// The prior's cost is Huber's loss of the distance from the start (prior_robust standard
+// deviations): a quadratic prior pulls the 40 mm spike back in proportion to how far it came, and
+// leaves it millimetres short of the truth; the robust one lets it go.
+TEST(VertexRefinement, ARobustPriorLetsAWellSupportedMoveGoAllTheWay) {
+  Replica replica(256, 2);
+  RefineOptions options;
+  options.spp = 16;
+  options.max_depth = 2;
+  options.iterations = 3;
+  options.pixels_per_view = 3000;
+  const double robust = LargerErrorOfTheReplica(replica, options);
+  options.prior_robust = 0.0;
+  const double quadratic = LargerErrorOfTheReplica(replica, options);
+  std::printf("larger error of spike and dent: %.4f m robust prior, %.4f m quadratic\n", robust, quadratic);
+  EXPECT_GT(RefineOptions().prior_robust, 0.0);
+  EXPECT_LT(robust, 0.6 * quadratic);
+}
+
+// Vertices that no sampled pixel sees directly (only indirect light speaks of them) stay where
+// they are; with refine_unseen they move with the noise of their indirect derivatives.
+TEST(VertexRefinement, VerticesNoPixelSeesDirectlyStayPut) {
+  Replica replica(64, -1);
+  const double size = 0.2 * replica.box.radius;
+  const SpikeAndDent perturbed = PerturbFacingVertices(replica.box.scene.meshes[replica.box.sphere].mesh,
+                                                       replica.box.center, replica.box.radius, replica.eye, size);
+  const auto moves = [&](bool refine_unseen) {
+    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
+    tracer.SetPositions(perturbed.positions);
+    RefineOptions options;
+    options.spp = 4;
+    options.max_depth = -1;  // indirect light: every vertex has derivatives
+    options.iterations = 2;
+    options.refine_unseen = refine_unseen;
+    const Eigen::VectorXd moved = RefineVertices(tracer, replica.targets, options).positions - perturbed.positions;
+    std::vector<double> m(tracer.VertexCount());
+    for (int v = 0; v < tracer.VertexCount(); ++v) m[v] = moved.segment<3>(3 * v).norm();
+    return m;
+  };
+  const std::vector<double> held = moves(false), free = moves(true);
+  // Smooth shading: a pixel's colour depends on the vertex normals of the triangle it sees, hence
+  // on two rings of vertices around it; what lies beyond is seen only through indirect light.
+  int still = 0, still_free = 0;
+  for (size_t v = 0; v < held.size(); ++v) still += held[v] < 1e-9, still_free += free[v] < 1e-9;
+  std::printf("vertices that moved less than 1 nm: %d of %zu held, %d with refine_unseen\n", still, held.size(),
+              still_free);
+  EXPECT_GE(still, 3);
+  EXPECT_EQ(still_free, 0);
+  EXPECT_GT(*std::max_element(held.begin(), held.end()), 1e-3);  // the seen vertices did move
+}
+
+// Only pixels whose camera ray first hits a refined mesh are fitted (refined_pixels_only): the
+// walls of the box show the sphere through shadows (visibility, not differentiated) and
+// indirect light only.
+TEST(VertexRefinement, OnlyPixelsThatSeeARefinedMeshAreFitted) {
+  Replica replica(4, 2);
+  RenderOptions one;
+  one.spp = 1;
+  const Image<int> object = PathTracer(replica.box.scene).Render(replica.box.view, one, 1).object;
+  int sphere = 0;
+  for (int v = 0; v < object.height(); ++v) {
+    for (int u = 0; u < object.width(); ++u) sphere += object(u, v) == replica.box.sphere;
+  }
+  const auto fitted = [&](bool refined_only) {
+    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
+    RefineOptions options;
+    options.spp = 1;
+    options.iterations = 0;
+    options.refined_pixels_only = refined_only;
+    return RefineVertices(tracer, replica.targets, options).pixels;
+  };
+  const int only = fitted(true), all = fitted(false);
+  std::printf("%d pixels see the sphere; fitted %d (refined only), %d (all)\n", sphere, only, all);
+  EXPECT_LE(only, sphere);
+  EXPECT_GT(only, sphere / 2);  // all but those next to the silhouette
+  EXPECT_GT(all, 3 * sphere);
 }
 
 TEST(VertexRefinement, ATangentialSigmaOutOfRangeIsAClearError) {
