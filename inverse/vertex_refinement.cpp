@@ -418,11 +418,15 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   // The prior's cost per vertex is Huber's loss of its Mahalanobis distance s = sqrt(d^T P d) from
   // the start (threshold prior_robust): quadratic for the small moves that noise makes, linear for
   // a large move that the images support, which a quadratic prior would pull back in proportion
-  // (on the replica a 3 mm prior left the 40 mm spike 4-5 mm short). Held vertices stay quadratic.
-  const auto prior_weight = [&](const Eigen::VectorXd& at, size_t v) {
-    if (held[v] || options.prior_robust <= 0.0) return 1.0;
+  // (on the replica a 3 mm prior left the 40 mm spike 4-5 mm short). Held vertices stay quadratic
+  // (threshold 0, as prior_robust 0).
+  const auto threshold = [&](size_t v) { return held[v] ? 0.0 : options.prior_robust; };
+  const auto distance = [&](const Eigen::VectorXd& at, size_t v) {
     const Eigen::Vector3d d = (at - result.initial).segment<3>(3 * v);
-    return HuberWeight(std::sqrt(d.dot(prior[v] * d)), options.prior_robust);
+    return std::sqrt(d.dot(prior[v] * d));
+  };
+  const auto prior_weight = [&](const Eigen::VectorXd& at, size_t v) {
+    return HuberWeight(distance(at, v), threshold(v));
   };
   const auto prior_gradient_at = [&](const Eigen::VectorXd& at) {
     Eigen::VectorXd g(at.size());
@@ -433,11 +437,7 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   };
   const auto prior_cost = [&](const Eigen::VectorXd& at) {
     double sum = 0.0;
-    for (size_t v = 0; v < prior.size(); ++v) {
-      const Eigen::Vector3d d = (at - result.initial).segment<3>(3 * v);
-      const double m = std::sqrt(d.dot(prior[v] * d));
-      sum += held[v] || options.prior_robust <= 0.0 ? 0.5 * m * m : HuberCost(m, options.prior_robust);
-    }
+    for (size_t v = 0; v < prior.size(); ++v) sum += HuberCost(distance(at, v), threshold(v));
     return sum;
   };
   // The prior's matrix at `at` for the step: P times the IRLS weight.

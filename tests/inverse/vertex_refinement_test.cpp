@@ -27,6 +27,11 @@ struct Replica {
     refined.assign(box.scene.meshes.size(), false);
     refined[box.sphere] = true;
   }
+  // 20 % of the radius along the normals of the two vertices that face the camera: a spike out
+  // and a dent in.
+  SpikeAndDent Perturbed() const {
+    return PerturbFacingVertices(box.scene.meshes[box.sphere].mesh, box.center, box.radius, eye, 0.2 * box.radius);
+  }
 };
 
 // The replica of the paper's Fig. 4 at test size (direct light, 16 samples per pixel, 3000 pixels,
@@ -39,10 +44,9 @@ TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   Replica replica(256, 2);
   DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
   const Eigen::VectorXd truth = tracer.Positions();
-  // 20 % of the radius along the normals: a spike out at a, a dent in at b.
+  // A spike out at a, a dent in at b.
   const double size = 0.2 * replica.box.radius;
-  const SpikeAndDent perturbed = PerturbFacingVertices(replica.box.scene.meshes[replica.box.sphere].mesh,
-                                                       replica.box.center, replica.box.radius, replica.eye, size);
+  const SpikeAndDent perturbed = replica.Perturbed();
   const int a = perturbed.spike, b = perturbed.dent;
   const Eigen::VectorXd& start = perturbed.positions;
   tracer.SetPositions(start);
@@ -73,8 +77,7 @@ TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
 
 TEST(VertexRefinement, SameSeedSameVerticesWithOneOrTwoThreads) {
   Replica replica(16, 2);
-  const SpikeAndDent start = PerturbFacingVertices(replica.box.scene.meshes[replica.box.sphere].mesh,
-                                                   replica.box.center, replica.box.radius, replica.eye, 0.04);
+  const SpikeAndDent start = replica.Perturbed();
   RefineOptions options;
   options.spp = 4;
   options.max_depth = 2;
@@ -97,8 +100,7 @@ TEST(VertexRefinement, SameSeedSameVerticesWithOneOrTwoThreads) {
 // deterministic across thread counts as well.
 TEST(VertexRefinement, ConjugateGradientsGiveTheCholeskySteps) {
   Replica replica(16, 2);
-  const SpikeAndDent start = PerturbFacingVertices(replica.box.scene.meshes[replica.box.sphere].mesh,
-                                                   replica.box.center, replica.box.radius, replica.eye, 0.04);
+  const SpikeAndDent start = replica.Perturbed();
   RefineOptions options;
   options.spp = 4;
   options.max_depth = 2;
@@ -155,9 +157,7 @@ TEST(VertexRefinement, FlippedFacesAreCounted) {
 // across the sphere with the render noise; held, they slide far less.
 TEST(VertexRefinement, ThePriorHoldsVerticesFirmerAcrossTheSurfaceThanAlongTheNormal) {
   Replica replica(256, 2);
-  const double size = 0.2 * replica.box.radius;
-  const TriangleMesh& mesh = replica.box.scene.meshes[replica.box.sphere].mesh;
-  const SpikeAndDent perturbed = PerturbFacingVertices(mesh, replica.box.center, replica.box.radius, replica.eye, size);
+  const SpikeAndDent perturbed = replica.Perturbed();
   // RMS over the vertices of the refinement's move across the sphere (off the radial direction).
   const auto tangential_rms = [&](double tangent_sigma) {
     DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
@@ -190,9 +190,7 @@ TEST(VertexRefinement, ThePriorHoldsVerticesFirmerAcrossTheSurfaceThanAlongTheNo
 double LargerErrorOfTheReplica(const Replica& replica, const RefineOptions& options) {
   DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
   const Eigen::VectorXd truth = tracer.Positions();
-  const double size = 0.2 * replica.box.radius;
-  const SpikeAndDent perturbed = PerturbFacingVertices(replica.box.scene.meshes[replica.box.sphere].mesh,
-                                                       replica.box.center, replica.box.radius, replica.eye, size);
+  const SpikeAndDent perturbed = replica.Perturbed();
   tracer.SetPositions(perturbed.positions);
   const Eigen::VectorXd x = RefineVertices(tracer, replica.targets, options).positions;
   return std::max((x - truth).segment<3>(3 * perturbed.spike).norm(), (x - truth).segment<3>(3 * perturbed.dent).norm());
@@ -220,9 +218,7 @@ TEST(VertexRefinement, ARobustPriorLetsAWellSupportedMoveGoAllTheWay) {
 // they are; with refine_unseen they move with the noise of their indirect derivatives.
 TEST(VertexRefinement, VerticesNoPixelSeesDirectlyStayPut) {
   Replica replica(64, -1);
-  const double size = 0.2 * replica.box.radius;
-  const SpikeAndDent perturbed = PerturbFacingVertices(replica.box.scene.meshes[replica.box.sphere].mesh,
-                                                       replica.box.center, replica.box.radius, replica.eye, size);
+  const SpikeAndDent perturbed = replica.Perturbed();
   const auto moves = [&](bool refine_unseen) {
     DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
     tracer.SetPositions(perturbed.positions);
