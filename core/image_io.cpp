@@ -167,27 +167,45 @@ void CheckExrStructure(const fs::path& path) {
     pos = end + 1;
     return text;
   };
-  for (int attributes = 0;; ++attributes) {
-    if (attributes > 1000) fail();
-    const std::string name = read_string();
-    if (name.empty()) break;
-    const std::string type = read_string();
-    const uint32_t size = u32(pos);
-    pos += 4;
-    if (size > bytes.size() - pos) fail();
-    // OpenEXR reads a known type's value by the type's layout, not by the declared size: where the
-    // two disagree it goes on from another position than this walk (and has allocated what a
-    // misread size said: 1.7 GB, found by fuzz_exr). So the declared size must be the layout's.
-    if (ExrValueSize(type, bytes, pos, size, &channels) != size) fail();
-    if (name == "compression" && size == 1) compression = static_cast<unsigned char>(bytes[pos]);
-    if (name == "dataWindow" && size == 16) {
-      x_min = static_cast<int32_t>(u32(pos));
-      y_min = static_cast<int32_t>(u32(pos + 4));
-      x_max = static_cast<int32_t>(u32(pos + 8));
-      y_max = static_cast<int32_t>(u32(pos + 12));
-      has_data_window = true;
+  // A multi-part file (flag 0x1000) holds one header per part, each ending with an empty name, and
+  // an empty header after the last; OpenEXR reads them all before any pixel (a part's attribute
+  // declaring 1.9 GB in a 755-byte file, found by fuzz_exr), so every header is walked. Only the
+  // first part's window and compression are kept: it is the part that is read.
+  for (int header = 0;; ++header) {
+    if (header > 0) {
+      if (!(flags & 0x1000u)) break;
+      if (pos >= bytes.size()) fail();
+      if (bytes[pos] == '\0') {  // the empty header: the end of the list
+        ++pos;
+        break;
+      }
+      if (header > 1000) fail();
     }
-    pos += size;
+    for (int attributes = 0;; ++attributes) {
+      if (attributes > 1000) fail();
+      const std::string name = read_string();
+      if (name.empty()) break;
+      const std::string type = read_string();
+      const uint32_t size = u32(pos);
+      pos += 4;
+      if (size > bytes.size() - pos) fail();
+      // OpenEXR reads a known type's value by the type's layout, not by the declared size: where
+      // the two disagree it goes on from another position than this walk (and has allocated what a
+      // misread size said: 1.7 GB, found by fuzz_exr). So the declared size must be the layout's.
+      if (ExrValueSize(type, bytes, pos, size, &channels) != size) fail();
+      if (name == "dataWindow" && size == 16) {
+        const long long window[4] = {static_cast<int32_t>(u32(pos)), static_cast<int32_t>(u32(pos + 4)),
+                                     static_cast<int32_t>(u32(pos + 8)), static_cast<int32_t>(u32(pos + 12))};
+        if (header == 0) {  // checked after the walk
+          x_min = window[0], y_min = window[1], x_max = window[2], y_max = window[3];
+          has_data_window = true;
+        } else {
+          CheckDeclaredSize(path, window[2] - window[0] + 1, window[3] - window[1] + 1);
+        }
+      }
+      if (header == 0 && name == "compression" && size == 1) compression = static_cast<unsigned char>(bytes[pos]);
+      pos += size;
+    }
   }
   // OpenEXR sizes its line buffers by the data window and the channels (a 2 GB buffer for a
   // window 2^27 wide, found by fuzz_exr); OpenCV then allocates the whole image.

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs the libFuzzer harnesses of fuzz/ (issue 12), two at a time, each for a time budget, on
-# seed corpora made by our own writers plus small files of ../shared/data. Needs the fuzz build:
+# seed corpora made by our own writers, small files of ../shared/data and the inputs of
+# fuzz/regressions/ (findings of earlier runs, fixed). Needs the fuzz build:
 # scripts/build.sh --fuzz (clang; scripts/test.sh does it).
 #   scripts/fuzz.sh                 every harness, 30 s each (what CI runs)
 #   scripts/fuzz.sh 600 fuzz_ply    one harness for 10 minutes (by hand)
@@ -51,6 +52,8 @@ for h in "${HARNESSES[@]}"; do
   GENSCENE_FUZZ_SEEDS="$seeds" "$BUILD/fuzz/$h" >/dev/null 2>&1
   n=0
   while IFS= read -r f; do n=$((n + 1)); cp "$f" "$seeds/shared_${n}_$(basename "$f")"; done < <(shared_seeds "$h" | sort)
+  # Inputs that once failed (fuzz/regressions/HARNESS/): every run replays them first.
+  if [ -d "fuzz/regressions/$h" ]; then cp fuzz/regressions/"$h"/* "$seeds/"; fi
   if [ "$h" = fuzz_text_formats ] && [ -d "$SHARED/cbox-cycles" ]; then
     { printf '\000'; cat "$SHARED/cbox-cycles/poses_train.txt"; } > "$seeds/shared_poses"
     { printf '\002'; cat "$SHARED/cbox-cycles/intrinsics.txt"; } > "$seeds/shared_intrinsics"
