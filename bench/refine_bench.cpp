@@ -6,12 +6,14 @@
 //     the reference, then the shading-only render (every albedo grey) per iteration.
 //  2. With CYCLES=../shared/data: the same from Blender Cycles' icosphere_flat and icosphere_smooth
 //     renders (cbox-cycles), with their geometry.
-//  3. Every vertex perturbed with noise sigma = 5 % of the radius: RMS vertex error per iteration and
-//     flipped faces.
+//  3. Every vertex perturbed with noise sigma = 5 % of the radius (per coordinate, or with
+//     --radial-noise 1 along the radius): RMS vertex error per iteration and flipped faces, from
+//     the replica's view or with --views N from up to five more around the sphere (AroundTheSphere).
 // Run by hand:  build/bench/bench_refine [--out DIR] [--ref-spp N] [--spp N] [--iterations N]
 //               [--max-depth D] [--threads N] [--sections 123] [--seed N] [--prior M]
 //               [--prior-tangent M] [--prior-robust K] [--robust K] [--damping D]
 //               [--refined-only 0|1] [--refine-unseen 0|1] [--perturbation F] [--flat 0|1]
+//               [--jacobian-depth D] [--average-after K] [--views N] [--radial-noise 0|1]
 // RADIAL=1 also prints, per iteration, the Levenberg-Marquardt state and the vertex errors split
 // along the sphere's radius and across it.
 #include <chrono>
@@ -26,6 +28,7 @@
 #include "core/image_io.h"
 #include "core/parallel.h"
 #include "core/rng.h"
+#include "core/synthetic.h"
 #include "inverse/procedural.h"
 #include "inverse/scene_io.h"
 #include "inverse/vertex_refinement.h"
@@ -47,6 +50,10 @@ struct Settings {
   double prior_robust = RefineOptions().prior_robust;
   bool refined_only = RefineOptions().refined_pixels_only;
   bool refine_unseen = RefineOptions().refine_unseen;
+  int jacobian_depth = RefineOptions().jacobian_max_depth;
+  int average_after = RefineOptions().average_after;
+  int views = 1;              // section 3's views (AroundTheSphere)
+  bool radial_noise = false;  // section 3's noise along the radius instead of per coordinate
   bool smooth = true;         // the replica's sphere shades with area-weighted vertex normals
   std::string sections = "123";
   uint64_t seed = 1;          // of the refinement's random numbers
@@ -60,15 +67,18 @@ void Paste(ImageRgb& canvas, const ImageRgb& image, int x0) {
 
 // Refines `sphere` of `scene` from `start` against `reference`; prints the table; returns the
 // shading renders per iteration.
-std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, const View& view, const ImageRgb& reference,
+std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, const std::vector<TrainingView>& targets,
                               const Eigen::VectorXd& truth, const Eigen::VectorXd& start, const std::vector<int>& watched,
                               const Settings& s) {
+  const View& view = targets[0].view;
   std::vector<bool> refined(scene.meshes.size(), false);
   refined[sphere] = true;
   RefineOptions options;
   options.spp = s.spp;
   options.iterations = s.iterations;
   options.max_depth = s.max_depth;
+  options.jacobian_max_depth = s.jacobian_depth;
+  options.average_after = s.average_after;
   options.prior_sigma = s.prior_sigma;
   options.prior_tangent_sigma = s.prior_tangent_sigma;
   options.robust = s.robust;
@@ -76,7 +86,6 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
   options.prior_robust = s.prior_robust;
   options.refined_pixels_only = s.refined_only;
   options.refine_unseen = s.refine_unseen;
-  const std::vector<TrainingView> targets = {{view, reference}};
   DifferentiablePathTracer at_truth(scene, refined);
   RefineOptions none = options;
   none.iterations = 0;
@@ -104,8 +113,9 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
     tracer.SetPositions(start);
   }
   const TriangleMesh start_mesh = tracer.scene().meshes[sphere].mesh;
-  std::printf("\n%s: %d vertices, %dx%d view, %d spp per evaluation; image RMSE of the truth itself %.4f\n", name,
-              tracer.VertexCount(), view.intrinsics.width, view.intrinsics.height, s.spp, truth_rmse);
+  std::printf("\n%s: %d vertices, %zu view(s) of %dx%d, %d spp per evaluation; image RMSE of the truth itself %.4f\n",
+              name, tracer.VertexCount(), targets.size(), view.intrinsics.width, view.intrinsics.height, s.spp,
+              truth_rmse);
   std::printf("%5s %9s %10s %11s %12s %12s %9s %8s\n", "iter", "seconds", "image", "vertex RMS", "watched max",
               "(fraction)", "nnz/px", "flipped");
   std::vector<ImageRgb> shading;
@@ -184,7 +194,7 @@ void Replica(const Settings& s) {
   const SpikeAndDent start = PerturbFacingVertices(box.scene.meshes[box.sphere].mesh, box.center, box.radius,
                                                    box.view.world_from_camera.translation(), s.perturbation * box.radius);
   const std::vector<ImageRgb> shading =
-      RunCase("1. Replica (our renderer, two vertices +-20 % of r)", box.scene, box.sphere, box.view, reference, truth,
+      RunCase("1. Replica (our renderer, two vertices +-20 % of r)", box.scene, box.sphere, {{box.view, reference}}, truth,
               start.positions, {start.spike, start.dent}, s);
   ImageRgb canvas(reference.width() * (1 + static_cast<int>(shading.size())), reference.height());
   Paste(canvas, reference, 0);
@@ -216,19 +226,58 @@ void Cycles(const fs::path& data, const Settings& s) {
     const SpikeAndDent start =
         PerturbFacingVertices(scene.meshes[sphere].mesh, center, 0.2, view.world_from_camera.translation(), 0.04);
     const std::string name = std::string("2. Cycles ") + variant + " (two vertices +-20 % of r)";
-    RunCase(name.c_str(), scene, sphere, view, frame->color, truth, start.positions, {start.spike, start.dent}, s);
+    RunCase(name.c_str(), scene, sphere, {{view, frame->color}}, truth, start.positions, {start.spike, start.dent}, s);
   }
+}
+
+// The views of section 3: the replica's, then up to five more inside the box around the sphere
+// (two high in the back corners, one low at the back wall, two low in the front corners), wider
+// (f = 70 px) so that the sphere fits from half a metre. Together they see all but the vertices
+// next to the floor.
+std::vector<View> AroundTheSphere(const IcosphereBox& box, int count) {
+  std::vector<View> views = {box.view};
+  const Eigen::Vector3d eyes[] = {{-0.42, 0.42, 0.8}, {0.42, 0.42, 0.8}, {-0.44, -0.44, 0.1}, {0.44, -0.44, 0.1},
+                                  {0.0, 0.47, 0.12}};
+  for (int i = 0; i + 1 < count && i < 5; ++i) {
+    View v = box.view;
+    v.intrinsics = CameraIntrinsics{70.0, 70.0, 52.5, 39.5, 106, 80};
+    v.world_from_camera = LookAt(eyes[i], box.center);
+    views.push_back(v);
+  }
+  return views;
 }
 
 void AllVertices(const Settings& s) {
   const IcosphereBox box = MakeIcosphereBox(s.smooth);
   const auto [reference, truth] = ReferenceAndTruth(box, s);
+  std::vector<TrainingView> targets = {{box.view, reference}};
+  RenderOptions render;
+  render.spp = s.ref_spp;
+  render.max_depth = s.max_depth;
+  const std::vector<View> views = AroundTheSphere(box, s.views);
+  for (size_t i = 1; i < views.size(); ++i) {
+    targets.push_back({views[i], PathTracer(box.scene).Render(views[i], render, 1234 + i).radiance});
+  }
+  if (std::getenv("VIEWS_PNG")) {  // diagnostic: the references side by side
+    ImageRgb canvas(reference.width() * static_cast<int>(targets.size()), reference.height());
+    for (size_t i = 0; i < targets.size(); ++i) Paste(canvas, targets[i].image, reference.width() * static_cast<int>(i));
+    WritePng(s.out / "views.png", canvas);
+  }
   Eigen::VectorXd start = truth;
   CounterRng rng(99, 1);
-  for (int i = 0; i < start.size(); ++i) start[i] += 0.05 * box.radius * rng.Normal();
+  if (s.radial_noise) {  // along each vertex's direction from the centre only
+    for (int v = 0; v < start.size() / 3; ++v) {
+      const Eigen::Vector3d n = (truth.segment<3>(3 * v) - box.center.cast<double>()).normalized();
+      start.segment<3>(3 * v) += 0.05 * box.radius * rng.Normal() * n;
+    }
+  } else {
+    for (int i = 0; i < start.size(); ++i) start[i] += 0.05 * box.radius * rng.Normal();
+  }
   std::vector<int> all(truth.size() / 3);
   for (size_t v = 0; v < all.size(); ++v) all[v] = static_cast<int>(v);
-  RunCase("3. Every vertex perturbed, sigma = 5 % of r", box.scene, box.sphere, box.view, reference, truth, start, all, s);
+  const std::string name = std::string("3. Every vertex perturbed, sigma = 5 % of r") +
+                           (s.radial_noise ? " along the radius" : " per coordinate");
+  RunCase(name.c_str(), box.scene, box.sphere, targets, truth, start, all, s);
 }
 
 }  // namespace
@@ -252,6 +301,10 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--prior-robust")) s.prior_robust = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--damping")) s.damping = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--seed")) s.seed = std::strtoull(argv[i + 1], nullptr, 10);
+    if (!std::strcmp(argv[i], "--jacobian-depth")) s.jacobian_depth = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--average-after")) s.average_after = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--views")) s.views = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--radial-noise")) s.radial_noise = std::atoi(argv[i + 1]) != 0;
     if (!std::strcmp(argv[i], "--flat")) s.smooth = !std::atoi(argv[i + 1]);
   }
   fs::create_directories(s.out);

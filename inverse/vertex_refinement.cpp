@@ -21,12 +21,16 @@ void RefineOptions::Validate() const {
   RequireRange("pixels_per_view", pixels_per_view, 0, 1 << 26);
   if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
   RequireRange("rr_depth", rr_depth, 1, 1 << 20);
+  if (jacobian_max_depth == 0 || jacobian_max_depth < -1) {
+    throw Error(Format("option jacobian_max_depth = ", jacobian_max_depth, " must be -1 or >= 1"));
+  }
   RequireRange("noise", noise, 1e-6, 10.0);
   RequireRange("prior_sigma", prior_sigma, 1e-9, 1e6);
   if (prior_tangent_sigma != 0.0) RequireRange("prior_tangent_sigma", prior_tangent_sigma, 1e-9, 1e6);
   RequireRange("damping", damping, 0.0, 1e12);
   RequireRange("max_step", max_step, 1e-6, 100.0);
   RequireRange("max_retries", max_retries, 0, 100);
+  RequireRange("average_after", average_after, 0, 1000);
   RequireRange("tolerance", tolerance, 0.0, 1.0);
   RequireRange("robust", robust, 0.0, 1e6);
   RequireRange("prior_robust", prior_robust, 0.0, 1e6);
@@ -131,10 +135,17 @@ Evaluation Evaluate(const DifferentiablePathTracer& tracer, const std::vector<Tr
   e.rows.resize(pixels.size());
   std::vector<RayCounts> rays(pixels.size());
   const RenderOptions render = options.Render();
+  RenderOptions jacobian = render;
+  if (options.jacobian_max_depth > 0) jacobian.max_depth = options.jacobian_max_depth;
+  const bool separate = derivatives && jacobian.max_depth != render.max_depth;
   ParallelFor(0, pixels.size(), [&](size_t i) {
     const PixelRef& p = pixels[i];
     const TrainingView& t = targets[p.target];
-    DualRgb row = tracer.Pixel(t.view, p.u, p.v, render, seed, derivatives, &rays[i]);
+    DualRgb row = tracer.Pixel(t.view, p.u, p.v, render, seed, derivatives && !separate, &rays[i]);
+    if (separate) {  // the values of the full paths, the derivatives of the short ones
+      const DualRgb d = tracer.Pixel(t.view, p.u, p.v, jacobian, seed, true, &rays[i]);
+      for (int c = 0; c < 3; ++c) row[c] = SparseDual::Linear(1.0, d[c], 0.0, SparseDual(), row[c].value());
+    }
     for (int c = 0; c < 3; ++c) row[c] = (std::move(row[c]) - t.image(p.u, p.v)[c]) * (1.0 / scale);
     e.rows[i] = std::move(row);
   }, 8);
@@ -330,28 +341,43 @@ std::vector<Eigen::Matrix3d> PriorBlocks(const DifferentiablePathTracer& tracer,
 // the others') without taking it out of the linear system.
 constexpr double kHeld = 1e10;
 
-// The vertices that a sampled pixel sees directly: those its first hit's shading depends on (the
-// hit triangle's vertices and, with smooth normals, their one-rings), found as the derivatives of a
-// direct-light-only trace (one sample per pixel, paths of two segments). The others show only
-// through indirect light, whose derivatives are mostly Monte Carlo noise.
+// The vertices that a sampled pixel sees directly: those the shading of its pixel-centre ray's
+// first hit depends on (the hit triangle's vertices and, with smooth normals, their one-rings,
+// whose faces make the vertex normals). The others show only through indirect light, whose
+// derivatives are mostly Monte Carlo noise. Found geometrically, not from a trace's derivatives:
+// a vertex in shadow or lit only by a few light samples must not be held or freed by chance
+// (a 1-sample trace left the Cycles dent held on some seeds).
 std::vector<bool> SeenVertices(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
-                               const std::vector<PixelRef>& pixels, const RefineOptions& options, uint64_t seed) {
-  RenderOptions direct = options.Render();
-  direct.spp = 1;
-  direct.max_depth = 2;
-  std::vector<std::vector<int>> touched(pixels.size());
-  ParallelFor(0, pixels.size(), [&](size_t i) {
-    const PixelRef& p = pixels[i];
-    const DualRgb row = tracer.Pixel(targets[p.target].view, p.u, p.v, direct, seed, true);
-    for (const SparseDual& c : row) {
-      for (const auto& d : c.partials()) {
-        if (d.d.squaredNorm() > 0.0) touched[i].push_back(d.vertex);  // merges keep zero entries
+                               const std::vector<PixelRef>& pixels) {
+  const Scene& scene = tracer.scene();
+  const PathTracer rays(scene);
+  std::vector<std::vector<std::vector<int>>> incident(scene.meshes.size());  // mesh -> vertex -> faces
+  for (size_t m = 0; m < scene.meshes.size(); ++m) {
+    if (tracer.ParameterVertex(static_cast<int>(m), 0) < 0) continue;
+    const TriangleMesh& mesh = scene.meshes[m].mesh;
+    incident[m].resize(mesh.vertices.size());
+    for (size_t f = 0; f < mesh.faces.size(); ++f) {
+      for (int k = 0; k < 3; ++k) incident[m][mesh.faces[f][k]].push_back(static_cast<int>(f));
+    }
+  }
+  std::vector<bool> seen(tracer.VertexCount(), false);
+  for (const PixelRef& p : pixels) {  // one ray per pixel: cheap, serial
+    const View& view = targets[p.target].view;
+    const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
+    const Eigen::Vector3f direction =
+        (view.world_from_camera.rotation() * view.intrinsics.RayDirection(p.u, p.v).normalized()).cast<float>();
+    const auto hit = rays.tracer().Intersect(eye, direction);
+    if (!hit || incident[hit->mesh].empty()) continue;
+    const TriangleMesh& mesh = scene.meshes[hit->mesh].mesh;
+    const auto mark = [&](int v) { seen[tracer.ParameterVertex(hit->mesh, v)] = true; };
+    for (int k = 0; k < 3; ++k) {
+      const int v = mesh.faces[hit->face][k];
+      mark(v);
+      if (!scene.meshes[hit->mesh].smooth_shading) continue;
+      for (int f : incident[hit->mesh][v]) {
+        for (int j = 0; j < 3; ++j) mark(mesh.faces[f][j]);
       }
     }
-  }, 8);
-  std::vector<bool> seen(tracer.VertexCount(), false);
-  for (const auto& t : touched) {
-    for (int v : t) seen[v] = true;
   }
   return seen;
 }
@@ -404,7 +430,7 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   std::vector<Eigen::Matrix3d> prior = PriorBlocks(tracer, options);
   std::vector<bool> held(prior.size(), false);
   if (!options.refine_unseen) {
-    const std::vector<bool> seen = SeenVertices(tracer, targets, pixels, options, seed);
+    const std::vector<bool> seen = SeenVertices(tracer, targets, pixels);
     for (size_t v = 0; v < seen.size(); ++v) {
       if (!seen[v]) prior[v] *= kHeld, held[v] = true;
     }
@@ -491,6 +517,7 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
       double largest = 0.0;
       for (int v = 0; v < tracer.VertexCount(); ++v) largest = std::max(largest, step.segment<3>(3 * v).norm());
       if (largest > radius) step *= radius / largest;
+      if (options.average_after > 0 && it > options.average_after) step /= it - options.average_after;
       const Eigen::VectorXd trial = x + step;
       const bool derivatives = it < options.iterations && !options.resample;
       tracer.SetPositions(trial, derivatives);

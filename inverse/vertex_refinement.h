@@ -14,12 +14,17 @@
 // pulls a large move the images support with a constant force, not in proportion. rho is Huber's
 // loss of the residual (threshold robust). The pixels are those that see a refined mesh (by
 // default), and vertices that no fitted pixel sees directly are held in place (by default).
-// Each iteration traces every sampled pixel with derivatives (a sparse Jacobian row per channel),
-// forms the normal equations and solves the damped system, by sparse Cholesky factorisation of
+// Each iteration traces every sampled pixel (the residuals from the full paths, the sparse
+// Jacobian rows from the paths' first jacobian_max_depth segments: deeper derivatives are mostly
+// Monte Carlo noise, whose square inflates J^T J and shortens every step), forms the normal
+// equations and solves the damped system, by sparse Cholesky factorisation of
 // 3 x 3 blocks per vertex pair (Eigen's SimplicialLDLT) up to `direct_max_vertices` refined
 // vertices, else by block-Jacobi preconditioned conjugate gradients on the Jacobian rows (a pixel
 // depends on vertices all over the scene, so a large factor fills in); a step is kept only when a
-// value-only trace shows a lower E. Visibility changes are not differentiated (as in the paper).
+// value-only trace shows a lower E. Every iteration draws fresh random numbers, so a full step
+// lands on the optimum of its own sample's noise; steps after average_after are shortened to
+// 1 / (k - average_after), which makes the positions the mean of those optima (Polyak-Ruppert
+// averaging). Visibility changes are not differentiated (as in the paper).
 #pragma once
 
 #include <functional>
@@ -41,6 +46,7 @@ struct RefineOptions {
   int edge_margin = 1;          // pixels within this distance of a silhouette are left out
   int max_depth = -1;           // longest path, Mitsuba convention (-1 = Russian roulette)
   int rr_depth = 5;             // depth at which Russian roulette starts
+  int jacobian_max_depth = 3;   // longest path whose derivatives enter the Jacobian (-1 = max_depth)
   double noise = 0.05;          // relative pixel noise that weighs the data term
   double robust = 3.0;          // Huber threshold of the residuals, in noise units (0 = none)
   double prior_sigma = 0.003;   // standard deviation of the prior on vertex positions, m (along the normal)
@@ -49,6 +55,7 @@ struct RefineOptions {
   double damping = 1e-3;        // initial Levenberg-Marquardt damping (times diag of J^T J)
   double max_step = 0.25;       // largest vertex move per step, in mean edge lengths (trust region)
   bool resample = true;         // fresh random numbers every iteration (same within one)
+  int average_after = 2;        // step k > this moves 1 / (k - average_after) of the way (0 = full steps)
   int max_retries = 6;          // rejected steps per iteration before giving up
   double tolerance = 1e-5;      // stop when an accepted step lowers E by less than this fraction
   int direct_max_vertices = 3000;  // larger problems are solved by conjugate gradients
@@ -65,6 +72,8 @@ struct RefineOptions {
     v("edge_margin", edge_margin, "px", "pixels this close to a silhouette are left out (0 = none)");
     v("max_depth", max_depth, "segments", "longest path (Mitsuba convention; -1 = unlimited)");
     v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
+    v("jacobian_max_depth", jacobian_max_depth, "segments",
+      "longest path whose derivatives enter the Jacobian (2 = direct light only; -1 = max_depth); the residuals always use max_depth");
     v("noise", noise, "", "relative pixel noise that weighs the data term");
     v("robust", robust, "", "Huber threshold of the residuals in noise units (0 = plain least squares)");
     v("prior_sigma", prior_sigma, "m", "standard deviation of the prior on the starting vertex positions, along the normal");
@@ -75,6 +84,8 @@ struct RefineOptions {
     v("damping", damping, "", "initial Levenberg-Marquardt damping");
     v("max_step", max_step, "edges", "largest vertex move per step, in mean edge lengths");
     v("resample", resample, "", "fresh random numbers every iteration (the same for its trial steps)");
+    v("average_after", average_after, "iterations",
+      "later steps are averaged: step k moves 1 / (k - average_after) of the way, so the positions become the mean of the steps' targets, each fitted to its own random numbers (0 = full steps)");
     v("max_retries", max_retries, "", "rejected steps per iteration before stopping");
     v("tolerance", tolerance, "", "stop when a step lowers the cost by less than this fraction");
     v("direct_max_vertices", direct_max_vertices, "vertices",

@@ -225,6 +225,7 @@ TEST(VertexRefinement, VerticesNoPixelSeesDirectlyStayPut) {
     RefineOptions options;
     options.spp = 4;
     options.max_depth = -1;  // indirect light: every vertex has derivatives
+    options.jacobian_max_depth = -1;  // ... in the Jacobian too
     options.iterations = 2;
     options.refine_unseen = refine_unseen;
     const Eigen::VectorXd moved = RefineVertices(tracer, replica.targets, options).positions - perturbed.positions;
@@ -242,6 +243,77 @@ TEST(VertexRefinement, VerticesNoPixelSeesDirectlyStayPut) {
   EXPECT_GE(still, 3);
   EXPECT_EQ(still_free, 0);
   EXPECT_GT(*std::max_element(held.begin(), held.end()), 1e-3);  // the seen vertices did move
+}
+
+// The Jacobian comes from paths of at most jacobian_max_depth segments, the residuals from the
+// full paths: the cost is the same whatever the Jacobian's depth, and a Jacobian as deep as the
+// paths is the full one. The deep paths' derivatives are mostly Monte Carlo noise (the sphere
+// lights itself through the 1 mm gap under it, many bounces), which inflates the Gauss-Newton
+// curvature J^T J and shortens every step (here 1.5 times along the way to the truth; 230 times
+// in bench_refine with six views, two of them low by the floor).
+TEST(VertexRefinement, TheJacobianFromShortPathsKeepsTheFullPathsResiduals) {
+  Replica replica(64, -1);
+  DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
+  const Eigen::VectorXd truth = tracer.Positions();
+  tracer.SetPositions(replica.Perturbed().positions);
+  const Eigen::VectorXd to_truth = truth - tracer.Positions();
+  RefineOptions options;
+  options.spp = 16;
+  options.max_depth = -1;
+  options.jacobian_max_depth = -1;
+  const RefineLinearization full = LinearizeRefinement(tracer, replica.targets, options, 1, &to_truth);
+  options.jacobian_max_depth = 3;
+  const RefineLinearization short_paths = LinearizeRefinement(tracer, replica.targets, options, 1, &to_truth);
+  std::printf("cost %.6g and %.6g; curvature towards the truth %.4g full, %.4g from paths of 3 segments\n", full.cost,
+              short_paths.cost, full.curvature, short_paths.curvature);
+  EXPECT_EQ(full.cost, short_paths.cost);
+  EXPECT_GT((full.gradient - short_paths.gradient).norm(), 0.0);
+  EXPECT_GT(full.curvature, 1.2 * short_paths.curvature);  // measured 1.5 times
+  // Both slopes point towards the truth.
+  EXPECT_LT(full.gradient.dot(to_truth), 0.0);
+  EXPECT_LT(short_paths.gradient.dot(to_truth), 0.0);
+  // As deep as the paths: the full Jacobian, bit for bit.
+  options.max_depth = 3;
+  const RefineLinearization same = LinearizeRefinement(tracer, replica.targets, options);
+  options.jacobian_max_depth = -1;
+  const RefineLinearization reference = LinearizeRefinement(tracer, replica.targets, options);
+  EXPECT_EQ(same.cost, reference.cost);
+  EXPECT_EQ(same.gradient, reference.gradient);
+}
+
+// average_after: step k > average_after moves 1 / (k - average_after) of the way, so that the
+// positions become the mean of the steps' targets (each fitted to its own random numbers) instead
+// of following the noise of the last one. The steps before are the same as without averaging.
+TEST(VertexRefinement, LaterStepsAreAveraged) {
+  Replica replica(64, 2);
+  const auto positions = [&](int average_after) {
+    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
+    tracer.SetPositions(replica.Perturbed().positions);
+    RefineOptions options;
+    options.spp = 16;
+    options.max_depth = 2;
+    options.pixels_per_view = 3000;
+    options.iterations = 3;
+    options.tolerance = 0.0;
+    options.average_after = average_after;
+    std::vector<Eigen::VectorXd> x;
+    std::vector<int> rejected;
+    RefineVertices(tracer, replica.targets, options, 1, [&](const RefineIteration& it, const DifferentiablePathTracer& t) {
+      x.push_back(t.Positions());
+      rejected.push_back(it.rejected);
+    });
+    EXPECT_EQ(rejected, std::vector<int>(4, 0));  // every step taken at once: the same damping
+    return x;
+  };
+  const std::vector<Eigen::VectorXd> full = positions(0), averaged = positions(1);
+  ASSERT_EQ(full.size(), 4u);
+  ASSERT_EQ(averaged.size(), 4u);
+  EXPECT_EQ(full[2], averaged[2]);  // steps 1 and 2 (2 - 1 = 1: the whole step)
+  const Eigen::VectorXd step = full[3] - full[2], half = averaged[3] - averaged[2];
+  std::printf("third step: %.3g m full, %.3g m averaged\n", step.norm(), half.norm());
+  EXPECT_GT(step.norm(), 1e-5);
+  EXPECT_LT((half - 0.5 * step).norm(), 1e-4 * step.norm());
+  EXPECT_EQ(RefineOptions().average_after, 2);
 }
 
 // Only pixels whose camera ray first hits a refined mesh are fitted (refined_pixels_only): the
