@@ -136,7 +136,9 @@ Evaluation Evaluate(const DifferentiablePathTracer& tracer, const std::vector<Tr
   std::vector<RayCounts> rays(pixels.size());
   const RenderOptions render = options.Render();
   RenderOptions jacobian = render;
-  if (options.jacobian_max_depth > 0) jacobian.max_depth = options.jacobian_max_depth;
+  if (options.jacobian_max_depth > 0 && (render.max_depth < 0 || options.jacobian_max_depth < render.max_depth)) {
+    jacobian.max_depth = options.jacobian_max_depth;  // never deeper than the residuals' paths
+  }
   const bool separate = derivatives && jacobian.max_depth != render.max_depth;
   ParallelFor(0, pixels.size(), [&](size_t i) {
     const PixelRef& p = pixels[i];
