@@ -230,9 +230,9 @@ void Cycles(const fs::path& data, const Settings& s) {
   }
 }
 
-// The views of section 3: the replica's, then up to five more inside the box around the sphere
-// (two high in the back corners, one low at the back wall, two low in the front corners), wider
-// (f = 70 px) so that the sphere fits from half a metre. Together they see all but the vertices
+// The views of section 3: the replica's, then up to five more inside the box around the sphere (in
+// this order: two high in the back corners, two low in the front corners, one low at the back
+// wall), wider (f = 70 px) so that the sphere fits from half a metre. Together they see all but the vertices
 // next to the floor.
 std::vector<View> AroundTheSphere(const IcosphereBox& box, int count) {
   std::vector<View> views = {box.view};
@@ -255,8 +255,9 @@ void AllVertices(const Settings& s) {
   render.spp = s.ref_spp;
   render.max_depth = s.max_depth;
   const std::vector<View> views = AroundTheSphere(box, s.views);
+  const PathTracer renderer(box.scene);
   for (size_t i = 1; i < views.size(); ++i) {
-    targets.push_back({views[i], PathTracer(box.scene).Render(views[i], render, 1234 + i).radiance});
+    targets.push_back({views[i], renderer.Render(views[i], render, 1234 + i).radiance});
   }
   if (std::getenv("VIEWS_PNG")) {  // diagnostic: the references side by side
     ImageRgb canvas(reference.width() * static_cast<int>(targets.size()), reference.height());

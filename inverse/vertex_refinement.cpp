@@ -19,11 +19,12 @@ void RefineOptions::Validate() const {
   RequireRange("iterations", iterations, 0, 1000);
   RequireRange("spp", spp, 1, 1 << 16);
   RequireRange("pixels_per_view", pixels_per_view, 0, 1 << 26);
-  if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
+  const auto require_depth = [](const char* name, int depth) {
+    if (depth == 0 || depth < -1) throw Error(Format("option ", name, " = ", depth, " must be -1 or >= 1"));
+  };
+  require_depth("max_depth", max_depth);
   RequireRange("rr_depth", rr_depth, 1, 1 << 20);
-  if (jacobian_max_depth == 0 || jacobian_max_depth < -1) {
-    throw Error(Format("option jacobian_max_depth = ", jacobian_max_depth, " must be -1 or >= 1"));
-  }
+  require_depth("jacobian_max_depth", jacobian_max_depth);
   RequireRange("noise", noise, 1e-6, 10.0);
   RequireRange("prior_sigma", prior_sigma, 1e-9, 1e6);
   if (prior_tangent_sigma != 0.0) RequireRange("prior_tangent_sigma", prior_tangent_sigma, 1e-9, 1e6);
@@ -56,10 +57,11 @@ struct PixelRef {
 // pixels within `margin` pixels of a silhouette (where the object seen through the pixel centre
 // changes, in the starting geometry): their residuals come from visibility, which the derivatives
 // do not see, and would pull the vertices the wrong way.
-std::vector<PixelRef> SamplePixels(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
-                                   int per_view, int margin, bool refined_only, uint64_t seed) {
+// `ids` is a plain tracer of the tracer's scene (its object buffer gives what each pixel sees).
+std::vector<PixelRef> SamplePixels(const DifferentiablePathTracer& tracer, const PathTracer& ids,
+                                   const std::vector<TrainingView>& targets, int per_view, int margin,
+                                   bool refined_only, uint64_t seed) {
   std::vector<PixelRef> pixels;
-  const PathTracer ids(tracer.scene());
   RenderOptions one;
   one.spp = 1;
   for (size_t t = 0; t < targets.size(); ++t) {
@@ -349,10 +351,10 @@ constexpr double kHeld = 1e10;
 // derivatives are mostly Monte Carlo noise. Found geometrically, not from a trace's derivatives:
 // a vertex in shadow or lit only by a few light samples must not be held or freed by chance
 // (a 1-sample trace left the Cycles dent held on some seeds).
-std::vector<bool> SeenVertices(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
-                               const std::vector<PixelRef>& pixels) {
+// `rays` is a plain tracer of the tracer's scene.
+std::vector<bool> SeenVertices(const DifferentiablePathTracer& tracer, const PathTracer& rays,
+                               const std::vector<TrainingView>& targets, const std::vector<PixelRef>& pixels) {
   const Scene& scene = tracer.scene();
-  const PathTracer rays(scene);
   std::vector<std::vector<std::vector<int>>> incident(scene.meshes.size());  // mesh -> vertex -> faces
   for (size_t m = 0; m < scene.meshes.size(); ++m) {
     if (tracer.ParameterVertex(static_cast<int>(m), 0) < 0) continue;
@@ -366,8 +368,8 @@ std::vector<bool> SeenVertices(const DifferentiablePathTracer& tracer, const std
   for (const PixelRef& p : pixels) {  // one ray per pixel: cheap, serial
     const View& view = targets[p.target].view;
     const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
-    const Eigen::Vector3f direction =
-        (view.world_from_camera.rotation() * view.intrinsics.RayDirection(p.u, p.v).normalized()).cast<float>();
+    const Eigen::Vector3f direction =  // the ray of PathTracer::Render's object buffer
+        view.world_from_camera.rotation().cast<float>() * view.intrinsics.RayDirection(p.u, p.v).cast<float>().normalized();
     const auto hit = rays.tracer().Intersect(eye, direction);
     if (!hit || incident[hit->mesh].empty()) continue;
     const TriangleMesh& mesh = scene.meshes[hit->mesh].mesh;
@@ -388,8 +390,8 @@ std::vector<bool> SeenVertices(const DifferentiablePathTracer& tracer, const std
 
 RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
                                         const RefineOptions& options, uint64_t seed, const Eigen::VectorXd* direction) {
-  const std::vector<PixelRef> pixels = SamplePixels(tracer, targets, options.pixels_per_view, options.edge_margin,
-                                                    options.refined_pixels_only, seed);
+  const std::vector<PixelRef> pixels = SamplePixels(tracer, PathTracer(tracer.scene()), targets, options.pixels_per_view,
+                                                    options.edge_margin, options.refined_pixels_only, seed);
   const double scale = options.noise * ReferenceRms(targets, pixels);
   const Evaluation e = Evaluate(tracer, targets, pixels, options, seed, scale, true);
   RefineLinearization l;
@@ -425,14 +427,15 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   }
   if (tracer.VertexCount() == 0) throw Error("vertex refinement: no vertices to refine");
 
-  const std::vector<PixelRef> pixels = SamplePixels(tracer, targets, options.pixels_per_view, options.edge_margin,
-                                                    options.refined_pixels_only, seed);
+  const PathTracer plain(tracer.scene());  // built once for the pixel sample and the seen vertices
+  const std::vector<PixelRef> pixels = SamplePixels(tracer, plain, targets, options.pixels_per_view,
+                                                    options.edge_margin, options.refined_pixels_only, seed);
   const double rms = ReferenceRms(targets, pixels);
   const double scale = options.noise * rms;
   std::vector<Eigen::Matrix3d> prior = PriorBlocks(tracer, options);
   std::vector<bool> held(prior.size(), false);
   if (!options.refine_unseen) {
-    const std::vector<bool> seen = SeenVertices(tracer, targets, pixels);
+    const std::vector<bool> seen = SeenVertices(tracer, plain, targets, pixels);
     for (size_t v = 0; v < seen.size(); ++v) {
       if (!seen[v]) prior[v] *= kHeld, held[v] = true;
     }
