@@ -8,12 +8,15 @@
 //     renders (cbox-cycles), with their geometry.
 //  3. Every vertex perturbed with noise sigma = 5 % of the radius (per coordinate, or with
 //     --radial-noise 1 along the radius): RMS vertex error per iteration and flipped faces, from
-//     the replica's view or with --views N from up to five more around the sphere (AroundTheSphere).
+//     the replica's view and the two high ones behind the sphere (--views 3, the default), or with
+//     --views N from the replica's and up to five more around the sphere (AroundTheSphere);
+//     --noise-seed N draws other noise.
 // Run by hand:  build/bench/bench_refine [--out DIR] [--ref-spp N] [--spp N] [--iterations N]
 //               [--max-depth D] [--threads N] [--sections 123] [--seed N] [--prior M]
-//               [--prior-tangent M] [--prior-robust K] [--robust K] [--damping D]
+//               [--prior-tangent M] [--relax M] [--prior-robust K] [--robust K] [--damping D]
 //               [--refined-only 0|1] [--refine-unseen 0|1] [--perturbation F] [--flat 0|1]
 //               [--jacobian-depth D] [--average-after K] [--views N] [--radial-noise 0|1]
+//               [--noise-seed N]
 // RADIAL=1 also prints, per iteration, the Levenberg-Marquardt state and the vertex errors split
 // along the sphere's radius and across it.
 #include <chrono>
@@ -48,11 +51,13 @@ struct Settings {
   double robust = RefineOptions().robust;
   double damping = RefineOptions().damping;
   double prior_robust = RefineOptions().prior_robust;
+  double relax_sigma = RefineOptions().relax_sigma;
   bool refined_only = RefineOptions().refined_pixels_only;
   bool refine_unseen = RefineOptions().refine_unseen;
   int jacobian_depth = RefineOptions().jacobian_max_depth;
   int average_after = RefineOptions().average_after;
-  int views = 1;              // section 3's views (AroundTheSphere)
+  int views = 3;              // section 3's views (AroundTheSphere)
+  uint64_t noise_seed = 99;   // section 3's noise
   bool radial_noise = false;  // section 3's noise along the radius instead of per coordinate
   bool smooth = true;         // the replica's sphere shades with area-weighted vertex normals
   std::string sections = "123";
@@ -84,6 +89,7 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
   options.robust = s.robust;
   options.damping = s.damping;
   options.prior_robust = s.prior_robust;
+  options.relax_sigma = s.relax_sigma;
   options.refined_pixels_only = s.refined_only;
   options.refine_unseen = s.refine_unseen;
   DifferentiablePathTracer at_truth(scene, refined);
@@ -265,7 +271,7 @@ void AllVertices(const Settings& s) {
     WritePng(s.out / "views.png", canvas);
   }
   Eigen::VectorXd start = truth;
-  CounterRng rng(99, 1);
+  CounterRng rng(s.noise_seed, 1);
   if (s.radial_noise) {  // along each vertex's direction from the centre only
     for (int v = 0; v < start.size() / 3; ++v) {
       const Eigen::Vector3d n = (truth.segment<3>(3 * v) - box.center.cast<double>()).normalized();
@@ -299,12 +305,14 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--robust")) s.robust = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--refine-unseen")) s.refine_unseen = std::atoi(argv[i + 1]) != 0;
     if (!std::strcmp(argv[i], "--refined-only")) s.refined_only = std::atoi(argv[i + 1]) != 0;
+    if (!std::strcmp(argv[i], "--relax")) s.relax_sigma = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--prior-robust")) s.prior_robust = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--damping")) s.damping = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--seed")) s.seed = std::strtoull(argv[i + 1], nullptr, 10);
     if (!std::strcmp(argv[i], "--jacobian-depth")) s.jacobian_depth = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--average-after")) s.average_after = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--views")) s.views = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--noise-seed")) s.noise_seed = std::strtoull(argv[i + 1], nullptr, 10);
     if (!std::strcmp(argv[i], "--radial-noise")) s.radial_noise = std::atoi(argv[i + 1]) != 0;
     if (!std::strcmp(argv[i], "--flat")) s.smooth = !std::atoi(argv[i + 1]);
   }

@@ -28,6 +28,7 @@ void RefineOptions::Validate() const {
   RequireRange("noise", noise, 1e-6, 10.0);
   RequireRange("prior_sigma", prior_sigma, 1e-9, 1e6);
   if (prior_tangent_sigma != 0.0) RequireRange("prior_tangent_sigma", prior_tangent_sigma, 1e-9, 1e6);
+  if (relax_sigma != 0.0) RequireRange("relax_sigma", relax_sigma, 1e-9, 1e6);
   RequireRange("damping", damping, 0.0, 1e12);
   RequireRange("max_step", max_step, 1e-6, 100.0);
   RequireRange("max_retries", max_retries, 0, 100);
@@ -226,17 +227,21 @@ NormalEquations Assemble(const Evaluation& e, int vertices, double robust, bool 
   return n;
 }
 
-// Solves (H + mu diag(H)) dx = -g with H = J^T W J + P and g = J^T W r + P (x - x0), P the prior's
-// 3 x 3 blocks (PriorBlocks):
+// Solves (H + mu diag(H)) dx = -g with H = J^T W J + P + Q and g = J^T W r + the prior's gradient,
+// P the prior's 3 x 3 blocks (PriorBlocks), Q the relaxation's matrix (RelaxationMatrix; may be
+// empty):
 // by sparse Cholesky (Eigen's SimplicialLDLT) when the blocks are kept, else by conjugate
 // gradients preconditioned with the inverse 3 x 3 diagonal blocks, to a relative residual of
 // 1e-10 (at most 1000 iterations; serial, so the same with any thread count).
 Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior_gradient,
-                          const std::vector<Eigen::Matrix3d>& prior, double mu) {
+                          const std::vector<Eigen::Matrix3d>& prior, const Eigen::SparseMatrix<double>& coupling,
+                          double mu) {
   const int size = static_cast<int>(n.gradient.size());
   const int vertices = size / 3;
+  const bool coupled = coupling.nonZeros() > 0;
   Eigen::VectorXd diagonal(size);  // diag(H)
   for (int i = 0; i < vertices; ++i) diagonal.segment<3>(3 * i) = (n.diagonal[i] + prior[i]).diagonal();
+  if (coupled) diagonal += coupling.diagonal();
   const Eigen::VectorXd rhs = -(n.gradient + prior_gradient);
   Eigen::VectorXd step;
   if (n.blocks_kept) {
@@ -248,6 +253,11 @@ Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior
           const double value = r == c ? diagonal[3 * i + r] * (1.0 + mu) : n.diagonal[i](r, c) + prior[i](r, c);
           triplets.emplace_back(3 * i + r, 3 * i + c, value);
         }
+      }
+    }
+    for (int c = 0; coupled && c < coupling.outerSize(); ++c) {  // its diagonal is in `diagonal`
+      for (Eigen::SparseMatrix<double>::InnerIterator e(coupling, c); e; ++e) {
+        if (e.row() != e.col()) triplets.emplace_back(static_cast<int>(e.row()), static_cast<int>(e.col()), e.value());
       }
     }
     for (const auto& [ij, block] : n.blocks) {
@@ -268,12 +278,16 @@ Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior
     std::vector<Eigen::Matrix3d> preconditioner(vertices);
     for (int i = 0; i < vertices; ++i) {
       Eigen::Matrix3d m = n.diagonal[i] + prior[i];
+      for (int r = 0; coupled && r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) m(r, c) += coupling.coeff(3 * i + r, 3 * i + c);
+      }
       m.diagonal() = diagonal.segment<3>(3 * i) * (1.0 + mu);
       preconditioner[i] = m.inverse();
     }
     const auto apply = [&](const Eigen::VectorXd& v, Eigen::VectorXd* out) {
       n.Multiply(v, out);
       for (int i = 0; i < vertices; ++i) out->segment<3>(3 * i) += prior[i] * v.segment<3>(3 * i);
+      if (coupled) *out += coupling * v;
       *out += mu * diagonal.cwiseProduct(v);
     };
     const auto precondition = [&](const Eigen::VectorXd& r) {
@@ -317,10 +331,10 @@ double MeanEdgeLength(const DifferentiablePathTracer& tracer) {
 }
 
 // The prior's information matrix per parameter vertex: 1 / sigma_n^2 along the vertex's starting
-// normal (area-weighted), 1 / sigma_t^2 across it. A move across the surface slides the vertex
-// along it: on a smooth surface the images barely see it, so without a firmer prior there the
-// vertices drift with the render noise (the replica's vertices moved as far across the surface as
-// along the normal). Vertices without a normal (no face) get the isotropic 1 / sigma_n^2.
+// normal (area-weighted), 1 / sigma_t^2 across it (by default the same: the relaxation term, not
+// this prior, keeps the vertices from sliding across the surface, and a firm prior across the
+// starting normal of a noisy mesh, whose normals are tilted, also holds the moves along the true
+// normal that the images ask for). Vertices without a normal (no face) get the isotropic 1 / sigma_n^2.
 std::vector<Eigen::Matrix3d> PriorBlocks(const DifferentiablePathTracer& tracer, const RefineOptions& options) {
   const double wn = 1.0 / (options.prior_sigma * options.prior_sigma);
   const double sigma_t = options.prior_tangent_sigma > 0.0 ? options.prior_tangent_sigma : options.prior_sigma;
@@ -339,6 +353,68 @@ std::vector<Eigen::Matrix3d> PriorBlocks(const DifferentiablePathTracer& tracer,
     }
   }
   return blocks;
+}
+
+// The relaxation term's matrix Q = A^T A / relax_sigma^2, so that the term is x^T Q x / 2. A has
+// three rows per refined vertex inside its mesh (not on a boundary, where the one-ring's centroid
+// lies inside the surface): T_i (x_i - the mean of x_i's neighbours), T_i = I - n_i n_i^T the
+// projection across the surface at the vertex's area-weighted normal at `x` (held for the
+// iteration, so the term is quadratic). It is the vertex's offset across the surface from the
+// centroid of its one-ring: zero where the vertices are evenly spread, and blind to moves along the
+// normal, which the images see. The images barely see a vertex slide across a smooth surface, so
+// noise across the surface in the starting positions stays where the prior on them holds it; this
+// term spreads the vertices evenly instead (tangential relaxation, as in isotropic remeshing).
+// Empty when relax_sigma is 0.
+Eigen::SparseMatrix<double> RelaxationMatrix(const DifferentiablePathTracer& tracer, const Eigen::VectorXd& x,
+                                             double sigma) {
+  const int size = 3 * tracer.VertexCount();
+  Eigen::SparseMatrix<double> q(size, size);
+  if (sigma <= 0.0) return q;
+  std::vector<Eigen::Triplet<double>> rows;
+  for (size_t m = 0; m < tracer.scene().meshes.size(); ++m) {
+    const int mesh_index = static_cast<int>(m);
+    if (tracer.ParameterVertex(mesh_index, 0) < 0) continue;
+    const TriangleMesh& mesh = tracer.scene().meshes[m].mesh;
+    const size_t n = mesh.vertices.size();
+    const auto at = [&](int v) -> Eigen::Vector3d { return x.segment<3>(3 * tracer.ParameterVertex(mesh_index, v)); };
+    std::vector<std::vector<int>> ring(n);
+    std::map<std::pair<int, int>, int> edges;  // faces per undirected edge
+    std::vector<Eigen::Vector3d> normal(n, Eigen::Vector3d::Zero());
+    for (const Eigen::Vector3i& f : mesh.faces) {
+      const Eigen::Vector3d area = (at(f[1]) - at(f[0])).cross(at(f[2]) - at(f[0]));  // twice the area
+      for (int k = 0; k < 3; ++k) {
+        const int a = f[k], b = f[(k + 1) % 3];
+        ring[a].push_back(b), ring[b].push_back(a);
+        ++edges[{std::min(a, b), std::max(a, b)}];
+        normal[a] += area;
+      }
+    }
+    std::vector<bool> boundary(n, false);
+    for (const auto& [edge, faces] : edges) {
+      if (faces != 2) boundary[edge.first] = boundary[edge.second] = true;
+    }
+    for (size_t v = 0; v < n; ++v) {
+      std::sort(ring[v].begin(), ring[v].end());
+      ring[v].erase(std::unique(ring[v].begin(), ring[v].end()), ring[v].end());
+      if (boundary[v] || ring[v].empty() || !(normal[v].norm() > 0.0)) continue;
+      const Eigen::Vector3d nv = normal[v].normalized();
+      const Eigen::Matrix3d t = Eigen::Matrix3d::Identity() - nv * nv.transpose();
+      const int row = 3 * tracer.ParameterVertex(mesh_index, static_cast<int>(v));
+      const auto put = [&](int vertex, double scale) {
+        const int col = 3 * tracer.ParameterVertex(mesh_index, vertex);
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 3; ++c) rows.emplace_back(row + r, col + c, scale * t(r, c));
+        }
+      };
+      put(static_cast<int>(v), 1.0);
+      for (int j : ring[v]) put(j, -1.0 / ring[v].size());
+    }
+  }
+  Eigen::SparseMatrix<double> a(size, size);
+  a.setFromTriplets(rows.begin(), rows.end());
+  q = (a.transpose() * a) / (sigma * sigma);
+  q.prune(0.0);
+  return q;
 }
 
 // A prior this many times the usual one holds a vertex in place (its steps come out ~1e-10 of
@@ -459,16 +535,21 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   const auto prior_weight = [&](const Eigen::VectorXd& at, size_t v) {
     return HuberWeight(distance(at, v), threshold(v));
   };
+  // The relaxation term x^T Q x / 2 (RelaxationMatrix), Q from the normals at the start of each
+  // iteration.
+  Eigen::SparseMatrix<double> relaxation = RelaxationMatrix(tracer, x, options.relax_sigma);
   const auto prior_gradient_at = [&](const Eigen::VectorXd& at) {
     Eigen::VectorXd g(at.size());
     for (size_t v = 0; v < prior.size(); ++v) {
       g.segment<3>(3 * v) = prior_weight(at, v) * (prior[v] * (at - result.initial).segment<3>(3 * v));
     }
+    if (relaxation.nonZeros() > 0) g += relaxation * at;
     return g;
   };
   const auto prior_cost = [&](const Eigen::VectorXd& at) {
     double sum = 0.0;
     for (size_t v = 0; v < prior.size(); ++v) sum += HuberCost(distance(at, v), threshold(v));
+    if (relaxation.nonZeros() > 0) sum += 0.5 * at.dot(relaxation * at);
     return sum;
   };
   // The prior's matrix at `at` for the step: P times the IRLS weight.
@@ -509,6 +590,7 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
       record.rays.intersect += current.rays.intersect;
       record.rays.occluded += current.rays.occluded;
     }
+    relaxation = RelaxationMatrix(tracer, x, options.relax_sigma);
     const NormalEquations equations =
         Assemble(current, tracer.VertexCount(), options.robust, tracer.VertexCount() <= options.direct_max_vertices);
     record.jacobian_nonzeros_per_pixel = equations.nonzeros / pixels.size();
@@ -517,7 +599,7 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
     const double cost = current.data_cost + prior_cost(x);
     record.cost = cost;
     for (int attempt = 0; attempt <= options.max_retries; ++attempt) {
-      Eigen::VectorXd step = SolveStep(equations, prior_gradient, prior_here, mu);
+      Eigen::VectorXd step = SolveStep(equations, prior_gradient, prior_here, relaxation, mu);
       // Trust region on the largest vertex move: the linear model holds over a fraction of an edge.
       double largest = 0.0;
       for (int v = 0; v < tracer.VertexCount(); ++v) largest = std::max(largest, step.segment<3>(3 * v).norm());

@@ -1,16 +1,25 @@
 // Vertex refinement (issue 8, the paper's section IV): vertex positions estimated from images
 // through the differentiable path tracer, by Levenberg-Marquardt on
 //
-//   E(x) = sum_pixels sum_c rho((I_c(x) - I*_c) / (noise * s)) + sum_i huber(sqrt(d_i^T P_i d_i)),
+//   E(x) = sum_pixels sum_c rho((I_c(x) - I*_c) / (noise * s)) + sum_i huber(sqrt(d_i^T P_i d_i))
+//          + sum_i |T_i (x_i - c_i)|^2 / (2 relax_sigma^2),
 //   d_i = x_i - x0_i,  P_i = n n^T / sigma_n^2 + (I - n n^T) / sigma_t^2
 //
 // where I(x) is the path-traced pixel (options.spp samples with fixed random numbers, so E is a
 // deterministic function of x between visibility changes), I* the reference image, s the RMS of
 // the reference over the sampled pixels, and the second term the weak prior on the starting
 // positions x0 that removes the null spaces of sparse sampling (vertices no sample sees): sigma_n
-// (prior_sigma) along the vertex's starting normal n, sigma_t (prior_tangent_sigma, firmer) across
-// the surface, where a move slides the vertex along a smooth surface and the images barely see it;
-// Huber's loss of the distance (threshold prior_robust) holds noise-sized moves quadratically and
+// (prior_sigma) along the vertex's starting normal n, sigma_t (prior_tangent_sigma; by default the
+// same) across the surface. The third term is a tangential relaxation: c_i is the centroid of the
+// vertex's one-ring and T_i = I - n_i n_i^T the projection across the surface at its current
+// normal (held within an iteration), so it charges a vertex's offset from its neighbours' centroid
+// across the surface and nothing along the normal, which the images see. A vertex that slides
+// across a smooth surface barely changes the images: noise across the surface in the starting
+// positions stays where a prior on x0 holds it and drifts with the render noise where none does;
+// the relaxation spreads the vertices evenly instead (as isotropic remeshing does), which on the
+// noisy sphere of bench_refine's section 3 takes out most of the error across the surface.
+// Vertices on a mesh boundary get no relaxation row (their one-ring's centroid lies inside). The
+// prior's Huber loss of the distance (threshold prior_robust) holds noise-sized moves quadratically and
 // pulls a large move the images support with a constant force, not in proportion. rho is Huber's
 // loss of the residual (threshold robust). The pixels are those that see a refined mesh (by
 // default), and vertices that no fitted pixel sees directly are held in place (by default).
@@ -50,7 +59,8 @@ struct RefineOptions {
   double noise = 0.05;          // relative pixel noise that weighs the data term
   double robust = 3.0;          // Huber threshold of the residuals, in noise units (0 = none)
   double prior_sigma = 0.003;   // standard deviation of the prior on vertex positions, m (along the normal)
-  double prior_tangent_sigma = 0.0005;  // the same across the surface, m (0 = prior_sigma: isotropic)
+  double prior_tangent_sigma = 0.0;  // the same across the surface, m (0 = prior_sigma: isotropic)
+  double relax_sigma = 0.001;     // relaxation across the surface: SD of a vertex's offset from its one-ring's centroid, m (0 = off)
   double prior_robust = 2.0;    // Huber threshold of the prior, in standard deviations (0 = quadratic)
   double damping = 1e-3;        // initial Levenberg-Marquardt damping (times diag of J^T J)
   double max_step = 0.25;       // largest vertex move per step, in mean edge lengths (trust region)
@@ -79,6 +89,8 @@ struct RefineOptions {
     v("prior_sigma", prior_sigma, "m", "standard deviation of the prior on the starting vertex positions, along the normal");
     v("prior_tangent_sigma", prior_tangent_sigma, "m",
       "the same across the surface, where a move slides the vertex along the surface (0 = prior_sigma)");
+    v("relax_sigma", relax_sigma, "m",
+      "standard deviation of a vertex's offset across the surface from the centroid of its neighbours: spreads the vertices evenly where the images cannot see them slide (0 = off)");
     v("prior_robust", prior_robust, "sigma",
       "Huber threshold of the prior's distance from the start, in standard deviations (0 = quadratic)");
     v("damping", damping, "", "initial Levenberg-Marquardt damping");

@@ -8,6 +8,7 @@
 
 #include "../test_util.h"
 #include "core/parallel.h"
+#include "core/rng.h"
 #include "inverse/procedural.h"
 #include "inverse/vertex_refinement.h"
 
@@ -151,39 +152,52 @@ TEST(VertexRefinement, FlippedFacesAreCounted) {
   EXPECT_LE(flipped, 6);
 }
 
-// The prior is anisotropic: a vertex sliding across the surface (which the shading of a smooth
-// surface barely sees) is held by prior_tangent_sigma, a move along its normal by prior_sigma.
-// Left isotropic (the tangential sigma equal to the normal one), the replica's vertices drift
-// across the sphere with the render noise; held, they slide far less.
-TEST(VertexRefinement, ThePriorHoldsVerticesFirmerAcrossTheSurfaceThanAlongTheNormal) {
+// The relaxation (relax_sigma): every vertex slid across the sphere by noise of 5 % of the radius
+// (nothing along the radius), refined from the replica's view. The images barely see such slides;
+// without the relaxation the vertices stay about where the noise put them, with it they spread
+// evenly again, which on the icosphere is the truth. Measured over the vertices that face the
+// camera: 13.2 mm at the start, 6.7 mm relaxed, 9.9 mm not. At 64 samples per pixel: with 16, the
+// noise in the Jacobian (whose square adds to J^T J in every direction) held the vertices as
+// firmly as the relaxation pulled them (11.9 mm relaxed, 11.8 mm not).
+TEST(VertexRefinement, TheRelaxationUndoesSlidesAcrossTheSurface) {
   Replica replica(256, 2);
-  const SpikeAndDent perturbed = replica.Perturbed();
-  // RMS over the vertices of the refinement's move across the sphere (off the radial direction).
-  const auto tangential_rms = [&](double tangent_sigma) {
+  const Eigen::VectorXd truth = DifferentiablePathTracer(replica.box.scene, replica.refined).Positions();
+  const int vertices = static_cast<int>(truth.size() / 3);
+  Eigen::VectorXd start = truth;
+  CounterRng rng(7, 3);
+  std::vector<int> facing;
+  for (int v = 0; v < vertices; ++v) {
+    const Eigen::Vector3d p = truth.segment<3>(3 * v), n = (p - replica.box.center).normalized();
+    Eigen::Vector3d d(rng.Normal(), rng.Normal(), rng.Normal());
+    start.segment<3>(3 * v) += 0.05 * replica.box.radius * (d - d.dot(n) * n);
+    if (n.dot((replica.eye - p).normalized()) > 0.3) facing.push_back(v);
+  }
+  ASSERT_GE(facing.size(), 10u);
+  const auto rms = [&](const Eigen::VectorXd& x) {
+    double sum = 0.0;
+    for (int v : facing) sum += (x - truth).segment<3>(3 * v).squaredNorm();
+    return std::sqrt(sum / facing.size());
+  };
+  const auto refined = [&](double relax_sigma) {
     DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
-    tracer.SetPositions(perturbed.positions);
+    tracer.SetPositions(start);
+    const TriangleMesh start_mesh = tracer.scene().meshes[replica.box.sphere].mesh;
     RefineOptions options;
-    options.spp = 16;
+    options.spp = 64;
     options.max_depth = 2;
     options.iterations = 3;
     options.pixels_per_view = 3000;
-    options.prior_tangent_sigma = tangent_sigma;
-    const Eigen::VectorXd moved = RefineVertices(tracer, replica.targets, options).positions - perturbed.positions;
-    double sum = 0.0;
-    for (int v = 0; v < tracer.VertexCount(); ++v) {
-      const Eigen::Vector3d n = (perturbed.positions.segment<3>(3 * v) - replica.box.center).normalized();
-      const Eigen::Vector3d d = moved.segment<3>(3 * v);
-      sum += (d - d.dot(n) * n).squaredNorm();
-    }
-    return std::sqrt(sum / tracer.VertexCount());
+    options.relax_sigma = relax_sigma;
+    const Eigen::VectorXd x = RefineVertices(tracer, replica.targets, options).positions;
+    EXPECT_EQ(FlippedFaces(start_mesh, tracer.scene().meshes[replica.box.sphere].mesh), 0);
+    return rms(x);
   };
-  const double isotropic = tangential_rms(RefineOptions().prior_sigma);
-  const double held = tangential_rms(RefineOptions().prior_tangent_sigma);
-  std::printf("tangential RMS move: %.5f m isotropic, %.5f m held (sigma %.4f m)\n", isotropic, held,
-              RefineOptions().prior_tangent_sigma);
-  EXPECT_LT(RefineOptions().prior_tangent_sigma, RefineOptions().prior_sigma);
-  EXPECT_LT(held, 0.5 * isotropic);
-  EXPECT_LT(held, 2.0 * RefineOptions().prior_tangent_sigma);
+  const double before = rms(start), relaxed = refined(RefineOptions().relax_sigma), not_relaxed = refined(0.0);
+  std::printf("RMS error of the %zu facing vertices: %.4f m at the start, %.4f m relaxed, %.4f m not\n", facing.size(),
+              before, relaxed, not_relaxed);
+  EXPECT_GT(RefineOptions().relax_sigma, 0.0);
+  EXPECT_LT(relaxed, 0.6 * before);
+  EXPECT_LT(relaxed, 0.8 * not_relaxed);
 }
 
 // The spike and the dent of the replica at test size, refined with `options` from the start.
@@ -344,11 +358,15 @@ TEST(VertexRefinement, OnlyPixelsThatSeeARefinedMeshAreFitted) {
   EXPECT_GT(all, 3 * sphere);
 }
 
-TEST(VertexRefinement, ATangentialSigmaOutOfRangeIsAClearError) {
+TEST(VertexRefinement, ATangentialOrRelaxationSigmaOutOfRangeIsAClearError) {
   RefineOptions options;
   options.prior_tangent_sigma = -1.0;
   EXPECT_THROW(options.Validate(), Error);
   options.prior_tangent_sigma = 0.0;  // 0: the same as prior_sigma
+  EXPECT_NO_THROW(options.Validate());
+  options.relax_sigma = -0.001;
+  EXPECT_THROW(options.Validate(), Error);
+  options.relax_sigma = 0.0;  // 0: no relaxation
   EXPECT_NO_THROW(options.Validate());
 }
 
