@@ -228,7 +228,7 @@ NormalEquations Assemble(const Evaluation& e, int vertices, double robust, bool 
 }
 
 // Solves (H + mu diag(H)) dx = -g with H = J^T W J + P + Q and g = J^T W r + the prior's gradient,
-// P the prior's 3 x 3 blocks (PriorBlocks), Q the relaxation's matrix (RelaxationMatrix; may be
+// P the prior's 3 x 3 blocks (PriorBlocks), Q the relaxation's matrix (Relaxation; may be
 // empty):
 // by sparse Cholesky (Eigen's SimplicialLDLT) when the blocks are kept, else by conjugate
 // gradients preconditioned with the inverse 3 x 3 diagonal blocks, to a relative residual of
@@ -364,58 +364,83 @@ std::vector<Eigen::Matrix3d> PriorBlocks(const DifferentiablePathTracer& tracer,
 // normal, which the images see. The images barely see a vertex slide across a smooth surface, so
 // noise across the surface in the starting positions stays where the prior on them holds it; this
 // term spreads the vertices evenly instead (tangential relaxation, as in isotropic remeshing).
-// Empty when relax_sigma is 0.
-Eigen::SparseMatrix<double> RelaxationMatrix(const DifferentiablePathTracer& tracer, const Eigen::VectorXd& x,
-                                             double sigma) {
-  const int size = 3 * tracer.VertexCount();
-  Eigen::SparseMatrix<double> q(size, size);
-  if (sigma <= 0.0) return q;
-  std::vector<Eigen::Triplet<double>> rows;
-  for (size_t m = 0; m < tracer.scene().meshes.size(); ++m) {
-    const int mesh_index = static_cast<int>(m);
-    if (tracer.ParameterVertex(mesh_index, 0) < 0) continue;
-    const TriangleMesh& mesh = tracer.scene().meshes[m].mesh;
-    const size_t n = mesh.vertices.size();
-    const auto at = [&](int v) -> Eigen::Vector3d { return x.segment<3>(3 * tracer.ParameterVertex(mesh_index, v)); };
-    std::vector<std::vector<int>> ring(n);
-    std::map<std::pair<int, int>, int> edges;  // faces per undirected edge
-    std::vector<Eigen::Vector3d> normal(n, Eigen::Vector3d::Zero());
-    for (const Eigen::Vector3i& f : mesh.faces) {
-      const Eigen::Vector3d area = (at(f[1]) - at(f[0])).cross(at(f[2]) - at(f[0]));  // twice the area
-      for (int k = 0; k < 3; ++k) {
-        const int a = f[k], b = f[(k + 1) % 3];
-        ring[a].push_back(b), ring[b].push_back(a);
-        ++edges[{std::min(a, b), std::max(a, b)}];
-        normal[a] += area;
+// The connectivity (one-rings, boundaries) is found once; only the normals change with x.
+class Relaxation {
+ public:
+  Relaxation(const DifferentiablePathTracer& tracer, double sigma) : size_(3 * tracer.VertexCount()), sigma_(sigma) {
+    if (sigma <= 0.0) return;
+    for (size_t m = 0; m < tracer.scene().meshes.size(); ++m) {
+      const int mesh = static_cast<int>(m);
+      if (tracer.ParameterVertex(mesh, 0) < 0) continue;
+      const TriangleMesh& triangles = tracer.scene().meshes[m].mesh;
+      const size_t n = triangles.vertices.size();
+      std::vector<std::vector<int>> ring(n);
+      std::map<std::pair<int, int>, int> edges;  // faces per undirected edge
+      for (const Eigen::Vector3i& f : triangles.faces) {
+        Eigen::Vector3i face;
+        for (int k = 0; k < 3; ++k) {
+          const int a = f[k], b = f[(k + 1) % 3];
+          ring[a].push_back(b), ring[b].push_back(a);
+          ++edges[{std::min(a, b), std::max(a, b)}];
+          face[k] = tracer.ParameterVertex(mesh, a);
+        }
+        faces_.push_back(face);
+      }
+      std::vector<bool> boundary(n, false);
+      for (const auto& [edge, faces] : edges) {
+        if (faces != 2) boundary[edge.first] = boundary[edge.second] = true;
+      }
+      for (size_t v = 0; v < n; ++v) {
+        std::sort(ring[v].begin(), ring[v].end());
+        ring[v].erase(std::unique(ring[v].begin(), ring[v].end()), ring[v].end());
+        if (boundary[v] || ring[v].empty()) continue;
+        Row row{tracer.ParameterVertex(mesh, static_cast<int>(v)), {}};
+        for (int j : ring[v]) row.ring.push_back(tracer.ParameterVertex(mesh, j));
+        rows_.push_back(std::move(row));
       }
     }
-    std::vector<bool> boundary(n, false);
-    for (const auto& [edge, faces] : edges) {
-      if (faces != 2) boundary[edge.first] = boundary[edge.second] = true;
+  }
+
+  // Q at the parameter vectors `x`; empty when relax_sigma is 0.
+  Eigen::SparseMatrix<double> Matrix(const Eigen::VectorXd& x) const {
+    Eigen::SparseMatrix<double> q(size_, size_);
+    if (sigma_ <= 0.0) return q;
+    std::vector<Eigen::Vector3d> normal(size_ / 3, Eigen::Vector3d::Zero());
+    for (const Eigen::Vector3i& f : faces_) {
+      const auto at = [&](int k) -> Eigen::Vector3d { return x.segment<3>(3 * f[k]); };
+      const Eigen::Vector3d area = (at(1) - at(0)).cross(at(2) - at(0));  // twice the area
+      for (int k = 0; k < 3; ++k) normal[f[k]] += area;
     }
-    for (size_t v = 0; v < n; ++v) {
-      std::sort(ring[v].begin(), ring[v].end());
-      ring[v].erase(std::unique(ring[v].begin(), ring[v].end()), ring[v].end());
-      if (boundary[v] || ring[v].empty() || !(normal[v].norm() > 0.0)) continue;
-      const Eigen::Vector3d nv = normal[v].normalized();
+    std::vector<Eigen::Triplet<double>> entries;
+    for (const Row& row : rows_) {
+      if (!(normal[row.vertex].norm() > 0.0)) continue;
+      const Eigen::Vector3d nv = normal[row.vertex].normalized();
       const Eigen::Matrix3d t = Eigen::Matrix3d::Identity() - nv * nv.transpose();
-      const int row = 3 * tracer.ParameterVertex(mesh_index, static_cast<int>(v));
       const auto put = [&](int vertex, double scale) {
-        const int col = 3 * tracer.ParameterVertex(mesh_index, vertex);
         for (int r = 0; r < 3; ++r) {
-          for (int c = 0; c < 3; ++c) rows.emplace_back(row + r, col + c, scale * t(r, c));
+          for (int c = 0; c < 3; ++c) entries.emplace_back(3 * row.vertex + r, 3 * vertex + c, scale * t(r, c));
         }
       };
-      put(static_cast<int>(v), 1.0);
-      for (int j : ring[v]) put(j, -1.0 / ring[v].size());
+      put(row.vertex, 1.0);
+      for (int j : row.ring) put(j, -1.0 / row.ring.size());
     }
+    Eigen::SparseMatrix<double> a(size_, size_);
+    a.setFromTriplets(entries.begin(), entries.end());
+    q = (a.transpose() * a) / (sigma_ * sigma_);
+    q.prune(0.0);
+    return q;
   }
-  Eigen::SparseMatrix<double> a(size, size);
-  a.setFromTriplets(rows.begin(), rows.end());
-  q = (a.transpose() * a) / (sigma * sigma);
-  q.prune(0.0);
-  return q;
-}
+
+ private:
+  struct Row {
+    int vertex;            // parameter vertex
+    std::vector<int> ring;  // its neighbours' parameter vertices
+  };
+  int size_;
+  double sigma_;
+  std::vector<Eigen::Vector3i> faces_;  // of the refined meshes, as parameter vertices
+  std::vector<Row> rows_;               // the vertices inside their mesh
+};
 
 // A prior this many times the usual one holds a vertex in place (its steps come out ~1e-10 of
 // the others') without taking it out of the linear system.
@@ -535,9 +560,10 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   const auto prior_weight = [&](const Eigen::VectorXd& at, size_t v) {
     return HuberWeight(distance(at, v), threshold(v));
   };
-  // The relaxation term x^T Q x / 2 (RelaxationMatrix), Q from the normals at the start of each
+  // The relaxation term x^T Q x / 2 (Relaxation), Q from the normals at the start of each
   // iteration.
-  Eigen::SparseMatrix<double> relaxation = RelaxationMatrix(tracer, x, options.relax_sigma);
+  const Relaxation relax(tracer, options.relax_sigma);
+  Eigen::SparseMatrix<double> relaxation = relax.Matrix(x);
   const auto prior_gradient_at = [&](const Eigen::VectorXd& at) {
     Eigen::VectorXd g(at.size());
     for (size_t v = 0; v < prior.size(); ++v) {
@@ -590,7 +616,7 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
       record.rays.intersect += current.rays.intersect;
       record.rays.occluded += current.rays.occluded;
     }
-    relaxation = RelaxationMatrix(tracer, x, options.relax_sigma);
+    relaxation = relax.Matrix(x);
     const NormalEquations equations =
         Assemble(current, tracer.VertexCount(), options.robust, tracer.VertexCount() <= options.direct_max_vertices);
     record.jacobian_nonzeros_per_pixel = equations.nonzeros / pixels.size();
