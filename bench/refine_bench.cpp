@@ -16,7 +16,7 @@
 //               [--prior-tangent M] [--relax M] [--prior-robust K] [--robust K] [--damping D]
 //               [--refined-only 0|1] [--refine-unseen 0|1] [--perturbation F] [--flat 0|1]
 //               [--jacobian-depth D] [--average-after K] [--views N] [--radial-noise 0|1]
-//               [--noise-seed N]
+//               [--noise-seed N] [--smooth M] [--edge-margin PX]
 // RADIAL=1 also prints, per iteration, the Levenberg-Marquardt state and the vertex errors split
 // along the sphere's radius and across it.
 #include <chrono>
@@ -52,10 +52,12 @@ struct Settings {
   double damping = RefineOptions().damping;
   double prior_robust = RefineOptions().prior_robust;
   double relax_sigma = RefineOptions().relax_sigma;
+  double smooth_sigma = RefineOptions().smooth_sigma;
   bool refined_only = RefineOptions().refined_pixels_only;
   bool refine_unseen = RefineOptions().refine_unseen;
   int jacobian_depth = RefineOptions().jacobian_max_depth;
   int average_after = RefineOptions().average_after;
+  int edge_margin = RefineOptions().edge_margin;
   int views = 3;              // section 3's views (AroundTheSphere)
   uint64_t noise_seed = 99;   // section 3's noise
   bool radial_noise = false;  // section 3's noise along the radius instead of per coordinate
@@ -84,12 +86,14 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
   options.max_depth = s.max_depth;
   options.jacobian_max_depth = s.jacobian_depth;
   options.average_after = s.average_after;
+  options.edge_margin = s.edge_margin;
   options.prior_sigma = s.prior_sigma;
   options.prior_tangent_sigma = s.prior_tangent_sigma;
   options.robust = s.robust;
   options.damping = s.damping;
   options.prior_robust = s.prior_robust;
   options.relax_sigma = s.relax_sigma;
+  options.smooth_sigma = s.smooth_sigma;
   options.refined_pixels_only = s.refined_only;
   options.refine_unseen = s.refine_unseen;
   DifferentiablePathTracer at_truth(scene, refined);
@@ -306,11 +310,13 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--refine-unseen")) s.refine_unseen = std::atoi(argv[i + 1]) != 0;
     if (!std::strcmp(argv[i], "--refined-only")) s.refined_only = std::atoi(argv[i + 1]) != 0;
     if (!std::strcmp(argv[i], "--relax")) s.relax_sigma = std::atof(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--smooth")) s.smooth_sigma = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--prior-robust")) s.prior_robust = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--damping")) s.damping = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--seed")) s.seed = std::strtoull(argv[i + 1], nullptr, 10);
     if (!std::strcmp(argv[i], "--jacobian-depth")) s.jacobian_depth = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--average-after")) s.average_after = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--edge-margin")) s.edge_margin = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--views")) s.views = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--noise-seed")) s.noise_seed = std::strtoull(argv[i + 1], nullptr, 10);
     if (!std::strcmp(argv[i], "--radial-noise")) s.radial_noise = std::atoi(argv[i + 1]) != 0;

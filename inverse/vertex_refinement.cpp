@@ -29,6 +29,7 @@ void RefineOptions::Validate() const {
   RequireRange("prior_sigma", prior_sigma, 1e-9, 1e6);
   if (prior_tangent_sigma != 0.0) RequireRange("prior_tangent_sigma", prior_tangent_sigma, 1e-9, 1e6);
   if (relax_sigma != 0.0) RequireRange("relax_sigma", relax_sigma, 1e-9, 1e6);
+  if (smooth_sigma != 0.0) RequireRange("smooth_sigma", smooth_sigma, 1e-9, 1e6);
   RequireRange("damping", damping, 0.0, 1e12);
   RequireRange("max_step", max_step, 1e-6, 100.0);
   RequireRange("max_retries", max_retries, 0, 100);
@@ -364,11 +365,14 @@ std::vector<Eigen::Matrix3d> PriorBlocks(const DifferentiablePathTracer& tracer,
 // normal, which the images see. The images barely see a vertex slide across a smooth surface, so
 // noise across the surface in the starting positions stays where the prior on them holds it; this
 // term spreads the vertices evenly instead (tangential relaxation, as in isotropic remeshing).
+// With smooth_sigma, Q also holds the bending term B^T B / smooth_sigma^2 (see Matrix): a change of
+// curvature from a vertex to its ring, one row per vertex whose ring has rows too.
 // The connectivity (one-rings, boundaries) is found once; only the normals change with x.
 class Relaxation {
  public:
-  Relaxation(const DifferentiablePathTracer& tracer, double sigma) : size_(3 * tracer.VertexCount()), sigma_(sigma) {
-    if (sigma <= 0.0) return;
+  Relaxation(const DifferentiablePathTracer& tracer, double sigma, double smooth_sigma)
+      : size_(3 * tracer.VertexCount()), sigma_(sigma), smooth_sigma_(smooth_sigma) {
+    if (sigma <= 0.0 && smooth_sigma <= 0.0) return;
     for (size_t m = 0; m < tracer.scene().meshes.size(); ++m) {
       const int mesh = static_cast<int>(m);
       if (tracer.ParameterVertex(mesh, 0) < 0) continue;
@@ -394,50 +398,110 @@ class Relaxation {
         std::sort(ring[v].begin(), ring[v].end());
         ring[v].erase(std::unique(ring[v].begin(), ring[v].end()), ring[v].end());
         if (boundary[v] || ring[v].empty()) continue;
-        Row row{tracer.ParameterVertex(mesh, static_cast<int>(v)), {}};
+        Row row{tracer.ParameterVertex(mesh, static_cast<int>(v)), {}, {}};
         for (int j : ring[v]) row.ring.push_back(tracer.ParameterVertex(mesh, j));
         rows_.push_back(std::move(row));
       }
     }
+    std::vector<int> row_of(tracer.VertexCount(), -1);
+    for (size_t r = 0; r < rows_.size(); ++r) row_of[rows_[r].vertex] = static_cast<int>(r);
+    for (Row& row : rows_) {  // the bending row needs every neighbour's offset
+      row.ring_rows.clear();
+      for (int j : row.ring) {
+        if (row_of[j] < 0) {
+          row.ring_rows.clear();
+          break;
+        }
+        row.ring_rows.push_back(row_of[j]);
+      }
+    }
   }
 
-  // Q at the parameter vectors `x`; empty when relax_sigma is 0.
+  // Q at the parameter vectors `x`; empty when relax_sigma and smooth_sigma are 0.
   Eigen::SparseMatrix<double> Matrix(const Eigen::VectorXd& x) const {
     Eigen::SparseMatrix<double> q(size_, size_);
-    if (sigma_ <= 0.0) return q;
+    if (sigma_ <= 0.0 && smooth_sigma_ <= 0.0) return q;
     std::vector<Eigen::Vector3d> normal(size_ / 3, Eigen::Vector3d::Zero());
     for (const Eigen::Vector3i& f : faces_) {
       const auto at = [&](int k) -> Eigen::Vector3d { return x.segment<3>(3 * f[k]); };
       const Eigen::Vector3d area = (at(1) - at(0)).cross(at(2) - at(0));  // twice the area
       for (int k = 0; k < 3; ++k) normal[f[k]] += area;
     }
-    std::vector<Eigen::Triplet<double>> entries;
-    for (const Row& row : rows_) {
-      if (!(normal[row.vertex].norm() > 0.0)) continue;
-      const Eigen::Vector3d nv = normal[row.vertex].normalized();
-      const Eigen::Matrix3d t = Eigen::Matrix3d::Identity() - nv * nv.transpose();
-      const auto put = [&](int vertex, double scale) {
-        for (int r = 0; r < 3; ++r) {
-          for (int c = 0; c < 3; ++c) entries.emplace_back(3 * row.vertex + r, 3 * vertex + c, scale * t(r, c));
-        }
-      };
-      put(row.vertex, 1.0);
-      for (int j : row.ring) put(j, -1.0 / row.ring.size());
+    std::vector<Eigen::Vector3d> unit(rows_.size(), Eigen::Vector3d::Zero());  // 0: no normal
+    for (size_t r = 0; r < rows_.size(); ++r) {
+      if (normal[rows_[r].vertex].norm() > 0.0) unit[r] = normal[rows_[r].vertex].normalized();
     }
-    Eigen::SparseMatrix<double> a(size_, size_);
-    a.setFromTriplets(entries.begin(), entries.end());
-    q = (a.transpose() * a) / (sigma_ * sigma_);
+    if (sigma_ > 0.0) {
+      std::vector<Eigen::Triplet<double>> entries;
+      for (size_t r = 0; r < rows_.size(); ++r) {
+        const Row& row = rows_[r];
+        if (unit[r].isZero()) continue;
+        const Eigen::Matrix3d t = Eigen::Matrix3d::Identity() - unit[r] * unit[r].transpose();
+        const auto put = [&](int vertex, double scale) {
+          for (int i = 0; i < 3; ++i) {
+            for (int c = 0; c < 3; ++c) entries.emplace_back(3 * row.vertex + i, 3 * vertex + c, scale * t(i, c));
+          }
+        };
+        put(row.vertex, 1.0);
+        for (int j : row.ring) put(j, -1.0 / row.ring.size());
+      }
+      Eigen::SparseMatrix<double> a(size_, size_);
+      a.setFromTriplets(entries.begin(), entries.end());
+      q = (a.transpose() * a) / (sigma_ * sigma_);
+    }
+    if (smooth_sigma_ > 0.0) {
+      // Row r of B: k_r - the mean of k over its ring, k_r = h_r / l_r * l, where h_r = n_r . (x_r -
+      // c_r) is the vertex's offset along its normal from its one-ring's centroid (the umbrella
+      // Laplacian along the normal), l_r the mean squared length of its edges and l the mean of l_r
+      // over the vertices. h_r / l_r is half the mean curvature wherever the ring lies on a sphere
+      // (a neighbour at distance d is d^2 / 2R below the tangent plane), whatever the valence and
+      // the edge lengths, so a sphere or a plane bends at no cost; h_r alone differs by 19 %
+      // between the icosphere's vertices of valence 5 and 6, which this term would then flatten.
+      std::vector<double> spread(rows_.size(), 0.0);  // l_r
+      double mean_spread = 0.0;
+      for (size_t r = 0; r < rows_.size(); ++r) {
+        const Eigen::Vector3d at = x.segment<3>(3 * rows_[r].vertex);
+        for (int j : rows_[r].ring) spread[r] += (x.segment<3>(3 * j) - at).squaredNorm();
+        spread[r] /= rows_[r].ring.size();
+        mean_spread += spread[r] / rows_.size();
+      }
+      std::vector<Eigen::Triplet<double>> entries;
+      int rows = 0;
+      for (size_t r = 0; r < rows_.size(); ++r) {
+        const Row& row = rows_[r];
+        if (row.ring_rows.empty() || unit[r].isZero() || !(spread[r] > 0.0)) continue;
+        bool complete = true;
+        for (int k : row.ring_rows) complete = complete && !unit[k].isZero() && spread[k] > 0.0;
+        if (!complete) continue;
+        const auto put_h = [&](int k, double scale) {  // scale * k_k
+          const Row& of = rows_[k];
+          const Eigen::Vector3d n = unit[k] * (scale * mean_spread / spread[k]);
+          for (int c = 0; c < 3; ++c) {
+            entries.emplace_back(rows, 3 * of.vertex + c, n[c]);
+            for (int j : of.ring) entries.emplace_back(rows, 3 * j + c, -n[c] / of.ring.size());
+          }
+        };
+        put_h(static_cast<int>(r), 1.0);
+        for (int k : row.ring_rows) put_h(k, -1.0 / row.ring_rows.size());
+        ++rows;
+      }
+      Eigen::SparseMatrix<double> b(rows, size_);
+      b.setFromTriplets(entries.begin(), entries.end());
+      const Eigen::SparseMatrix<double> bend = (b.transpose() * b) / (smooth_sigma_ * smooth_sigma_);
+      q = sigma_ > 0.0 ? Eigen::SparseMatrix<double>(q + bend) : bend;
+    }
     q.prune(0.0);
     return q;
   }
 
  private:
   struct Row {
-    int vertex;            // parameter vertex
-    std::vector<int> ring;  // its neighbours' parameter vertices
+    int vertex;                 // parameter vertex
+    std::vector<int> ring;      // its neighbours' parameter vertices
+    std::vector<int> ring_rows;  // their rows (empty when a neighbour has none: no bending row)
   };
   int size_;
-  double sigma_;
+  double sigma_, smooth_sigma_;
   std::vector<Eigen::Vector3i> faces_;  // of the refined meshes, as parameter vertices
   std::vector<Row> rows_;               // the vertices inside their mesh
 };
@@ -562,7 +626,7 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   };
   // The relaxation term x^T Q x / 2 (Relaxation), Q from the normals at the start of each
   // iteration.
-  const Relaxation relax(tracer, options.relax_sigma);
+  const Relaxation relax(tracer, options.relax_sigma, options.smooth_sigma);
   Eigen::SparseMatrix<double> relaxation = relax.Matrix(x);
   const auto prior_gradient_at = [&](const Eigen::VectorXd& at) {
     Eigen::VectorXd g(at.size());

@@ -2,7 +2,7 @@
 // through the differentiable path tracer, by Levenberg-Marquardt on
 //
 //   E(x) = sum_pixels sum_c rho((I_c(x) - I*_c) / (noise * s)) + sum_i huber(sqrt(d_i^T P_i d_i))
-//          + sum_i |T_i (x_i - c_i)|^2 / (2 relax_sigma^2),
+//          + sum_i |T_i (x_i - c_i)|^2 / (2 relax_sigma^2) + sum_i (k_i - mean_ring k_j)^2 / (2 smooth_sigma^2),
 //   d_i = x_i - x0_i,  P_i = n n^T / sigma_n^2 + (I - n n^T) / sigma_t^2
 //
 // where I(x) is the path-traced pixel (options.spp samples with fixed random numbers, so E is a
@@ -17,15 +17,21 @@
 // across a smooth surface barely changes the images: noise across the surface in the starting
 // positions stays where a prior on x0 holds it and drifts with the render noise where none does;
 // the relaxation spreads the vertices evenly instead (as isotropic remeshing does), which on the
-// noisy sphere of bench_refine's section 3 takes out most of the error across the surface.
+// noisy sphere of bench_refine's section 3 takes out most of the error across the surface. The
+// fourth is a bending term: k_i = n_i . (x_i - c_i) / l_i * l is the vertex's offset along its
+// normal from its ring's centroid over the mean squared length l_i of its edges (half the mean
+// curvature; l, the mean of l_i, makes it a length), the same at every vertex of a sphere or a
+// plane whatever the valence, so the term charges changes of curvature: a single vertex that
+// walks along the normal, where visibility changes (not differentiated) at a silhouette pull it.
 // Vertices on a mesh boundary get no relaxation row (their one-ring's centroid lies inside). The
 // prior's Huber loss of the distance (threshold prior_robust) holds noise-sized moves quadratically and
 // pulls a large move the images support with a constant force, not in proportion. rho is Huber's
 // loss of the residual (threshold robust). The pixels are those that see a refined mesh (by
 // default), and vertices that no fitted pixel sees directly are held in place (by default).
 // Each iteration traces every sampled pixel (the residuals from the full paths, the sparse
-// Jacobian rows from the paths' first jacobian_max_depth segments: deeper derivatives are mostly
-// Monte Carlo noise, whose square inflates J^T J and shortens every step), forms the normal
+// Jacobian rows from the paths' first jacobian_max_depth segments, by default direct light only:
+// deeper derivatives are mostly Monte Carlo noise, whose square inflates J^T J and shortens every
+// step, and their truncated bias walked vertices by the floor), forms the normal
 // equations and solves the damped system, by sparse Cholesky factorisation of
 // 3 x 3 blocks per vertex pair (Eigen's SimplicialLDLT) up to `direct_max_vertices` refined
 // vertices, else by block-Jacobi preconditioned conjugate gradients on the Jacobian rows (a pixel
@@ -55,12 +61,13 @@ struct RefineOptions {
   int edge_margin = 1;          // pixels within this distance of a silhouette are left out
   int max_depth = -1;           // longest path, Mitsuba convention (-1 = Russian roulette)
   int rr_depth = 5;             // depth at which Russian roulette starts
-  int jacobian_max_depth = 3;   // longest path whose derivatives enter the Jacobian (-1 = max_depth)
+  int jacobian_max_depth = 2;   // longest path whose derivatives enter the Jacobian (2 = direct light; -1 = max_depth)
   double noise = 0.05;          // relative pixel noise that weighs the data term
   double robust = 3.0;          // Huber threshold of the residuals, in noise units (0 = none)
   double prior_sigma = 0.003;   // standard deviation of the prior on vertex positions, m (along the normal)
   double prior_tangent_sigma = 0.0;  // the same across the surface, m (0 = prior_sigma: isotropic)
   double relax_sigma = 0.001;     // relaxation across the surface: SD of a vertex's offset from its one-ring's centroid, m (0 = off)
+  double smooth_sigma = 0.002;    // bending: SD of a vertex's offset along its normal from its neighbours' mean offset, m (0 = off)
   double prior_robust = 2.0;    // Huber threshold of the prior, in standard deviations (0 = quadratic)
   double damping = 1e-3;        // initial Levenberg-Marquardt damping (times diag of J^T J)
   double max_step = 0.25;       // largest vertex move per step, in mean edge lengths (trust region)
@@ -91,6 +98,8 @@ struct RefineOptions {
       "the same across the surface, where a move slides the vertex along the surface (0 = prior_sigma)");
     v("relax_sigma", relax_sigma, "m",
       "standard deviation of a vertex's offset across the surface from the centroid of its neighbours: spreads the vertices evenly where the images cannot see them slide (0 = off)");
+    v("smooth_sigma", smooth_sigma, "m",
+      "bending: standard deviation of a vertex's offset along its normal from its one-ring's centroid, less its neighbours' mean offset (a discrete change of curvature); holds single vertices from walking where visibility misleads the images (0 = off)");
     v("prior_robust", prior_robust, "sigma",
       "Huber threshold of the prior's distance from the start, in standard deviations (0 = quadratic)");
     v("damping", damping, "", "initial Levenberg-Marquardt damping");
