@@ -406,7 +406,6 @@ class Relaxation {
     std::vector<int> row_of(tracer.VertexCount(), -1);
     for (size_t r = 0; r < rows_.size(); ++r) row_of[rows_[r].vertex] = static_cast<int>(r);
     for (Row& row : rows_) {  // the bending row needs every neighbour's offset
-      row.ring_rows.clear();
       for (int j : row.ring) {
         if (row_of[j] < 0) {
           row.ring_rows.clear();

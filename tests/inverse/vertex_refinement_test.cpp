@@ -154,6 +154,17 @@ TEST(VertexRefinement, FlippedFacesAreCounted) {
   EXPECT_LE(flipped, 6);
 }
 
+// Refines the replica's sphere from `start` with `options`; expects no flipped face; returns the
+// refined positions.
+Eigen::VectorXd RefinedFrom(const Replica& replica, const Eigen::VectorXd& start, const RefineOptions& options) {
+  DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
+  tracer.SetPositions(start);
+  const TriangleMesh start_mesh = tracer.scene().meshes[replica.box.sphere].mesh;
+  const Eigen::VectorXd x = RefineVertices(tracer, replica.targets, options).positions;
+  EXPECT_EQ(FlippedFaces(start_mesh, tracer.scene().meshes[replica.box.sphere].mesh), 0);
+  return x;
+}
+
 // The relaxation (relax_sigma): every vertex slid across the sphere by noise of 5 % of the radius
 // (nothing along the radius), refined from the replica's view. The images barely see such slides;
 // without the relaxation the vertices stay about where the noise put them, with it they spread
@@ -181,18 +192,13 @@ TEST(VertexRefinement, TheRelaxationUndoesSlidesAcrossTheSurface) {
     return std::sqrt(sum / facing.size());
   };
   const auto refined = [&](double relax_sigma) {
-    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
-    tracer.SetPositions(start);
-    const TriangleMesh start_mesh = tracer.scene().meshes[replica.box.sphere].mesh;
     RefineOptions options;
     options.spp = 64;
     options.max_depth = 2;
     options.iterations = 3;
     options.pixels_per_view = 3000;
     options.relax_sigma = relax_sigma;
-    const Eigen::VectorXd x = RefineVertices(tracer, replica.targets, options).positions;
-    EXPECT_EQ(FlippedFaces(start_mesh, tracer.scene().meshes[replica.box.sphere].mesh), 0);
-    return rms(x);
+    return rms(RefinedFrom(replica, start, options));
   };
   const double before = rms(start), relaxed = refined(RefineOptions().relax_sigma), not_relaxed = refined(0.0);
   std::printf("RMS error of the %zu facing vertices: %.4f m at the start, %.4f m relaxed, %.4f m not\n", facing.size(),
@@ -226,17 +232,12 @@ TEST(VertexRefinement, TheBendingTermKeepsSingleVerticesFromWalkingAlongTheNorma
   for (int i = 0; i < start.size(); ++i) start[i] += 0.05 * replica.box.radius * rng.Normal();
   const auto rms = [&](const Eigen::VectorXd& x) { return std::sqrt((x - truth).squaredNorm() / (x.size() / 3)); };
   const auto refined = [&](double smooth_sigma) {
-    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
-    tracer.SetPositions(start);
-    const TriangleMesh start_mesh = tracer.scene().meshes[replica.box.sphere].mesh;
     RefineOptions options;
     options.spp = 32;
     options.max_depth = 2;
     options.iterations = 3;
     options.smooth_sigma = smooth_sigma;
-    const Eigen::VectorXd x = RefineVertices(tracer, replica.targets, options).positions;
-    EXPECT_EQ(FlippedFaces(start_mesh, tracer.scene().meshes[replica.box.sphere].mesh), 0);
-    return rms(x);
+    return rms(RefinedFrom(replica, start, options));
   };
   const double before = rms(start), bending = refined(RefineOptions().smooth_sigma), none = refined(0.0);
   std::printf("RMS vertex error: %.4f m at the start, %.4f m with bending, %.4f m without\n", before, bending, none);
