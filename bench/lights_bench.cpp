@@ -16,7 +16,10 @@
 // --gd-seconds: section 2's time budget for gradient descent (default: 10x the time the cached
 // method took to its last error, so "not reached" means over 10x slower; 0 skips section 2).
 // Diagnostics (environment): VOXEL_TRUTH=1 (the truth is one voxel light the grid can hold),
-// MAXDEPTH=N (references and estimation with that path length), ROUNDS=N, DIRECT=N, MVOX=N.
+// MAXDEPTH=N (references and estimation with that path length), ROUNDS=N, DIRECT=N, MVOX=N,
+// SPLIT=N; adaptive refinement REFINE=levels, RSCALE, RFRAC, RREACH, RGROW, RSPP (its options);
+// DUMP=1 prints the estimate's active voxels; ORACLE=1 renders the replica's light as one voxel
+// and as grids of points; FINE_CHECK=1 solves a 14^3 grid around the replica's light.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -107,6 +110,21 @@ Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
   }
   std::fclose(f);
   return r;
+}
+
+// The diagnostics' option overrides (see the header).
+void ApplyEnvironment(LightEstimationOptions* o) {
+  if (std::getenv("MAXDEPTH")) o->max_depth = std::atoi(std::getenv("MAXDEPTH"));
+  if (std::getenv("ROUNDS")) o->rounds = std::atoi(std::getenv("ROUNDS"));
+  if (std::getenv("REFINE")) o->refine_levels = std::atoi(std::getenv("REFINE"));
+  if (std::getenv("RSCALE")) o->refine_penalty_scale = std::atof(std::getenv("RSCALE"));
+  if (std::getenv("RFRAC")) o->refine_fraction = std::atof(std::getenv("RFRAC"));
+  if (std::getenv("RGROW")) o->refine_grow = std::atoi(std::getenv("RGROW"));
+  if (std::getenv("RSPP")) o->refine_spp = std::atoi(std::getenv("RSPP"));
+  if (std::getenv("RREACH")) o->refine_reach = std::atof(std::getenv("RREACH"));
+  if (std::getenv("DIRECT")) o->direct_paths = std::atoi(std::getenv("DIRECT"));
+  if (std::getenv("MVOX")) o->resample_voxels = std::atoi(std::getenv("MVOX"));
+  if (std::getenv("SPLIT")) o->split_depth = std::atoi(std::getenv("SPLIT"));
 }
 
 std::vector<TrainingView> ReadViews(const fs::path& folder) {
@@ -468,6 +486,7 @@ void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, i
     LightEstimationOptions o;
     o.penalty_weight = weight;
     o.spp = spp;
+    ApplyEnvironment(&o);
     const double t = Now();
     const LightEstimate e = EstimateLights(scene, train, o, 7);
     const double seconds = Now() - t;
@@ -573,6 +592,92 @@ int main(int argc, char** argv) {
   const Replica replica = MakeReplica(width, height, ref_spp, out);
   std::printf("replica: 5 views %dx%d at %d spp in %.1f s, %d threads\n", width, height, ref_spp, Now() - t,
               ThreadCount());
+  if (std::getenv("FINE_CHECK")) {  // diagnostic: the fine level's cost at the oracle and at the solve
+    Scene s = WithoutLights(replica.scene);
+    VoxelLightGrid fine = MakeVoxelGrid(s, 14), oracle = fine;
+    VoxelSplitting sp;
+    sp.enabled.assign(fine.VoxelCount(), false);
+    int top_count = 0;
+    for (int f = 0; f < fine.VoxelCount(); ++f) {
+      const Eigen::Vector3d c = fine.VoxelCenter(f);
+      if (std::abs(c.x()) < 0.32 && std::abs(c.y()) < 0.32 && c.z() > 1.6) sp.enabled[f] = true;
+      if (std::abs(c.x()) < 0.32 && std::abs(c.y()) < 0.32 && c.z() > 1.95) ++top_count;
+    }
+    for (int f = 0; f < fine.VoxelCount(); ++f) {
+      const Eigen::Vector3d c = fine.VoxelCenter(f);
+      if (std::abs(c.x()) < 0.32 && std::abs(c.y()) < 0.32 && c.z() > 1.95) {
+        oracle.intensity[f] = Eigen::Vector3f(18.0f, 15.0f, 11.0f) * (0.25f / top_count);
+        oracle.weights[f] = {0, 0, 0, 0, 0, 1};
+      }
+    }
+    const PathTracer tracer(s);
+    LightEstimationOptions o;
+    o.spp = spp;
+    o.noise_correction = gamma;
+    const std::vector<SampledPixel> pixels = SamplePixels(tracer, replica.train, o, 7);
+    LightEstimationOptions half = o;
+    half.spp = spp / 2;
+    const LightCache a = TraceLightCache(tracer, fine, sp, replica.train, pixels, half, 1);
+    const LightCache b = TraceLightCache(tracer, fine, sp, replica.train, pixels, half, 2);
+    const NormalEquations eq = NormalEquations::FromCaches(a, b, gamma);
+    for (double w : weights) {
+      o.penalty_weight = w;
+      const LightCost cost(eq, w, o.penalty_epsilon);
+      double data = 0.0;
+      const double at_oracle = cost.Evaluate(LightCost::Pack(oracle), nullptr, &data);
+      std::printf("w %g oracle (%d top voxels): cost %.6g data %.6g\n", w, top_count, at_oracle, data);
+      VoxelLightGrid est = fine;
+      const SolveReport r = SolveLights(eq, o, &est);
+      std::printf("  solve: cost %.6g data %.6g iterations %d active %zu\n", r.cost, r.data, r.iterations,
+                  est.ActiveVoxels(1e-3).size());
+      VoxelLightGrid from = oracle;
+      const SolveReport r2 = SolveLights(eq, o, &from);
+      std::printf("  solve from oracle: cost %.6g data %.6g iterations %d active %zu\n", r2.cost, r2.data,
+                  r2.iterations, from.ActiveVoxels(1e-3).size());
+      for (VoxelLightGrid* g : {&est, &from}) {
+        Scene lit = s;
+        lit.voxel_lights = *g;
+        const PathTracer lt(lit);
+        double tr = 0, nv = 0;
+        for (size_t i = 0; i < 5; ++i) {
+          const TrainingView& ref = i < 3 ? replica.train[i] : replica.novel[i - 3];
+          const ViewError ve = CompareRender(lt, ref, o, eval_spp, 5, replica.noise[i]);
+          (i < 3 ? tr : nv) += ve.rmse_bias / (i < 3 ? 3 : 2);
+        }
+        std::printf("  %s: train* %.4f novel* %.4f\n", g == &est ? "solve" : "from oracle", tr, nv);
+      }
+    }
+    return 0;
+  }
+  if (std::getenv("ORACLE")) {  // diagnostic: the replica's light as voxel lights with its power
+    const Scene s = WithoutLights(replica.scene);
+    const auto judge = [&](const VoxelLightGrid& g, const std::string& label) {
+      Scene lit = s;
+      lit.voxel_lights = g;
+      const PathTracer lt(lit);
+      for (size_t i = 0; i < 5; ++i) {
+        const TrainingView& ref = i < 3 ? replica.train[i] : replica.novel[i - 3];
+        const ViewError ve = CompareRender(lt, ref, LightEstimationOptions(), eval_spp, 5, replica.noise[i]);
+        std::printf("oracle %s view %zu: rmse %.4f corrected %.4f\n", label.c_str(), i, ve.rmse, ve.rmse_bias);
+      }
+    };
+    // The one voxel of the 7^3 grid under the light.
+    VoxelLightGrid one = MakeVoxelGrid(s, 7);
+    const int j = 3 + 7 * 3 + 49 * 6;
+    one.intensity[j] = Eigen::Vector3f(18.0f, 15.0f, 11.0f) * 0.25f;
+    one.weights[j] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f};
+    judge(one, "one voxel at z " + std::to_string(one.VoxelCenter(j).z()));
+    // Point grids n x n over [-a, a]^2 at z 1.99, the light's power shared.
+    for (auto [n, a] : {std::pair{2, 0.16}, std::pair{4, 0.32}, std::pair{3, 0.24}, std::pair{4, 0.25}}) {
+      VoxelLightGrid g;
+      g.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-a, -a, 1.98), Eigen::Vector3d(a, a, 2.0));
+      g.dims = Eigen::Vector3i(n, n, 1);
+      g.intensity.assign(n * n, Eigen::Vector3f(18.0f, 15.0f, 11.0f) * (0.25f / (n * n)));
+      g.weights.assign(n * n, {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f});
+      judge(g, std::to_string(n) + "x" + std::to_string(n) + " points over +-" + std::to_string(a));
+    }
+    return 0;
+  }
   std::printf("%-9s %7s %7s %9s %9s %9s %9s %9s %8s\n", "weight", "active", "rounds", "cache", "train", "train*",
               "novel", "novel*", "seconds");
   std::vector<Fig3Row> fig3 = {{"reference (training view 1)", VoxelLightGrid(), replica.train[0].image}};
@@ -588,18 +693,24 @@ int main(int argc, char** argv) {
     o.penalty_weight = weight;
     o.spp = spp;
     o.noise_correction = gamma;
-    if (std::getenv("MAXDEPTH")) o.max_depth = std::atoi(std::getenv("MAXDEPTH"));
-    if (std::getenv("ROUNDS")) o.rounds = std::atoi(std::getenv("ROUNDS"));
-    if (std::getenv("DIRECT")) o.direct_paths = std::atoi(std::getenv("DIRECT"));
-    if (std::getenv("MVOX")) o.resample_voxels = std::atoi(std::getenv("MVOX"));
-    if (std::getenv("SPLIT")) o.split_depth = std::atoi(std::getenv("SPLIT"));
+    ApplyEnvironment(&o);
     t = Now();
     const LightEstimate e = EstimateLights(replica.scene, replica.train, o, 7);
     const double seconds = Now() - t;
     for (const LightRound& r : e.rounds) {
+      if (r.level > 0) std::printf("   level %d: %d candidate voxels\n", r.level, r.candidates);
       std::printf("   round %d: %zu nnz, %.2f s trace, %.2f s gram, %.2f s solve (%d it), active %d, change %.3f\n",
                   r.round, r.nonzeros, r.trace_seconds, r.gram_seconds, r.solve_seconds, r.solve.iterations,
                   r.active_voxels, r.power_change);
+    }
+    if (std::getenv("DUMP")) {
+      for (int j : e.lights.ActiveVoxels(1e-3)) {
+        const Eigen::Vector3d c = e.lights.VoxelCenter(j);
+        const auto& l = e.lights.weights[j];
+        std::printf("  voxel at (%.3f %.3f %.3f) power %.3f L %.3f %.3f %.3f lambda %.2f %.2f %.2f %.2f %.2f %.2f\n", c.x(),
+                    c.y(), c.z(), Luminance(e.lights.Power(j)), e.lights.intensity[j][0], e.lights.intensity[j][1],
+                    e.lights.intensity[j][2], l[0], l[1], l[2], l[3], l[4], l[5]);
+      }
     }
     Scene lit = WithoutLights(replica.scene);
     lit.voxel_lights = e.lights;

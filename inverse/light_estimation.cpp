@@ -94,6 +94,18 @@ void LightEstimationOptions::Validate() const {
   RequireRange("saturation", saturation, 0.0, 1e30);
   RequireRange("emitter_factor", emitter_factor, 1.0, 1e30);
   RequireRange("noise_correction", noise_correction, 0.0, 1.0);
+  RequireRange("refine_levels", refine_levels, 0, 4);
+  RequireRange("refine_fraction", refine_fraction, 0.0, 1.0);
+  RequireRange("refine_reach", refine_reach, 0.0, 10.0);
+  RequireRange("refine_penalty_scale", refine_penalty_scale, 0.0, 1e6);
+  RequireRange("refine_max_voxels", refine_max_voxels, 1, 1 << 20);
+  RequireRange("refine_spp", refine_spp, 0, 1 << 16);
+  RequireRange("refine_grow", refine_grow, 0, 100);
+  if (refine_spp % 2) throw Error(Format("option refine_spp = ", refine_spp, " must be even (two independent halves)"));
+  if (grid << refine_levels > 256) {
+    throw Error(Format("option refine_levels = ", refine_levels, " with grid = ", grid, " gives a ",
+                       grid << refine_levels, "^3 grid; at most 256 per axis"));
+  }
   RequireRange("active_fraction", active_fraction, 0.0, 1.0);
   RequireRange("memory_cap", memory_cap, 1.0, 1e7);
 }
@@ -579,7 +591,11 @@ LightCost::LightCost(const NormalEquations& equations, double penalty_weight, do
   }
   if (!(energy_ > 0.0)) throw Error("light estimation: the sampled pixels are all black");
   const Eigen::Vector3d alpha = UniformFit(eq_);
-  const double s_ref = alpha.sum() * (eq_.parameters / 6);
+  // The best uniform lighting lights every voxel some path reaches (with adaptive refinement only
+  // the candidates are traced): s_ref is its summed intensity.
+  int used_voxels = 0;
+  for (size_t i = 0; i < eq_.used.size(); ++i) used_voxels += i == 0 || eq_.used[i] / 6 != eq_.used[i - 1] / 6;
+  const double s_ref = alpha.sum() * used_voxels;
   epsilon_ = penalty_epsilon * std::max(s_ref, 1e-30);
 }
 
@@ -905,6 +921,22 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   }
   NormalEquations total;
   LightCache last;
+  // Two independent halves of the paths (the second keyed by ~key), kept in `last` and `second`,
+  // within what the cap leaves beside `equation_bytes` of normal equations.
+  const auto trace_halves = [&](const VoxelLightGrid& lights, const VoxelSplitting& splitting, int spp, uint64_t key,
+                                double equation_bytes, LightCache* second, LightRound* r) {
+    const auto t = std::chrono::steady_clock::now();
+    LightEstimationOptions half = options;
+    half.spp = spp / 2;
+    const double cache_bytes = cap_bytes - equation_bytes;
+    last = LightCache();  // the previous cache is not needed while tracing
+    last = TraceLightCache(tracer, lights, splitting, views, pixels, half, key, cache_bytes);
+    *second = TraceLightCache(tracer, lights, splitting, views, pixels, half, ~key,
+                              std::max(1.0, cache_bytes - static_cast<double>(last.Bytes())));
+    r->trace_seconds = SecondsSince(t);
+    r->nonzeros = last.NonZeros() + second->NonZeros();
+    r->rays = last.rays.total() + second->rays.total();
+  };
   std::vector<double> previous_power;
   for (int round = 0; round < options.rounds; ++round) {
     LightRound r;
@@ -923,19 +955,9 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
       }
     }
     splitting.SetPmf(std::move(pmf), options.resample_voxels);
+    LightCache second;
+    trace_halves(grid, splitting, options.spp, Mix64(seed + 0x51ED * (round + 1)), equation_bytes, &second, &r);
     auto t = std::chrono::steady_clock::now();
-    LightEstimationOptions half = options;
-    half.spp = options.spp / 2;
-    const uint64_t round_seed = Mix64(seed + 0x51ED * (round + 1));
-    last = LightCache();  // the previous round's cache is not needed while tracing
-    const double cache_bytes = cap_bytes - equation_bytes;
-    last = TraceLightCache(tracer, grid, splitting, views, pixels, half, round_seed, cache_bytes);
-    const LightCache second = TraceLightCache(tracer, grid, splitting, views, pixels, half, ~round_seed,
-                                              std::max(1.0, cache_bytes - static_cast<double>(last.Bytes())));
-    r.trace_seconds = SecondsSince(t);
-    r.nonzeros = last.NonZeros() + second.NonZeros();
-    r.rays = last.rays.total() + second.rays.total();
-    t = std::chrono::steady_clock::now();
     NormalEquations eq = NormalEquations::FromCaches(last, second, options.noise_correction);
     if (round == 0) {
       total = std::move(eq);
@@ -973,6 +995,78 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     r.solve.data = polish.data;
     r.solve_seconds += SecondsSince(t);
     r.active_voxels = static_cast<int>(grid.ActiveVoxels(options.active_fraction).size());
+  }
+  // Adaptive refinement: a grid twice as fine, traced and solved over the voxels near the lights
+  // only. Growing passes add the neighbours of the finer solution's lights (a coarse voxel
+  // standing in for an extended light can sit a layer off it) and solve again.
+  const auto add_candidates = [&](const VoxelLightGrid& lit, const VoxelLightGrid& fine, std::vector<bool>* enabled,
+                                  int* count) {
+    std::vector<std::pair<double, int>> split;
+    double top = 0.0;
+    for (int j = 0; j < lit.VoxelCount(); ++j) top = std::max<double>(top, Luminance(lit.Power(j)));
+    for (int j = 0; j < lit.VoxelCount(); ++j) {
+      const double power = Luminance(lit.Power(j));
+      if (power > 0.0 && power >= options.refine_fraction * top) split.emplace_back(power, j);
+    }
+    std::sort(split.begin(), split.end(), [](const auto& a, const auto& b) {
+      return a.first != b.first ? a.first > b.first : a.second < b.second;
+    });
+    const Eigen::Vector3d reach =
+        options.refine_reach * lit.bounds.sizes().cwiseQuotient(lit.dims.cast<double>()) * (1.0 + 1e-9);
+    int added = 0;
+    for (const auto& [power, j] : split) {
+      const Eigen::Vector3d centre = lit.VoxelCenter(j);
+      std::vector<int> near;
+      for (int f = 0; f < fine.VoxelCount(); ++f) {
+        if (!(*enabled)[f] && ((fine.VoxelCenter(f) - centre).cwiseAbs().array() <= reach.array()).all()) {
+          near.push_back(f);
+        }
+      }
+      if (*count > 0 && *count + static_cast<int>(near.size()) > options.refine_max_voxels) break;
+      for (int f : near) (*enabled)[f] = true;
+      *count += static_cast<int>(near.size());
+      added += static_cast<int>(near.size());
+    }
+    return added;
+  };
+  for (int level = 1; level <= options.refine_levels; ++level) {
+    VoxelLightGrid fine = MakeVoxelGrid(tracer.scene(), 2 * grid.dims.x(), options.boundary_inset);
+    std::vector<bool> enabled(static_cast<size_t>(fine.VoxelCount()), false);
+    int candidates = 0;
+    if (add_candidates(grid, fine, &enabled, &candidates) == 0) break;
+    for (int pass = 0; pass <= options.refine_grow; ++pass) {
+      if (pass > 0 && add_candidates(fine, fine, &enabled, &candidates) == 0) break;
+      LightRound r;
+      r.round = static_cast<int>(out.rounds.size());
+      r.level = level;
+      r.candidates = candidates;
+      const double level_equation_bytes = 2.0 * 3.0 * 8.0 * std::pow(6.0 * candidates, 2.0);
+      if (level_equation_bytes >= cap_bytes) {
+        throw Error(Format("light estimation: the normal equations of refinement level ", level, " (", candidates,
+                           " voxels) may take ", std::ceil(level_equation_bytes / 1e6), " MB, over the memory cap of ",
+                           options.memory_cap, " MB; lower lights refine_max_voxels or raise the lights memory_cap"));
+      }
+      VoxelSplitting splitting;
+      splitting.enabled = enabled;
+      LightCache second;
+      trace_halves(fine, splitting, options.refine_spp > 0 ? options.refine_spp : options.spp,
+                   Mix64(seed + 0x5EF1 * level), level_equation_bytes, &second, &r);
+      auto t = std::chrono::steady_clock::now();
+      total = NormalEquations::FromCaches(last, second, options.noise_correction);
+      r.gram_seconds = SecondsSince(t);
+      t = std::chrono::steady_clock::now();
+      LightEstimationOptions level_options = options;
+      level_options.penalty_weight = options.penalty_weight * options.refine_penalty_scale;
+      for (int j = 0; j < fine.VoxelCount(); ++j) {  // every pass starts dark (the convex relaxation)
+        fine.intensity[j].setZero();
+        fine.weights[j] = {1, 1, 1, 1, 1, 1};
+      }
+      r.solve = SolveLights(total, level_options, &fine);
+      r.solve_seconds = SecondsSince(t);
+      r.active_voxels = static_cast<int>(fine.ActiveVoxels(options.active_fraction).size());
+      out.rounds.push_back(r);
+    }
+    grid = std::move(fine);
   }
   const std::vector<Eigen::Vector3f> predicted = last.Predict(grid);
   double err = 0.0, ref = 0.0;

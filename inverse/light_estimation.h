@@ -26,6 +26,11 @@
 //     distribution), accumulating the normal equations, until the voxel powers stop changing.
 //     Drawn voxels are used only beyond split_depth; with the default (every vertex connects to
 //     every voxel) a later round adds fresh paths, not a better sampling distribution.
+//  6. Adaptive refinement (refine_levels): a grid twice as fine, traced and solved over only the
+//     finer voxels near the voxels that hold light, with growing passes that add the neighbours of
+//     the finer solution's lights. A point per coarse voxel cannot hold an extended light (a 0.5 m
+//     ceiling light: 5-7 % training error at best on 7^3, 1-2 % as 4x4 points); the result is the
+//     finer grid, dark outside the candidates.
 #pragma once
 
 #include <Eigen/Core>
@@ -78,6 +83,17 @@ struct LightEstimationOptions {
   double noise_correction = 0.5;    // gamma of NormalEquations::FromCaches, in [0, 1]: the share
                                     // of the coefficients' noise taken out of G; near 1 G can be
                                     // indefinite and the solve diverge
+  int refine_levels = 0;            // adaptive refinement: levels of a grid twice as fine, each
+                                    // traced and solved over the voxels near the previous level's
+                                    // lights only (0: none)
+  double refine_fraction = 0.05;    // voxels with at least this share of the largest power are split
+  double refine_reach = 1.0;        // the finer voxels within this many (coarser) voxel sizes of a
+                                    // split voxel's centre, per axis, are the next level's candidates
+  double refine_penalty_scale = 0.1;   // the finer levels' penalty weight, relative to penalty_weight
+  int refine_max_voxels = 1000;     // candidates per finer level at most (the strongest voxels first)
+  int refine_spp = 64;              // camera paths per pixel at the finer levels (0: spp)
+  int refine_grow = 1;              // passes per finer level that add the neighbours (within
+                                    // refine_reach finer voxels) of its lights and solve again
   double active_fraction = 1e-3;    // voxels with at least this share of the largest power are
                                     // "active" in reports
   double memory_cap = 4000.0;       // MB the path-coefficient caches and the normal equations
@@ -108,6 +124,13 @@ struct LightEstimationOptions {
     v("saturation", saturation, "", "observed values at or above this are masked (0: none)");
     v("emitter_factor", emitter_factor, "", "mask pixels brighter than this x the 95th percentile");
     v("noise_correction", noise_correction, "", "share of the coefficient noise taken out of the Gram matrix");
+    v("refine_levels", refine_levels, "", "adaptive refinement: levels of twice finer voxels near the lights (0: none)");
+    v("refine_fraction", refine_fraction, "", "voxels with this share of the largest power are split");
+    v("refine_reach", refine_reach, "voxels", "finer candidates within this many coarser voxels of a split one");
+    v("refine_penalty_scale", refine_penalty_scale, "", "penalty weight of the finer levels, relative to penalty_weight");
+    v("refine_max_voxels", refine_max_voxels, "", "candidate voxels per finer level at most");
+    v("refine_grow", refine_grow, "", "passes per finer level that add its lights' neighbours and solve again");
+    v("refine_spp", refine_spp, "", "camera paths per sampled pixel at the finer levels (0: spp; even)");
     v("active_fraction", active_fraction, "", "share of the largest voxel power that counts as active");
     v("memory_cap", memory_cap, "MB", "memory the path-coefficient caches and normal equations may take (error beyond)");
   }
@@ -226,6 +249,8 @@ SolveReport SolveLights(const NormalEquations& equations, const LightEstimationO
 
 struct LightRound {
   int round = 0;
+  int level = 0;                          // refinement level (0: the coarse grid's rounds)
+  int candidates = 0;                     // voxels traced at a refinement level
   size_t nonzeros = 0;                    // cache entries of this round
   uint64_t rays = 0;
   double trace_seconds = 0.0, gram_seconds = 0.0, solve_seconds = 0.0;

@@ -264,6 +264,51 @@ TEST(EstimateLights, RecoversAVoxelLight) {
   EXPECT_EQ(StrongestVoxel(e.lights), 22) << "the light is in the wrong voxel";
 }
 
+// Adaptive refinement: a light in a voxel of a grid twice as fine, off the centre of the coarse
+// voxel that holds it. One refinement level puts the strongest voxel of the 6^3 result on it and
+// fits the training pixels better than the coarse grid alone.
+TEST(EstimateLights, RefinementPutsALightInItsFinerVoxel) {
+  SmallScene s;
+  VoxelLightGrid truth = MakeVoxelGrid(s.geometry, 6, kSmallInset);
+  const int light = 2 + 6 * 3 + 36 * 5;  // centre (-0.17, 0.17, 1.83); the coarse voxel's is (0, 0, 1.67)
+  truth.intensity[light] = Eigen::Vector3f(2.0f, 1.5f, 1.0f);
+  truth.weights[light] = {0.1f, 0.1f, 0.1f, 0.1f, 0.0f, 1.0f};
+  const Scene lit = s.Lit(&truth);
+  const std::vector<View> all = CornellLightViews(24, 18);
+  const std::vector<TrainingView> views = Render(lit, {all[0], all[1], all[2]}, 64);
+  LightEstimationOptions o;
+  o.grid = 3;
+  o.boundary_inset = kSmallInset;
+  o.pixels_per_view = 300;
+  o.rounds = 1;
+  const LightEstimate coarse = EstimateLights(lit, views, o, 1);
+  o.refine_levels = 1;
+  o.refine_spp = 16;
+  const LightEstimate fine = EstimateLights(lit, views, o, 1);
+  ASSERT_EQ(coarse.lights.VoxelCount(), 27);
+  ASSERT_EQ(fine.lights.VoxelCount(), 216);
+  ASSERT_GE(fine.rounds.size(), 2u);
+  EXPECT_EQ(fine.rounds.back().level, 1);
+  EXPECT_GT(fine.rounds.back().candidates, 0);
+  EXPECT_LT(fine.rounds.back().candidates, 216) << "refinement traces only the voxels near the lights";
+  EXPECT_EQ(StrongestVoxel(fine.lights), light) << "the light is in the wrong finer voxel";
+  EXPECT_LT((fine.lights.PowerCentroid() - truth.VoxelCenter(light)).norm(), 0.5 * 2.0 / 6.0)
+      << "centroid " << fine.lights.PowerCentroid().transpose();
+  // Judged by renders of the estimates against the training images (the noise of both taken out).
+  const auto error = [&](const VoxelLightGrid& lights) {
+    Scene estimate = s.geometry;
+    estimate.voxel_lights = lights;
+    const PathTracer tracer(estimate);
+    double sum = 0.0;
+    for (size_t i = 0; i < views.size(); ++i) sum += CompareRender(tracer, views[i], o, 64, 9 + i).rmse_bias;
+    return sum / views.size();
+  };
+  const double coarse_error = error(coarse.lights), fine_error = error(fine.lights);
+  std::printf("training views' error: coarse %.4f, refined %.4f; %d candidate voxels\n", coarse_error, fine_error,
+              fine.rounds.back().candidates);
+  EXPECT_LT(fine_error, 0.75 * coarse_error);
+}
+
 // The solve's moves: on equations of one voxel light, a start with the light in the neighbouring
 // voxel (a local minimum of the log penalty) ends with it in its own voxel, at the cost of the
 // truth or below.
@@ -477,6 +522,17 @@ TEST(EstimateLights, BadInputIsAClearError) {
   EXPECT_THROW(SamplePixels(tracer, {}, o, 1), Error);
   o.spp = 3;
   EXPECT_THROW(o.Validate(), Error);
+  o.spp = 4;
+  o.refine_spp = 5;  // odd: no two halves
+  EXPECT_THROW(o.Validate(), Error);
+  o.refine_spp = 0;
+  o.refine_levels = 6;  // a 448^3 grid
+  EXPECT_THROW(o.Validate(), Error);
+  o.refine_levels = 1;
+  o.refine_fraction = std::nan("");
+  EXPECT_THROW(o.Validate(), Error);
+  o.refine_fraction = 0.05;
+  EXPECT_NO_THROW(o.Validate());
 }
 
 // Issue 12: the memory cap. The dense normal equations are refused before any path is traced;
