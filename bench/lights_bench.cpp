@@ -112,6 +112,24 @@ Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
   return r;
 }
 
+// The intensity of MakeCornellBoxScene's ceiling light seen as a point facing down: its radiance
+// (18, 15, 11) times its area (0.5 m)^2. The diagnostics share it among voxels.
+const Eigen::Vector3f kReplicaLightIntensity = Eigen::Vector3f(18.0f, 15.0f, 11.0f) * 0.25f;
+
+// The five views of the replica (3 training, 2 novel) rendered with `lights` in its geometry,
+// against their references.
+std::vector<ViewError> ReplicaErrors(const Replica& replica, const VoxelLightGrid& lights, int eval_spp) {
+  Scene lit = WithoutLights(replica.scene);
+  lit.voxel_lights = lights;
+  const PathTracer tracer(lit);
+  std::vector<ViewError> errors;
+  for (size_t i = 0; i < replica.train.size() + replica.novel.size(); ++i) {
+    const TrainingView& reference = i < replica.train.size() ? replica.train[i] : replica.novel[i - replica.train.size()];
+    errors.push_back(CompareRender(tracer, reference, LightEstimationOptions(), eval_spp, 5, replica.noise[i]));
+  }
+  return errors;
+}
+
 // The diagnostics' option overrides (see the header).
 void ApplyEnvironment(LightEstimationOptions* o) {
   if (std::getenv("MAXDEPTH")) o->max_depth = std::atoi(std::getenv("MAXDEPTH"));
@@ -606,7 +624,7 @@ int main(int argc, char** argv) {
     for (int f = 0; f < fine.VoxelCount(); ++f) {
       const Eigen::Vector3d c = fine.VoxelCenter(f);
       if (std::abs(c.x()) < 0.32 && std::abs(c.y()) < 0.32 && c.z() > 1.95) {
-        oracle.intensity[f] = Eigen::Vector3f(18.0f, 15.0f, 11.0f) * (0.25f / top_count);
+        oracle.intensity[f] = kReplicaLightIntensity / static_cast<float>(top_count);
         oracle.weights[f] = {0, 0, 0, 0, 0, 1};
       }
     }
@@ -635,15 +653,9 @@ int main(int argc, char** argv) {
       std::printf("  solve from oracle: cost %.6g data %.6g iterations %d active %zu\n", r2.cost, r2.data,
                   r2.iterations, from.ActiveVoxels(1e-3).size());
       for (VoxelLightGrid* g : {&est, &from}) {
-        Scene lit = s;
-        lit.voxel_lights = *g;
-        const PathTracer lt(lit);
+        const std::vector<ViewError> errors = ReplicaErrors(replica, *g, eval_spp);
         double tr = 0, nv = 0;
-        for (size_t i = 0; i < 5; ++i) {
-          const TrainingView& ref = i < 3 ? replica.train[i] : replica.novel[i - 3];
-          const ViewError ve = CompareRender(lt, ref, o, eval_spp, 5, replica.noise[i]);
-          (i < 3 ? tr : nv) += ve.rmse_bias / (i < 3 ? 3 : 2);
-        }
+        for (size_t i = 0; i < errors.size(); ++i) (i < 3 ? tr : nv) += errors[i].rmse_bias / (i < 3 ? 3 : 2);
         std::printf("  %s: train* %.4f novel* %.4f\n", g == &est ? "solve" : "from oracle", tr, nv);
       }
     }
@@ -652,19 +664,16 @@ int main(int argc, char** argv) {
   if (std::getenv("ORACLE")) {  // diagnostic: the replica's light as voxel lights with its power
     const Scene s = WithoutLights(replica.scene);
     const auto judge = [&](const VoxelLightGrid& g, const std::string& label) {
-      Scene lit = s;
-      lit.voxel_lights = g;
-      const PathTracer lt(lit);
-      for (size_t i = 0; i < 5; ++i) {
-        const TrainingView& ref = i < 3 ? replica.train[i] : replica.novel[i - 3];
-        const ViewError ve = CompareRender(lt, ref, LightEstimationOptions(), eval_spp, 5, replica.noise[i]);
-        std::printf("oracle %s view %zu: rmse %.4f corrected %.4f\n", label.c_str(), i, ve.rmse, ve.rmse_bias);
+      const std::vector<ViewError> errors = ReplicaErrors(replica, g, eval_spp);
+      for (size_t i = 0; i < errors.size(); ++i) {
+        std::printf("oracle %s view %zu: rmse %.4f corrected %.4f\n", label.c_str(), i, errors[i].rmse,
+                    errors[i].rmse_bias);
       }
     };
     // The one voxel of the 7^3 grid under the light.
     VoxelLightGrid one = MakeVoxelGrid(s, 7);
     const int j = 3 + 7 * 3 + 49 * 6;
-    one.intensity[j] = Eigen::Vector3f(18.0f, 15.0f, 11.0f) * 0.25f;
+    one.intensity[j] = kReplicaLightIntensity;
     one.weights[j] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f};
     judge(one, "one voxel at z " + std::to_string(one.VoxelCenter(j).z()));
     // Point grids n x n over [-a, a]^2 at z 1.99, the light's power shared.
@@ -672,7 +681,7 @@ int main(int argc, char** argv) {
       VoxelLightGrid g;
       g.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-a, -a, 1.98), Eigen::Vector3d(a, a, 2.0));
       g.dims = Eigen::Vector3i(n, n, 1);
-      g.intensity.assign(n * n, Eigen::Vector3f(18.0f, 15.0f, 11.0f) * (0.25f / (n * n)));
+      g.intensity.assign(n * n, kReplicaLightIntensity / static_cast<float>(n * n));
       g.weights.assign(n * n, {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f});
       judge(g, std::to_string(n) + "x" + std::to_string(n) + " points over +-" + std::to_string(a));
     }

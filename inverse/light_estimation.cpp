@@ -272,10 +272,17 @@ size_t LightCache::Bytes() const {
          row_begin.capacity() * sizeof(size_t) + pixels.capacity() * sizeof(SampledPixel);
 }
 
-double NormalEquationsBoundBytes(int dims) {
-  const double parameters = 6.0 * dims * dims * dims;
+namespace {
+
+// Two sets (the running total and a round's) of three dense Gram matrices over 6 x `voxels`.
+double EquationBytes(double voxels) {
+  const double parameters = 6.0 * voxels;
   return 2.0 * 3.0 * parameters * parameters * sizeof(double);
 }
+
+}  // namespace
+
+double NormalEquationsBoundBytes(int dims) { return EquationBytes(static_cast<double>(dims) * dims * dims); }
 
 LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid, const VoxelSplitting& splitting,
                            const std::vector<TrainingView>& views, const std::vector<SampledPixel>& pixels,
@@ -1040,7 +1047,7 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
       r.round = static_cast<int>(out.rounds.size());
       r.level = level;
       r.candidates = candidates;
-      const double level_equation_bytes = 2.0 * 3.0 * 8.0 * std::pow(6.0 * candidates, 2.0);
+      const double level_equation_bytes = EquationBytes(candidates);
       if (level_equation_bytes >= cap_bytes) {
         throw Error(Format("light estimation: the normal equations of refinement level ", level, " (", candidates,
                            " voxels) may take ", std::ceil(level_equation_bytes / 1e6), " MB, over the memory cap of ",

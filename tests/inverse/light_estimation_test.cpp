@@ -134,6 +134,21 @@ std::vector<TrainingView> Render(const Scene& lit, const std::vector<View>& view
   return out;
 }
 
+// The three training views of CornellLightViews at 24 x 18, rendered at 64 spp.
+std::vector<TrainingView> TrainingViews(const Scene& lit) {
+  const std::vector<View> all = CornellLightViews(24, 18);
+  return Render(lit, {all[0], all[1], all[2]}, 64);
+}
+
+// Light estimation on the small scene's 3^3 grid from 300 pixels per view.
+LightEstimationOptions SmallOptions() {
+  LightEstimationOptions o;
+  o.grid = 3;
+  o.boundary_inset = kSmallInset;
+  o.pixels_per_view = 300;
+  return o;
+}
+
 // Normal equations of the small scene from 2 x 4 paths per pixel.
 NormalEquations SmallEquations(const SmallScene& s, const std::vector<TrainingView>& views, double correction) {
   const PathTracer tracer(s.geometry);
@@ -245,12 +260,8 @@ TEST(EstimateLights, RecoversAVoxelLight) {
   VoxelLightGrid truth = s.grid;
   truth.intensity[4].setZero();  // one light: top centre, mostly facing down
   const Scene lit = s.Lit(&truth);
-  const std::vector<View> all = CornellLightViews(24, 18);
-  const std::vector<TrainingView> views = Render(lit, {all[0], all[1], all[2]}, 64);
-  LightEstimationOptions o;
-  o.grid = 3;
-  o.boundary_inset = kSmallInset;
-  o.pixels_per_view = 300;
+  const std::vector<TrainingView> views = TrainingViews(lit);
+  LightEstimationOptions o = SmallOptions();
   o.rounds = 2;
   const LightEstimate e = EstimateLights(lit, views, o, 1);
   ASSERT_EQ(e.lights.VoxelCount(), 27);
@@ -274,12 +285,8 @@ TEST(EstimateLights, RefinementPutsALightInItsFinerVoxel) {
   truth.intensity[light] = Eigen::Vector3f(2.0f, 1.5f, 1.0f);
   truth.weights[light] = {0.1f, 0.1f, 0.1f, 0.1f, 0.0f, 1.0f};
   const Scene lit = s.Lit(&truth);
-  const std::vector<View> all = CornellLightViews(24, 18);
-  const std::vector<TrainingView> views = Render(lit, {all[0], all[1], all[2]}, 64);
-  LightEstimationOptions o;
-  o.grid = 3;
-  o.boundary_inset = kSmallInset;
-  o.pixels_per_view = 300;
+  const std::vector<TrainingView> views = TrainingViews(lit);
+  LightEstimationOptions o = SmallOptions();
   o.rounds = 1;
   const LightEstimate coarse = EstimateLights(lit, views, o, 1);
   o.refine_levels = 1;
@@ -296,9 +303,7 @@ TEST(EstimateLights, RefinementPutsALightInItsFinerVoxel) {
       << "centroid " << fine.lights.PowerCentroid().transpose();
   // Judged by renders of the estimates against the training images (the noise of both taken out).
   const auto error = [&](const VoxelLightGrid& lights) {
-    Scene estimate = s.geometry;
-    estimate.voxel_lights = lights;
-    const PathTracer tracer(estimate);
+    const PathTracer tracer(s.Lit(&lights));
     double sum = 0.0;
     for (size_t i = 0; i < views.size(); ++i) sum += CompareRender(tracer, views[i], o, 64, 9 + i).rmse_bias;
     return sum / views.size();
@@ -317,8 +322,7 @@ TEST(SolveLights, MovesALightIntoItsVoxel) {
   VoxelLightGrid truth = s.grid;
   truth.intensity[4].setZero();
   const Scene lit = s.Lit(&truth);
-  const std::vector<View> all = CornellLightViews(24, 18);
-  const std::vector<TrainingView> views = Render(lit, {all[0], all[1], all[2]}, 64);
+  const std::vector<TrainingView> views = TrainingViews(lit);
   const NormalEquations eq = SmallEquations(s, views, 0.0);
   LightEstimationOptions o;
   o.penalty_weight = 1e-3;
@@ -410,10 +414,7 @@ TEST(EstimateLights, FindsALightSeenOnlyThroughBounces) {
   const std::vector<View> floor_views = {{k, LookAt({0.0, -0.9, 1.0}, {0.0, 0.3, 0.0})},
                                          {k, LookAt({0.8, 0.8, 1.0}, {-0.2, -0.2, 0.0})}};
   const std::vector<TrainingView> views = Render(lit, floor_views, 64);
-  LightEstimationOptions o;
-  o.grid = 3;
-  o.boundary_inset = kSmallInset;
-  o.pixels_per_view = 300;
+  LightEstimationOptions o = SmallOptions();
   o.rounds = 2;
   const LightEstimate e = EstimateLights(lit, views, o, 2);
   double upper = 0.0, total = 0.0;
