@@ -38,6 +38,7 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
   const std::vector<TrainingView> train = ReadViews(in.views.empty() ? ws.Keyframes() : in.views);
   const std::vector<TrainingView> novel = in.novel.empty() ? std::vector<TrainingView>() : ReadViews(in.novel);
   out.estimate = EstimateLights(scene, train, options, seed);
+  for (const std::string& note : out.estimate.notes) out.warnings.push_back(note);
 
   Scene lit = WithoutLights(scene);
   lit.voxel_lights = out.estimate.lights;
@@ -70,7 +71,8 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
   estimate["seconds"] = out.estimate.seconds;
   nlohmann::ordered_json rounds = nlohmann::ordered_json::array();
   for (const LightRound& r : out.estimate.rounds) {
-    rounds.push_back({{"round", r.round}, {"nonzeros", r.nonzeros}, {"rays", r.rays},
+    rounds.push_back({{"round", r.round}, {"level", r.level}, {"candidates", r.candidates},
+                      {"nonzeros", r.nonzeros}, {"rays", r.rays},
                       {"trace_seconds", r.trace_seconds}, {"gram_seconds", r.gram_seconds},
                       {"solve_seconds", r.solve_seconds}, {"iterations", r.solve.iterations},
                       {"cost", r.solve.cost}, {"active_voxels", r.active_voxels}, {"power_change", r.power_change}});

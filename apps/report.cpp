@@ -228,7 +228,10 @@ void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& optio
   const inverse::Scene scene = LoadGeometry({{}, ws.Mesh(), ws.Albedo()}, ws, &warnings);
   const std::vector<inverse::TrainingView> views = ReadViews(ws.Keyframes());
   inverse::LightEstimationOptions base;
-  base.grid = (*lights)["voxel_lights"]["dims"][0].get<int>();
+  // The estimate's own grid and refinement (lights.json's dims are the refined grid's).
+  const Json used = e.contains("options") ? e["options"] : Json::object();
+  base.grid = used.contains("grid") ? used["grid"].get<int>() : (*lights)["voxel_lights"]["dims"][0].get<int>();
+  if (used.contains("refine_levels")) base.refine_levels = used["refine_levels"].get<int>();
   base.pixels_per_view = static_cast<int>(e["pixels"].get<long long>() / std::max<size_t>(1, views.size()));
   PlotSeries error{"relative RMSE (training views)", {}, {}}, seconds{"seconds", {}, {}}, active{"active voxels", {}, {}};
   md << "### Penalty weight sweep (the paper's Fig. 3)\n\n| penalty weight | relative RMSE | active voxels | seconds |\n|---:|---:|---:|---:|\n";

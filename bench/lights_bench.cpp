@@ -17,7 +17,7 @@
 // method took to its last error, so "not reached" means over 10x slower; 0 skips section 2).
 // Diagnostics (environment): VOXEL_TRUTH=1 (the truth is one voxel light the grid can hold),
 // MAXDEPTH=N (references and estimation with that path length), ROUNDS=N, DIRECT=N, MVOX=N,
-// SPLIT=N; adaptive refinement REFINE=levels, RSCALE, RFRAC, RREACH, RGROW, RSPP (its options);
+// SPLIT=N; adaptive refinement REFINE=levels, RSCALE, RFRAC, RREACH, RGROW, RSPP, RCOARSE (its options);
 // DUMP=1 prints the estimate's active voxels; ORACLE=1 renders the replica's light as one voxel
 // and as grids of points; FINE_CHECK=1 solves a 14^3 grid around the replica's light.
 #include <chrono>
@@ -138,6 +138,7 @@ void ApplyEnvironment(LightEstimationOptions* o) {
   if (std::getenv("RSCALE")) o->refine_penalty_scale = std::atof(std::getenv("RSCALE"));
   if (std::getenv("RFRAC")) o->refine_fraction = std::atof(std::getenv("RFRAC"));
   if (std::getenv("RGROW")) o->refine_grow = std::atoi(std::getenv("RGROW"));
+  if (std::getenv("RCOARSE")) o->refine_coarse_pixels = std::atoi(std::getenv("RCOARSE"));
   if (std::getenv("RSPP")) o->refine_spp = std::atoi(std::getenv("RSPP"));
   if (std::getenv("RREACH")) o->refine_reach = std::atof(std::getenv("RREACH"));
   if (std::getenv("DIRECT")) o->direct_paths = std::atoi(std::getenv("DIRECT"));
@@ -712,6 +713,7 @@ int main(int argc, char** argv) {
                   r.round, r.nonzeros, r.trace_seconds, r.gram_seconds, r.solve_seconds, r.solve.iterations,
                   r.active_voxels, r.power_change);
     }
+    for (const std::string& note : e.notes) std::printf("   note: %s\n", note.c_str());
     if (std::getenv("DUMP")) {
       for (int j : e.lights.ActiveVoxels(1e-3)) {
         const Eigen::Vector3d c = e.lights.VoxelCenter(j);

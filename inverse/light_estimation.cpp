@@ -4,6 +4,7 @@
 #include <chrono>
 #include <atomic>
 #include <cmath>
+#include <limits>
 
 #include "core/check.h"
 #include "core/color.h"
@@ -79,6 +80,7 @@ void LightEstimationOptions::Validate() const {
   if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
   RequireRange("rr_depth", rr_depth, 1, 1 << 20);
   RequireRange("split_depth", split_depth, 1, 1 << 20);
+  RequireRange("refine_coarse_pixels", refine_coarse_pixels, 0, 1 << 24);
   RequireRange("boundary_inset", boundary_inset, 0.0, 0.5);
   RequireRange("penalty_weight", penalty_weight, 0.0, 1e6);
   RequireRange("penalty_epsilon", penalty_epsilon, 1e-9, 1e6);
@@ -302,6 +304,8 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
                        " the memory cap of ", cap_bytes / 1e6, " MB; lower lights pixels_per_view or raise the",
                        " lights memory_cap"));
   }
+  VoxelSplitting prepared = splitting;
+  prepared.Prepare(grid);
   std::atomic<size_t> entries{0};
   std::vector<Row> rows(pixels.size());
   ParallelForChunks(0, pixels.size(), 8, [&](size_t begin, size_t end) {
@@ -312,7 +316,7 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
       const SampledPixel& pixel = pixels[i];
       GS_CHECK_LT(static_cast<size_t>(pixel.view), views.size());
       touched.clear();
-      WalkPixel(tracer, grid, splitting, pixel, views[pixel.view].view, paths, options.direct_paths, seed,
+      WalkPixel(tracer, grid, prepared, pixel, views[pixel.view].view, paths, options.direct_paths, seed,
                 [&](int voxel, const std::array<Eigen::Vector3f, 6>& c) {
                   for (int k = 0; k < 6; ++k) {
                     if (c[k].maxCoeff() <= 0.0f) continue;
@@ -350,6 +354,34 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
     cache.rays.occluded += row.rays.occluded;
   }
   return cache;
+}
+
+void LightCache::Merge(const LightCache& other) {
+  GS_CHECK_EQ(parameters, other.parameters);
+  GS_CHECK_EQ(pixels.size(), other.pixels.size());
+  std::vector<size_t> begin;
+  std::vector<int32_t> merged_index;
+  std::vector<Eigen::Vector3f> merged_coefficient;
+  begin.reserve(row_begin.size());
+  merged_index.reserve(index.size() + other.index.size());
+  merged_coefficient.reserve(index.size() + other.index.size());
+  begin.push_back(0);
+  for (size_t i = 0; i < pixels.size(); ++i) {
+    size_t a = row_begin[i], b = other.row_begin[i];
+    const size_t a_end = row_begin[i + 1], b_end = other.row_begin[i + 1];
+    while (a < a_end || b < b_end) {
+      const bool from_a = b == b_end || (a < a_end && index[a] < other.index[b]);
+      GS_CHECK(from_a || a == a_end || index[a] != other.index[b]);
+      merged_index.push_back(from_a ? index[a] : other.index[b]);
+      merged_coefficient.push_back(from_a ? coefficient[a++] : other.coefficient[b++]);
+    }
+    begin.push_back(merged_index.size());
+  }
+  row_begin = std::move(begin);
+  index = std::move(merged_index);
+  coefficient = std::move(merged_coefficient);
+  rays.intersect += other.rays.intersect;
+  rays.occluded += other.rays.occluded;
 }
 
 Eigen::Vector3f RenderSampledPixel(const PathTracer& tracer, const VoxelLightGrid& grid,
@@ -700,6 +732,16 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
   const int n = static_cast<int>(eq.used.size());
   std::vector<int> voxel_of(static_cast<size_t>(n)), face_of(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) voxel_of[i] = eq.used[i] / 6, face_of[i] = eq.used[i] % 6;
+  // The L step works over the voxels some path reaches (`reached`, compact index `slot_of` per
+  // parameter): with adaptive refinement they are a few hundred of a finer grid's thousands.
+  std::vector<int> reached, slot_of(static_cast<size_t>(n));
+  std::vector<bool> is_reached(static_cast<size_t>(voxels), false);
+  for (int i = 0; i < n; ++i) {
+    if (reached.empty() || reached.back() != voxel_of[i]) reached.push_back(voxel_of[i]);
+    slot_of[i] = static_cast<int>(reached.size()) - 1;
+    is_reached[voxel_of[i]] = true;
+  }
+  const int slots = static_cast<int>(reached.size());
 
   Eigen::MatrixXd light(voxels, 3);   // L
   Eigen::MatrixXd lambda(voxels, 6);  // lambda
@@ -751,7 +793,28 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
     return p;
   };
 
-  // One alternating iteration (dark voxels' faces, the L step, the lambda step).
+  // The cost at the current L, lambda (LightCost::Evaluate's value), keeping G_c x_c per channel
+  // (channels in parallel, each by one task) for the next iteration's dark-voxel faces.
+  std::array<Eigen::VectorXd, 3> gx;
+  const auto evaluate = [&](double* data) {
+    std::array<double, 3> part{};
+    ParallelFor(0, 3, [&](size_t c) {
+      Eigen::VectorXd x(n);
+      for (int i = 0; i < n; ++i) x[i] = light(voxel_of[i], c) * lambda(voxel_of[i], face_of[i]);
+      gx[c].noalias() = eq.gram[c].selfadjointView<Eigen::Upper>() * x;
+      part[c] = x.dot(gx[c]) - 2.0 * eq.rhs[c].dot(x) + eq.observed_sq[c];
+    }, 1);
+    const double data_part = (part[0] + part[1] + part[2]) / energy;
+    double penalty = 0.0;
+    if (options.penalty_weight > 0.0) {
+      for (int j = 0; j < voxels; ++j) penalty += options.penalty_weight * std::log1p(light.row(j).sum() / cost.epsilon());
+    }
+    if (data) *data = data_part;
+    return data_part + penalty;
+  };
+
+  // One alternating iteration (dark voxels' faces, the L step, the lambda step); `gx` holds
+  // G_c x_c of the current L, lambda on entry.
   const auto iterate = [&]() {
     // Dark voxels face where the data pull hardest: lambda = the face k whose products have the
     // most negative data gradient (G x - b summed over the channels). A dark voxel can then
@@ -759,11 +822,7 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
     // switch on as an omnidirectional one, which the data rarely want.
     {
       Eigen::VectorXd pull = Eigen::VectorXd::Zero(n);
-      for (int c = 0; c < 3; ++c) {
-        Eigen::VectorXd x(n);
-        for (int i = 0; i < n; ++i) x[i] = light(voxel_of[i], c) * lambda(voxel_of[i], face_of[i]);
-        pull.noalias() += eq.gram[c].selfadjointView<Eigen::Upper>() * x - eq.rhs[c];
-      }
+      for (int c = 0; c < 3; ++c) pull += gx[c] - eq.rhs[c];
       std::vector<double> best(static_cast<size_t>(voxels), 0.0);
       std::vector<int> best_face(static_cast<size_t>(voxels), -1);
       for (int i = 0; i < n; ++i) {
@@ -782,28 +841,40 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
     // L step (per channel): x_i = lambda_i L_j(i), so the quadratic in L is S^T D G D S with
     // D = diag(lambda), S the parameter-to-voxel selection; the log penalty is majorised by its
     // tangent at the current s_j: linear weight E w / (eps + s_j) on every L_jc.
-    Eigen::VectorXd q(voxels);
+    // Voxels no path reaches are dark.
     for (int j = 0; j < voxels; ++j) {
-      q[j] = options.penalty_weight > 0.0 ? energy * options.penalty_weight / (cost.epsilon() + light.row(j).sum())
-                                          : 0.0;
+      if (!is_reached[j]) light.row(j).setZero();
     }
-    for (int c = 0; c < 3; ++c) {
-      Eigen::MatrixXd h = Eigen::MatrixXd::Zero(voxels, voxels);
-      Eigen::VectorXd g = Eigen::VectorXd::Zero(voxels);
+    Eigen::VectorXd q(slots);
+    for (int v = 0; v < slots; ++v) {
+      q[v] = options.penalty_weight > 0.0
+                 ? energy * options.penalty_weight / (cost.epsilon() + light.row(reached[v]).sum())
+                 : 0.0;
+    }
+    Eigen::VectorXd lambda_of(n);
+    for (int i = 0; i < n; ++i) lambda_of[i] = lambda(voxel_of[i], face_of[i]);
+    // H = S^T D G D S as (G D S) then S^T D (.): column sums of G first (contiguous), then rows.
+    // Channels in parallel, each by one task.
+    ParallelFor(0, 3, [&](size_t c) {
+      Eigen::MatrixXd h = Eigen::MatrixXd::Zero(slots, slots);
+      Eigen::VectorXd g = Eigen::VectorXd::Zero(slots);
       const Eigen::MatrixXd& gram = eq.gram[c];
+      Eigen::MatrixXd gds = Eigen::MatrixXd::Zero(n, slots);
       for (int b = 0; b < n; ++b) {
-        const double lb = lambda(voxel_of[b], face_of[b]);
+        const double lb = lambda_of[b];
         if (lb == 0.0) continue;
-        g[voxel_of[b]] += lb * eq.rhs[c][b];
-        double* column = h.col(voxel_of[b]).data();
-        const double* gcol = gram.col(b).data();
-        for (int a = 0; a < n; ++a) column[voxel_of[a]] += lambda(voxel_of[a], face_of[a]) * gcol[a] * lb;
+        g[slot_of[b]] += lb * eq.rhs[c][b];
+        gds.col(slot_of[b]).noalias() += lb * gram.col(b);
       }
-      Eigen::VectorXd l = light.col(c);
+      for (int a = 0; a < n; ++a) {
+        if (lambda_of[a] != 0.0) h.row(slot_of[a]).noalias() += lambda_of[a] * gds.row(a);
+      }
+      Eigen::VectorXd l(slots);
+      for (int v = 0; v < slots; ++v) l[v] = light(reached[v], c);
       Eigen::VectorXd hl = h * l;
       CoordinateDescent(h, g, q, 0.0, std::numeric_limits<double>::infinity(), 10, &l, &hl);
-      light.col(c) = l;
-    }
+      for (int v = 0; v < slots; ++v) light(reached[v], c) = l[v];
+    }, 1);
     // lambda step over the parameters of lit voxels: x_i = L_j(i)c lambda_i, so the quadratic
     // is sum_c D_c G_c D_c with D_c = diag(L_j(i)c); 0 <= lambda <= 1.
     std::vector<int> active;
@@ -812,16 +883,17 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
     }
     const int m = static_cast<int>(active.size());
     if (m > 0) {
-      Eigen::MatrixXd h = Eigen::MatrixXd::Zero(m, m);
-      Eigen::VectorXd g = Eigen::VectorXd::Zero(m), x(m);
-      for (int c = 0; c < 3; ++c) {
-        const Eigen::MatrixXd& gram = eq.gram[c];
-        for (int b = 0; b < m; ++b) {
-          const double lb = light(voxel_of[active[b]], c);
-          g[b] += lb * eq.rhs[c][active[b]];
-          for (int a = 0; a < m; ++a) h(a, b) += light(voxel_of[active[a]], c) * gram(active[a], active[b]) * lb;
-        }
-      }
+      // sum_c D_c G_c[active, active] D_c, the channels' terms in parallel and added in order.
+      std::array<Eigen::MatrixXd, 3> hc;
+      std::array<Eigen::VectorXd, 3> gc;
+      ParallelFor(0, 3, [&](size_t c) {
+        Eigen::VectorXd l(m);
+        for (int a = 0; a < m; ++a) l[a] = light(voxel_of[active[a]], c);
+        hc[c] = l.asDiagonal() * eq.gram[c](active, active) * l.asDiagonal();
+        gc[c] = l.cwiseProduct(eq.rhs[c](active));
+      }, 1);
+      Eigen::MatrixXd h = hc[0] + hc[1] + hc[2];
+      Eigen::VectorXd g = gc[0] + gc[1] + gc[2], x(m);
       for (int a = 0; a < m; ++a) x[a] = lambda(voxel_of[active[a]], face_of[active[a]]);
       Eigen::VectorXd hx = h * x;
       CoordinateDescent(h, g, Eigen::VectorXd::Zero(m), 0.0, 1.0, 5, &x, &hx);
@@ -829,10 +901,10 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
     }
   };
   const auto run = [&](int iterations, SolveReport* out) {
-    double previous = cost.Evaluate(pack());
+    double previous = evaluate(nullptr);
     for (int it = 0; it < iterations; ++it) {
       iterate();
-      const double current = cost.Evaluate(pack(), nullptr, &out->data);
+      const double current = evaluate(&out->data);
       out->history.push_back(current);
       ++out->iterations;
       const bool done = previous - current <= options.tolerance * std::abs(previous);
@@ -915,6 +987,20 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   LightEstimate out;
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, options, seed, &out.masks);
   out.pixels = pixels.size();
+  // With refinement the coarse rounds only find where the lights are: an even spread of each
+  // view's sampled pixels (in raster order) is enough there; the finer levels use all of them.
+  std::vector<SampledPixel> coarse_pixels;
+  if (options.refine_levels > 0 && options.refine_coarse_pixels > 0) {
+    for (size_t begin = 0; begin < pixels.size();) {
+      size_t end = begin;
+      while (end < pixels.size() && pixels[end].view == pixels[begin].view) ++end;
+      const size_t m = end - begin, keep = std::min<size_t>(m, static_cast<size_t>(options.refine_coarse_pixels));
+      for (size_t t = 0; t < keep; ++t) coarse_pixels.push_back(pixels[begin + t * m / keep]);
+      begin = end;
+    }
+  } else {
+    coarse_pixels = pixels;
+  }
   out.lights = MakeVoxelGrid(tracer.scene(), options.grid, options.boundary_inset);
   VoxelLightGrid& grid = out.lights;
   // The dense normal equations are known before any path is traced: refuse them up front.
@@ -930,8 +1016,9 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   LightCache last;
   // Two independent halves of the paths (the second keyed by ~key), kept in `last` and `second`,
   // within what the cap leaves beside `equation_bytes` of normal equations.
-  const auto trace_halves = [&](const VoxelLightGrid& lights, const VoxelSplitting& splitting, int spp, uint64_t key,
-                                double equation_bytes, LightCache* second, LightRound* r) {
+  const auto trace_halves = [&](const std::vector<SampledPixel>& pixels, const VoxelLightGrid& lights,
+                                const VoxelSplitting& splitting, int spp, uint64_t key, double equation_bytes,
+                                LightCache* second, LightRound* r) {
     const auto t = std::chrono::steady_clock::now();
     LightEstimationOptions half = options;
     half.spp = spp / 2;
@@ -944,70 +1031,77 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     r->nonzeros = last.NonZeros() + second->NonZeros();
     r->rays = last.rays.total() + second->rays.total();
   };
-  std::vector<double> previous_power;
-  for (int round = 0; round < options.rounds; ++round) {
-    LightRound r;
-    r.round = round;
-    // The first vertex connects to every voxel; deeper ones draw voxels, uniformly in round 0,
-    // then in proportion to the estimated powers mixed with the uniform distribution.
-    VoxelSplitting splitting;
-    splitting.all_until_depth = options.split_depth;
-    std::vector<double> pmf(static_cast<size_t>(grid.VoxelCount()), 1.0);
-    if (round > 0) {
-      double total_power = 0.0;
-      for (int j = 0; j < grid.VoxelCount(); ++j) total_power += pmf[j] = Luminance(grid.Power(j));
-      for (double& p : pmf) {
-        p = (1.0 - options.resample_uniform) * (total_power > 0.0 ? p / total_power : 0.0) +
-            options.resample_uniform / grid.VoxelCount();
+  // The coarse rounds over `round_pixels`, from the dark grid.
+  const auto coarse_rounds = [&](const std::vector<SampledPixel>& round_pixels) {
+    grid = MakeVoxelGrid(tracer.scene(), options.grid, options.boundary_inset);
+    std::vector<double> previous_power;
+    for (int round = 0; round < options.rounds; ++round) {
+      LightRound r;
+      r.round = static_cast<int>(out.rounds.size());
+      // The first vertex connects to every voxel; deeper ones draw voxels, uniformly in round 0,
+      // then in proportion to the estimated powers mixed with the uniform distribution.
+      VoxelSplitting splitting;
+      splitting.all_until_depth = options.split_depth;
+      std::vector<double> pmf(static_cast<size_t>(grid.VoxelCount()), 1.0);
+      if (round > 0) {
+        double total_power = 0.0;
+        for (int j = 0; j < grid.VoxelCount(); ++j) total_power += pmf[j] = Luminance(grid.Power(j));
+        for (double& p : pmf) {
+          p = (1.0 - options.resample_uniform) * (total_power > 0.0 ? p / total_power : 0.0) +
+              options.resample_uniform / grid.VoxelCount();
+        }
       }
-    }
-    splitting.SetPmf(std::move(pmf), options.resample_voxels);
-    LightCache second;
-    trace_halves(grid, splitting, options.spp, Mix64(seed + 0x51ED * (round + 1)), equation_bytes, &second, &r);
-    auto t = std::chrono::steady_clock::now();
-    NormalEquations eq = NormalEquations::FromCaches(last, second, options.noise_correction);
-    if (round == 0) {
-      total = std::move(eq);
-    } else {
-      total.Add(eq);
-    }
-    r.gram_seconds = SecondsSince(t);
-    t = std::chrono::steady_clock::now();
-    LightEstimationOptions no_moves = options;  // moves once, at the end
-    no_moves.move_passes = 0;
-    r.solve = SolveLights(total, no_moves, &grid);
-    r.solve_seconds = SecondsSince(t);
-    r.active_voxels = static_cast<int>(grid.ActiveVoxels(options.active_fraction).size());
-    std::vector<double> power(static_cast<size_t>(grid.VoxelCount()));
-    for (int j = 0; j < grid.VoxelCount(); ++j) power[j] = Luminance(grid.Power(j));
-    if (round > 0) {
-      double diff = 0.0, norm = 0.0;
-      for (size_t j = 0; j < power.size(); ++j) {
-        diff += (power[j] - previous_power[j]) * (power[j] - previous_power[j]);
-        norm += power[j] * power[j];
+      splitting.SetPmf(std::move(pmf), options.resample_voxels);
+      LightCache second;
+      trace_halves(round_pixels, grid, splitting, options.spp, Mix64(seed + 0x51ED * (round + 1)), equation_bytes, &second, &r);
+      auto t = std::chrono::steady_clock::now();
+      NormalEquations eq = NormalEquations::FromCaches(last, second, options.noise_correction);
+      if (round == 0) {
+        total = std::move(eq);
+      } else {
+        total.Add(eq);
       }
-      r.power_change = norm > 0.0 ? std::sqrt(diff / norm) : 0.0;
+      r.gram_seconds = SecondsSince(t);
+      t = std::chrono::steady_clock::now();
+      LightEstimationOptions no_moves = options;  // moves once, at the end
+      no_moves.move_passes = 0;
+      r.solve = SolveLights(total, no_moves, &grid);
+      r.solve_seconds = SecondsSince(t);
+      r.active_voxels = static_cast<int>(grid.ActiveVoxels(options.active_fraction).size());
+      std::vector<double> power(static_cast<size_t>(grid.VoxelCount()));
+      for (int j = 0; j < grid.VoxelCount(); ++j) power[j] = Luminance(grid.Power(j));
+      if (round > 0) {
+        double diff = 0.0, norm = 0.0;
+        for (size_t j = 0; j < power.size(); ++j) {
+          diff += (power[j] - previous_power[j]) * (power[j] - previous_power[j]);
+          norm += power[j] * power[j];
+        }
+        r.power_change = norm > 0.0 ? std::sqrt(diff / norm) : 0.0;
+      }
+      previous_power = power;
+      out.rounds.push_back(r);
+      if (round > 0 && r.power_change < options.round_tolerance) break;
     }
-    previous_power = power;
-    out.rounds.push_back(r);
-    if (round > 0 && r.power_change < options.round_tolerance) break;
-  }
-  if (options.move_passes > 0 && options.penalty_weight > 0.0) {
-    const auto t = std::chrono::steady_clock::now();
-    LightRound& r = out.rounds.back();
-    const SolveReport polish = SolveLights(total, options, &grid);
-    r.solve.iterations += polish.iterations;
-    r.solve.moves = polish.moves;
-    r.solve.cost = polish.cost;
-    r.solve.data = polish.data;
-    r.solve_seconds += SecondsSince(t);
-    r.active_voxels = static_cast<int>(grid.ActiveVoxels(options.active_fraction).size());
-  }
+    if (options.move_passes > 0 && options.penalty_weight > 0.0) {
+      const auto t = std::chrono::steady_clock::now();
+      LightRound& r = out.rounds.back();
+      const SolveReport polish = SolveLights(total, options, &grid);
+      r.solve.iterations += polish.iterations;
+      r.solve.moves = polish.moves;
+      r.solve.cost = polish.cost;
+      r.solve.data = polish.data;
+      r.solve_seconds += SecondsSince(t);
+      r.active_voxels = static_cast<int>(grid.ActiveVoxels(options.active_fraction).size());
+    }
+  };
+  coarse_rounds(coarse_pixels);
   // Adaptive refinement: a grid twice as fine, traced and solved over the voxels near the lights
   // only. Growing passes add the neighbours of the finer solution's lights (a coarse voxel
   // standing in for an extended light can sit a layer off it) and solve again.
+  // Adds the finer voxels near `lit`'s lights (strongest first) while refine_max_voxels allows;
+  // `left_out` tells whether some light's neighbourhood did not fit.
   const auto add_candidates = [&](const VoxelLightGrid& lit, const VoxelLightGrid& fine, std::vector<bool>* enabled,
-                                  int* count) {
+                                  int* count, bool* left_out) {
     std::vector<std::pair<double, int>> split;
     double top = 0.0;
     for (int j = 0; j < lit.VoxelCount(); ++j) top = std::max<double>(top, Luminance(lit.Power(j)));
@@ -1029,7 +1123,10 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
           near.push_back(f);
         }
       }
-      if (*count > 0 && *count + static_cast<int>(near.size()) > options.refine_max_voxels) break;
+      if (*count + static_cast<int>(near.size()) > options.refine_max_voxels) {
+        *left_out = true;
+        break;
+      }
       for (int f : near) (*enabled)[f] = true;
       *count += static_cast<int>(near.size());
       added += static_cast<int>(near.size());
@@ -1040,9 +1137,23 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     VoxelLightGrid fine = MakeVoxelGrid(tracer.scene(), 2 * grid.dims.x(), options.boundary_inset);
     std::vector<bool> enabled(static_cast<size_t>(fine.VoxelCount()), false);
     int candidates = 0;
-    if (add_candidates(grid, fine, &enabled, &candidates) == 0) break;
+    bool left_out = false;
+    if (add_candidates(grid, fine, &enabled, &candidates, &left_out) == 0 && !left_out) break;
+    // Lights spread over more voxels than refine_max_voxels can refine: the finer grid would drop
+    // the ones left out (it is dark outside its candidates), so the coarser result stands.
+    if (left_out) {
+      out.notes.push_back(Format("adaptive refinement stopped before level ", level, ": the lights of the ",
+                                 grid.dims.x(), "^3 grid spread over more than lights refine_max_voxels = ",
+                                 options.refine_max_voxels, " finer voxels (a larger penalty_weight gives fewer)"));
+      // The coarse grid is the result: estimated again from every sampled pixel.
+      if (level == 1 && coarse_pixels.size() < pixels.size()) coarse_rounds(pixels);
+      break;
+    }
+    std::vector<bool> traced(enabled.size(), false);
+    LightCache second;
     for (int pass = 0; pass <= options.refine_grow; ++pass) {
-      if (pass > 0 && add_candidates(fine, fine, &enabled, &candidates) == 0) break;
+      bool grow_left_out = false;  // a growing pass adds what fits
+      if (pass > 0 && add_candidates(fine, fine, &enabled, &candidates, &grow_left_out) == 0) break;
       LightRound r;
       r.round = static_cast<int>(out.rounds.size());
       r.level = level;
@@ -1053,11 +1164,27 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
                            " voxels) may take ", std::ceil(level_equation_bytes / 1e6), " MB, over the memory cap of ",
                            options.memory_cap, " MB; lower lights refine_max_voxels or raise the lights memory_cap"));
       }
+      // A growing pass traces only the voxels it adds, with the same keys: the paths are the same
+      // (a vertex that connects to every enabled voxel draws no random number for it), so their
+      // entries merge into the caches as if every candidate had been traced again.
       VoxelSplitting splitting;
       splitting.enabled = enabled;
-      LightCache second;
-      trace_halves(fine, splitting, options.refine_spp > 0 ? options.refine_spp : options.spp,
-                   Mix64(seed + 0x5EF1 * level), level_equation_bytes, &second, &r);
+      for (size_t f = 0; f < enabled.size(); ++f) splitting.enabled[f] = enabled[f] && !traced[f];
+      traced = enabled;
+      const int level_spp = options.refine_spp > 0 ? options.refine_spp : options.spp;
+      const uint64_t key = Mix64(seed + 0x5EF1 * level);
+      if (pass == 0) {
+        trace_halves(pixels, fine, splitting, level_spp, key, level_equation_bytes, &second, &r);
+      } else {
+        LightCache held_first = std::move(last), held_second = std::move(second);
+        trace_halves(pixels, fine, splitting, level_spp, key,
+                     level_equation_bytes + static_cast<double>(held_first.Bytes() + held_second.Bytes()), &second,
+                     &r);
+        held_first.Merge(last);
+        held_second.Merge(second);
+        last = std::move(held_first);
+        second = std::move(held_second);
+      }
       auto t = std::chrono::steady_clock::now();
       total = NormalEquations::FromCaches(last, second, options.noise_correction);
       r.gram_seconds = SecondsSince(t);
@@ -1077,9 +1204,9 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   }
   const std::vector<Eigen::Vector3f> predicted = last.Predict(grid);
   double err = 0.0, ref = 0.0;
-  for (size_t i = 0; i < pixels.size(); ++i) {
-    err += (predicted[i] - pixels[i].observed).cast<double>().squaredNorm();
-    ref += pixels[i].observed.cast<double>().squaredNorm();
+  for (size_t i = 0; i < last.pixels.size(); ++i) {
+    err += (predicted[i] - last.pixels[i].observed).cast<double>().squaredNorm();
+    ref += last.pixels[i].observed.cast<double>().squaredNorm();
   }
   out.train_rmse = ref > 0.0 ? std::sqrt(err / ref) : 0.0;
   out.active_voxels = out.rounds.back().active_voxels;

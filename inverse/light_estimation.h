@@ -65,8 +65,10 @@ struct LightEstimationOptions {
                                     // resample_voxels voxels
   double penalty_weight = 1e-3;     // w of the activation penalty
   double penalty_epsilon = 0.01;    // eps relative to s_ref
-  int rounds = 3;                   // tracing rounds at most (1 = no resampling); the normal
-                                    // equations of all rounds add up
+  int rounds = 1;                   // tracing rounds at most (1 = no resampling); the normal
+                                    // equations of all rounds add up. With the default split_depth
+                                    // a later round only adds fresh paths: on the replica a second
+                                    // round changed the powers 3 % and the refined result not at all
   double round_tolerance = 0.05;    // stop when the voxel powers change less than this (relative)
   int resample_voxels = 8;          // voxels drawn per deeper path vertex (indirect light):
                                     // uniformly in round 0, then by the estimated powers
@@ -83,15 +85,19 @@ struct LightEstimationOptions {
   double noise_correction = 0.5;    // gamma of NormalEquations::FromCaches, in [0, 1]: the share
                                     // of the coefficients' noise taken out of G; near 1 G can be
                                     // indefinite and the solve diverge
-  int refine_levels = 0;            // adaptive refinement: levels of a grid twice as fine, each
+  int refine_levels = 1;            // adaptive refinement: levels of a grid twice as fine, each
                                     // traced and solved over the voxels near the previous level's
                                     // lights only (0: none)
+  int refine_coarse_pixels = 1000;  // with refine_levels > 0, the coarse rounds (which only find where
+                                    // the lights are) use this many of each view's sampled pixels
+                                    // (0: all of them)
   double refine_fraction = 0.05;    // voxels with at least this share of the largest power are split
   double refine_reach = 1.0;        // the finer voxels within this many (coarser) voxel sizes of a
                                     // split voxel's centre, per axis, are the next level's candidates
   double refine_penalty_scale = 0.1;   // the finer levels' penalty weight, relative to penalty_weight
-  int refine_max_voxels = 1000;     // candidates per finer level at most (the strongest voxels first)
-  int refine_spp = 64;              // camera paths per pixel at the finer levels (0: spp)
+  int refine_max_voxels = 500;      // candidates per finer level at most; when the lights need more,
+                                    // refinement stops and the coarser result stands
+  int refine_spp = 32;              // camera paths per pixel at the finer levels (0: spp)
   int refine_grow = 1;              // passes per finer level that add the neighbours (within
                                     // refine_reach finer voxels) of its lights and solve again
   double active_fraction = 1e-3;    // voxels with at least this share of the largest power are
@@ -125,10 +131,11 @@ struct LightEstimationOptions {
     v("emitter_factor", emitter_factor, "", "mask pixels brighter than this x the 95th percentile");
     v("noise_correction", noise_correction, "", "share of the coefficient noise taken out of the Gram matrix");
     v("refine_levels", refine_levels, "", "adaptive refinement: levels of twice finer voxels near the lights (0: none)");
+    v("refine_coarse_pixels", refine_coarse_pixels, "", "with refinement, sampled pixels per view the coarse rounds use (0: all)");
     v("refine_fraction", refine_fraction, "", "voxels with this share of the largest power are split");
     v("refine_reach", refine_reach, "voxels", "finer candidates within this many coarser voxels of a split one");
     v("refine_penalty_scale", refine_penalty_scale, "", "penalty weight of the finer levels, relative to penalty_weight");
-    v("refine_max_voxels", refine_max_voxels, "", "candidate voxels per finer level at most");
+    v("refine_max_voxels", refine_max_voxels, "", "candidate voxels per finer level at most (more: refinement stops)");
     v("refine_grow", refine_grow, "", "passes per finer level that add its lights' neighbours and solve again");
     v("refine_spp", refine_spp, "", "camera paths per sampled pixel at the finer levels (0: spp; even)");
     v("active_fraction", active_fraction, "", "share of the largest voxel power that counts as active");
@@ -174,6 +181,10 @@ struct LightCache {
   // Predicted radiance of every sampled pixel for the lights `grid` (same layout).
   std::vector<Eigen::Vector3f> Predict(const VoxelLightGrid& grid) const;
   size_t NonZeros() const { return index.size(); }
+  // Adds the entries of `other`, a cache of the same pixels over other parameters (no parameter in
+  // both). Traces of the same paths (same seed and options, every voxel connected at every vertex)
+  // that connect to two sets of voxels give, merged, the trace that connects to both.
+  void Merge(const LightCache& other);
   // Heap bytes held by the rows (index, coefficient, row_begin).
   size_t Bytes() const;
 };
@@ -267,6 +278,7 @@ struct LightEstimate {
   double seconds = 0.0;
   double train_rmse = 0.0;                // relative RMSE of the final cache's prediction
   int active_voxels = 0;
+  std::vector<std::string> notes;         // e.g. why adaptive refinement stopped early
 };
 
 // Steps 1-5. `scene`: geometry and albedo (emitters and lights in it are ignored).

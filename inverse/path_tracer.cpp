@@ -261,8 +261,23 @@ void VoxelSplitting::SetPmf(std::vector<double> probabilities, int samples_per_v
     running += pmf[i];
     cdf[i] = running;
   }
-  cdf.back() = 1.0;
+  // From the last voxel that can be drawn on, the running sum is 1: rounding cannot send a draw
+  // past it to a voxel of probability 0.
+  size_t last = pmf.size() - 1;
+  while (last > 0 && pmf[last] <= 0.0) --last;
+  std::fill(cdf.begin() + static_cast<std::ptrdiff_t>(last), cdf.end(), 1.0);
   samples = samples_per_vertex;
+}
+
+void VoxelSplitting::Prepare(const VoxelLightGrid& grid) {
+  const int voxels = grid.VoxelCount();
+  GS_CHECK(enabled.empty() || static_cast<int>(enabled.size()) == voxels);
+  centres.resize(static_cast<size_t>(voxels));
+  connected.clear();
+  for (int j = 0; j < voxels; ++j) {
+    centres[j] = grid.VoxelCenter(j).cast<float>();
+    if (enabled.empty() || enabled[j]) connected.push_back(j);
+  }
 }
 
 int VoxelSplitting::Choose(double u) const {
@@ -280,9 +295,14 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
   Eigen::Vector3f beta = Eigen::Vector3f::Ones();
   Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
   const auto allowed = [&](int segments) { return options.max_depth < 0 || segments <= options.max_depth; };
-  const int voxels = grid.VoxelCount();
-  std::vector<Eigen::Vector3f> centres(static_cast<size_t>(voxels));
-  for (int j = 0; j < voxels; ++j) centres[j] = grid.VoxelCenter(j).cast<float>();
+  const VoxelSplitting* prepared = &splitting;
+  VoxelSplitting local_splitting;
+  if (static_cast<int>(splitting.centres.size()) != grid.VoxelCount()) {
+    local_splitting.enabled = splitting.enabled;
+    local_splitting.Prepare(grid);
+    prepared = &local_splitting;
+  }
+  const std::vector<Eigen::Vector3f>& centres = prepared->centres;
   // The shadow rays of one vertex: voxel, weight and cos / d^2 per ray beside the arrays that
   // OccludedFrom reads (directions to the voxels, segment lengths).
   struct Candidate {
@@ -327,9 +347,7 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
       // direct light estimated by other paths
     } else if (depth <= splitting.all_until_depth || splitting.samples <= 0) {
       const float weight = depth == 1 ? first_vertex_weight : 1.0f;
-      for (int j = 0; j < voxels; ++j) {
-        if (splitting.enabled.empty() || splitting.enabled[j]) consider(j, weight);
-      }
+      for (int j : prepared->connected) consider(j, weight);
     } else {
       for (int s = 0; s < splitting.samples; ++s) {
         const int j = splitting.Choose(rng.UniformDouble());

@@ -75,8 +75,13 @@ struct VoxelSplitting {
   int samples = 0;
   std::vector<double> pmf;
   std::vector<double> cdf;  // running sum of pmf (filled by SetPmf)
+  // Filled by Prepare for one grid: every voxel's centre and the voxels the shallow vertices
+  // connect to. Without them VoxelCoefficients works them out per path.
+  std::vector<Eigen::Vector3f> centres;
+  std::vector<int> connected;
   void SetPmf(std::vector<double> probabilities, int samples_per_vertex);
   int Choose(double u) const;
+  void Prepare(const VoxelLightGrid& grid);
 };
 
 // Receives, for a path vertex connected to voxel j, the RGB coefficient c_k of each product

@@ -24,9 +24,10 @@ TEST(GensceneLights, EstimatesLightsFromASynthSequence) {
   const auto r = RunCommand(AppPath("genscene-lights") + " " + ws + " --scene " + (dir / "seq" / "scene.json").string() +
                             " --views " + (dir / "seq").string() + kSmall);
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_CONTAINS(r.output, "active voxels of 27");
+  // The 3^3 grid refined once (the default): a 6^3 grid, dark outside the candidates.
+  EXPECT_CONTAINS(r.output, "active voxels of 216");
   const VoxelLightGrid lights = ReadLightsJson(dir / "ws" / "lights.json");
-  EXPECT_EQ(lights.VoxelCount(), 27);
+  EXPECT_EQ(lights.VoxelCount(), 216);
   EXPECT_FALSE(lights.ActiveVoxels().empty());
   // The synth light hangs under the ceiling: the strongest voxel is in the top layer.
   int strongest = 0;

@@ -146,6 +146,7 @@ LightEstimationOptions SmallOptions() {
   o.grid = 3;
   o.boundary_inset = kSmallInset;
   o.pixels_per_view = 300;
+  o.refine_levels = 0;  // the coarse estimator; refinement has its own tests
   return o;
 }
 
@@ -212,6 +213,51 @@ TEST(LightCost, GramCostEqualsThePerPixelCost) {
     double data = 0.0;
     LightCost(eq, 0.0, 0.01).Evaluate(LightCost::Pack(*g), nullptr, &data);
     EXPECT_NEAR(data, residual / energy, 1e-5 * (residual / energy) + 1e-9);
+  }
+}
+
+// A growing refinement pass traces only the voxels it adds and merges them into the caches: with
+// the same seed every path is the same, so the merge equals one trace of both sets, bit for bit.
+TEST(LightCache, MergeOfTwoVoxelSetsEqualsOneTraceOfBoth) {
+  SmallScene s;
+  const std::vector<TrainingView> views = Render(s.Lit(), {CornellLightViews(16, 12)[0]}, 8);
+  const PathTracer tracer(s.geometry);
+  LightEstimationOptions o;
+  o.pixels_per_view = 100;
+  o.spp = 4;
+  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+  VoxelSplitting first, second, both;
+  for (int j = 0; j < 27; ++j) {
+    first.enabled.push_back(j % 3 == 0);
+    second.enabled.push_back(j % 3 == 1);
+    both.enabled.push_back(j % 3 != 2);
+  }
+  LightCache merged = TraceLightCache(tracer, s.grid, first, views, pixels, o, 5);
+  const LightCache added = TraceLightCache(tracer, s.grid, second, views, pixels, o, 5);
+  ASSERT_GT(merged.NonZeros(), 0u);
+  ASSERT_GT(added.NonZeros(), 0u);
+  merged.Merge(added);
+  const LightCache whole = TraceLightCache(tracer, s.grid, both, views, pixels, o, 5);
+  EXPECT_EQ(merged.row_begin, whole.row_begin);
+  EXPECT_EQ(merged.index, whole.index);
+  ASSERT_EQ(merged.coefficient.size(), whole.coefficient.size());
+  for (size_t e = 0; e < whole.coefficient.size(); ++e) {
+    ASSERT_EQ(merged.coefficient[e], whole.coefficient[e]) << "entry " << e;
+  }
+  EXPECT_EQ(merged.rays.occluded, whole.rays.occluded);
+  EXPECT_THROW(merged.Merge(added), std::exception) << "a parameter in both caches was merged";
+}
+
+// Drawing from a pmf with zeros (the unused voxels of a finer grid) never returns one of them,
+// even for u just below 1 where the running sum's rounding could end short of 1.
+TEST(VoxelSplitting, NeverDrawsAVoxelOfProbabilityZero) {
+  VoxelSplitting v;
+  std::vector<double> pmf(50, 0.0);
+  pmf[3] = 0.1, pmf[17] = 0.2, pmf[29] = 0.3;  // normalised, their running sum is 1 - 2^-53; the last ones are 0
+  v.SetPmf(pmf, 4);
+  for (double u : {0.0, 0.25, 0.5, 0.999999, std::nextafter(1.0, 0.0)}) {
+    const int j = v.Choose(u);
+    EXPECT_GT(v.pmf[j], 0.0) << "u " << u << " drew voxel " << j;
   }
 }
 
@@ -416,15 +462,18 @@ TEST(EstimateLights, FindsALightSeenOnlyThroughBounces) {
   const std::vector<TrainingView> views = Render(lit, floor_views, 64);
   LightEstimationOptions o = SmallOptions();
   o.rounds = 2;
-  const LightEstimate e = EstimateLights(lit, views, o, 2);
-  double upper = 0.0, total = 0.0;
-  for (int j = 0; j < 27; ++j) {
-    const double p = Luminance(e.lights.Power(j));
-    total += p;
-    if (e.lights.VoxelCenter(j).z() > 1.0) upper += p;
+  for (int levels : {0, 1}) {  // the coarse grid, then with adaptive refinement
+    o.refine_levels = levels;
+    const LightEstimate e = EstimateLights(lit, views, o, 2);
+    double upper = 0.0, total = 0.0;
+    for (int j = 0; j < e.lights.VoxelCount(); ++j) {
+      const double p = Luminance(e.lights.Power(j));
+      total += p;
+      if (e.lights.VoxelCenter(j).z() > 1.0) upper += p;
+    }
+    ASSERT_GT(total, 0.0) << "refine_levels " << levels;
+    EXPECT_GT(upper / total, 0.5) << "refine_levels " << levels;
   }
-  ASSERT_GT(total, 0.0);
-  EXPECT_GT(upper / total, 0.5);
 }
 
 // Albedo x light scale: the albedo is given, so halving it doubles the estimated light (in
@@ -545,6 +594,7 @@ TEST(EstimateLights, MemoryCapIsAClearError) {
   o.spp = 4;
   o.rounds = 1;
   o.pixels_per_view = 150;
+  o.refine_levels = 0;  // the coarse grid's caps first; the refinement level's at the end
   o.grid = 20;  // 48000 parameters: 2 x 3 dense 48000^2 Gram matrices = 110 GB
   EXPECT_NEAR(NormalEquationsBoundBytes(20), 2.0 * 3.0 * 48000.0 * 48000.0 * 8.0, 1.0);
   try {
@@ -574,6 +624,16 @@ TEST(EstimateLights, MemoryCapIsAClearError) {
   o.memory_cap = 1.5 + 4.0 * static_cast<double>(full.Bytes()) / 1e6;
   const LightEstimate estimate = EstimateLights(s.geometry, views, o, 1);
   EXPECT_GT(Luminance(estimate.lights.Power(StrongestVoxel(estimate.lights))), 0.0);
+  // The finer level's dense equations are refused before it traces, naming the option to lower.
+  o.refine_levels = 1;
+  o.refine_fraction = 0.0;  // every lit coarse voxel is split: 6^3 = 216 candidates, 28 MB
+  try {
+    EstimateLights(s.geometry, views, o, 1);
+    FAIL() << "a refinement level over the cap of " << o.memory_cap << " MB was accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("normal equations of refinement level 1"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("refine_max_voxels"), std::string::npos) << e.what();
+  }
   o.memory_cap = 0.5;
   EXPECT_THROW(o.Validate(), Error);
 }
