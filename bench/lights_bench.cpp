@@ -55,6 +55,14 @@ struct Replica {
   std::vector<double> noise;  // RMS noise per channel of each reference (train, then novel)
 };
 
+// `*value` from the environment variable `name` when it is set.
+void FromEnvironment(const char* name, int* value) {
+  if (const char* text = std::getenv(name)) *value = std::atoi(text);
+}
+void FromEnvironment(const char* name, double* value) {
+  if (const char* text = std::getenv(name)) *value = std::atof(text);
+}
+
 // The references are slow to render: kept in `cache` (EXR + noise.txt) and reused when present.
 Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
   Replica r;
@@ -88,7 +96,7 @@ Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
   const PathTracer tracer(r.scene);
   RenderOptions ro;
   ro.spp = spp;
-  if (std::getenv("MAXDEPTH")) ro.max_depth = std::atoi(std::getenv("MAXDEPTH"));
+  FromEnvironment("MAXDEPTH", &ro.max_depth);
   const std::vector<View> views = CornellLightViews(width, height);
   ro.spp = spp / 2;
   for (size_t i = 0; i < views.size(); ++i) {
@@ -132,18 +140,18 @@ std::vector<ViewError> ReplicaErrors(const Replica& replica, const VoxelLightGri
 
 // The diagnostics' option overrides (see the header).
 void ApplyEnvironment(LightEstimationOptions* o) {
-  if (std::getenv("MAXDEPTH")) o->max_depth = std::atoi(std::getenv("MAXDEPTH"));
-  if (std::getenv("ROUNDS")) o->rounds = std::atoi(std::getenv("ROUNDS"));
-  if (std::getenv("REFINE")) o->refine_levels = std::atoi(std::getenv("REFINE"));
-  if (std::getenv("RSCALE")) o->refine_penalty_scale = std::atof(std::getenv("RSCALE"));
-  if (std::getenv("RFRAC")) o->refine_fraction = std::atof(std::getenv("RFRAC"));
-  if (std::getenv("RGROW")) o->refine_grow = std::atoi(std::getenv("RGROW"));
-  if (std::getenv("RCOARSE")) o->refine_coarse_pixels = std::atoi(std::getenv("RCOARSE"));
-  if (std::getenv("RSPP")) o->refine_spp = std::atoi(std::getenv("RSPP"));
-  if (std::getenv("RREACH")) o->refine_reach = std::atof(std::getenv("RREACH"));
-  if (std::getenv("DIRECT")) o->direct_paths = std::atoi(std::getenv("DIRECT"));
-  if (std::getenv("MVOX")) o->resample_voxels = std::atoi(std::getenv("MVOX"));
-  if (std::getenv("SPLIT")) o->split_depth = std::atoi(std::getenv("SPLIT"));
+  FromEnvironment("MAXDEPTH", &o->max_depth);
+  FromEnvironment("ROUNDS", &o->rounds);
+  FromEnvironment("REFINE", &o->refine_levels);
+  FromEnvironment("RSCALE", &o->refine_penalty_scale);
+  FromEnvironment("RFRAC", &o->refine_fraction);
+  FromEnvironment("RGROW", &o->refine_grow);
+  FromEnvironment("RCOARSE", &o->refine_coarse_pixels);
+  FromEnvironment("RSPP", &o->refine_spp);
+  FromEnvironment("RREACH", &o->refine_reach);
+  FromEnvironment("DIRECT", &o->direct_paths);
+  FromEnvironment("MVOX", &o->resample_voxels);
+  FromEnvironment("SPLIT", &o->split_depth);
 }
 
 std::vector<TrainingView> ReadViews(const fs::path& folder) {

@@ -655,27 +655,33 @@ void LightCost::Unpack(const Eigen::VectorXd& params, VoxelLightGrid* grid) {
   }
 }
 
-double LightCost::Evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient, double* data) const {
+double LightCost::Evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient, double* data,
+                           std::array<Eigen::VectorXd, 3>* gram_x) const {
   const int voxels = eq_.parameters / 6;
   GS_CHECK_EQ(params.size(), 9 * voxels);
   const int n = static_cast<int>(eq_.used.size());
-  if (gradient) *gradient = Eigen::VectorXd::Zero(params.size());
-  double data_sum = 0.0;
-  Eigen::VectorXd x(n), gx(n);
-  for (int c = 0; c < 3; ++c) {
+  std::array<Eigen::VectorXd, 3> local_gx;
+  std::array<Eigen::VectorXd, 3>& gx = gram_x ? *gram_x : local_gx;
+  std::array<double, 3> part{};
+  ParallelFor(0, 3, [&](size_t c) {
+    Eigen::VectorXd x(n);
     for (int i = 0; i < n; ++i) {
       const int j = eq_.used[i] / 6, k = eq_.used[i] % 6;
       x[i] = params[9 * j + c] * params[9 * j + 3 + k];
     }
-    gx.noalias() = eq_.gram[c].selfadjointView<Eigen::Upper>() * x;
+    gx[c].noalias() = eq_.gram[c].selfadjointView<Eigen::Upper>() * x;
     // |A x - I|^2 = x^T G x - 2 b^T x + I^T I.
-    data_sum += x.dot(gx) - 2.0 * eq_.rhs[c].dot(x) + eq_.observed_sq[c];
-    if (gradient) {
-      gx = 2.0 * (gx - eq_.rhs[c]) / energy_;
+    part[c] = x.dot(gx[c]) - 2.0 * eq_.rhs[c].dot(x) + eq_.observed_sq[c];
+  }, 1);
+  const double data_sum = part[0] + part[1] + part[2];
+  if (gradient) {
+    *gradient = Eigen::VectorXd::Zero(params.size());
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::VectorXd d = 2.0 * (gx[c] - eq_.rhs[c]) / energy_;
       for (int i = 0; i < n; ++i) {
         const int j = eq_.used[i] / 6, k = eq_.used[i] % 6;
-        (*gradient)[9 * j + c] += gx[i] * params[9 * j + 3 + k];
-        (*gradient)[9 * j + 3 + k] += gx[i] * params[9 * j + c];
+        (*gradient)[9 * j + c] += d[i] * params[9 * j + 3 + k];
+        (*gradient)[9 * j + 3 + k] += d[i] * params[9 * j + c];
       }
     }
   }
@@ -793,25 +799,10 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
     return p;
   };
 
-  // The cost at the current L, lambda (LightCost::Evaluate's value), keeping G_c x_c per channel
-  // (channels in parallel, each by one task) for the next iteration's dark-voxel faces.
+  // The cost at the current L, lambda, keeping G_c x_c per channel for the next iteration's
+  // dark-voxel faces.
   std::array<Eigen::VectorXd, 3> gx;
-  const auto evaluate = [&](double* data) {
-    std::array<double, 3> part{};
-    ParallelFor(0, 3, [&](size_t c) {
-      Eigen::VectorXd x(n);
-      for (int i = 0; i < n; ++i) x[i] = light(voxel_of[i], c) * lambda(voxel_of[i], face_of[i]);
-      gx[c].noalias() = eq.gram[c].selfadjointView<Eigen::Upper>() * x;
-      part[c] = x.dot(gx[c]) - 2.0 * eq.rhs[c].dot(x) + eq.observed_sq[c];
-    }, 1);
-    const double data_part = (part[0] + part[1] + part[2]) / energy;
-    double penalty = 0.0;
-    if (options.penalty_weight > 0.0) {
-      for (int j = 0; j < voxels; ++j) penalty += options.penalty_weight * std::log1p(light.row(j).sum() / cost.epsilon());
-    }
-    if (data) *data = data_part;
-    return data_part + penalty;
-  };
+  const auto evaluate = [&](double* data) { return cost.Evaluate(pack(), nullptr, data, &gx); };
 
   // One alternating iteration (dark voxels' faces, the L step, the lambda step); `gx` holds
   // G_c x_c of the current L, lambda on entry.
@@ -960,7 +951,7 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
       if (!improved) break;
     }
   }
-  report.cost = cost.Evaluate(pack(), nullptr, &report.data);
+  report.cost = evaluate(&report.data);
   // Each voxel's lambdas scaled to a maximum of 1 (the same products L lambda).
   for (int j = 0; j < voxels; ++j) {
     const double top = lambda.row(j).maxCoeff();
@@ -1016,7 +1007,7 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   LightCache last;
   // Two independent halves of the paths (the second keyed by ~key), kept in `last` and `second`,
   // within what the cap leaves beside `equation_bytes` of normal equations.
-  const auto trace_halves = [&](const std::vector<SampledPixel>& pixels, const VoxelLightGrid& lights,
+  const auto trace_halves = [&](const std::vector<SampledPixel>& traced_pixels, const VoxelLightGrid& lights,
                                 const VoxelSplitting& splitting, int spp, uint64_t key, double equation_bytes,
                                 LightCache* second, LightRound* r) {
     const auto t = std::chrono::steady_clock::now();
@@ -1024,8 +1015,8 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     half.spp = spp / 2;
     const double cache_bytes = cap_bytes - equation_bytes;
     last = LightCache();  // the previous cache is not needed while tracing
-    last = TraceLightCache(tracer, lights, splitting, views, pixels, half, key, cache_bytes);
-    *second = TraceLightCache(tracer, lights, splitting, views, pixels, half, ~key,
+    last = TraceLightCache(tracer, lights, splitting, views, traced_pixels, half, key, cache_bytes);
+    *second = TraceLightCache(tracer, lights, splitting, views, traced_pixels, half, ~key,
                               std::max(1.0, cache_bytes - static_cast<double>(last.Bytes())));
     r->trace_seconds = SecondsSince(t);
     r->nonzeros = last.NonZeros() + second->NonZeros();

@@ -237,8 +237,11 @@ class LightCost {
   static Eigen::VectorXd Pack(const VoxelLightGrid& grid);
   static void Unpack(const Eigen::VectorXd& params, VoxelLightGrid* grid);
 
-  // Cost, its data part (squared relative residual) and, when `gradient` is given, the gradient.
-  double Evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient = nullptr, double* data = nullptr) const;
+  // Cost, its data part (squared relative residual) and, when `gradient` is given, the gradient;
+  // `gram_x` receives G_c x_c per channel (x_c: the products L_c lambda of the used parameters).
+  // The channels are evaluated in parallel, each by one task (the sums do not depend on threads).
+  double Evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient = nullptr, double* data = nullptr,
+                  std::array<Eigen::VectorXd, 3>* gram_x = nullptr) const;
   double epsilon() const { return epsilon_; }
   const NormalEquations& equations() const { return eq_; }
 
