@@ -5,6 +5,7 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
+#include <numeric>
 
 #include "core/check.h"
 #include "core/color.h"
@@ -20,8 +21,8 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// Calls sink(voxel, coefficients) for every connection of the `paths.spp` paths through `pixel`,
-// scaled so that their sum estimates the pixel. Direct light (the first vertex's connections)
+// Calls sink(connections, scale) for every vertex of the `paths.spp` paths through `pixel` (see
+// VoxelConnections): the coefficients times `scale` summed over all of them estimate the pixel. Direct light (the first vertex's connections)
 // comes from the first `direct_paths` of them, indirect light from all. Each group's positions
 // in the pixel are a Latin hypercube (stratified in x and in y) over the box filter's footprint
 // [u - 0.5, u + 0.5) x [v - 0.5, v + 0.5). Random numbers are keyed by (seed, view, pixel).
@@ -36,11 +37,7 @@ void WalkPixel(const PathTracer& tracer, const VoxelLightGrid& grid, const Voxel
                           static_cast<uint64_t>(pixel.v * k.width + pixel.u);
   const int total = paths.spp, direct = std::clamp(direct_paths, 1, total);
   const float scale = 1.0f / static_cast<float>(total);
-  const VoxelCoefficientSink scaled = [&](int voxel, const std::array<Eigen::Vector3f, 6>& c) {
-    std::array<Eigen::Vector3f, 6> s;
-    for (int i = 0; i < 6; ++i) s[i] = c[i] * scale;
-    sink(voxel, s);
-  };
+  const VoxelCoefficientSink scaled = [&](const VoxelConnections& connections) { sink(connections, scale); };
   // Latin hypercube per group: path s of a group of n takes x stratum s and y stratum perm[s].
   CounterRng strata(seed, stream, 0xFFFFFFFFull);
   std::vector<int> perm(static_cast<size_t>(total));
@@ -309,32 +306,43 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
   std::atomic<size_t> entries{0};
   std::vector<Row> rows(pixels.size());
   ParallelForChunks(0, pixels.size(), 8, [&](size_t begin, size_t end) {
-    // Dense accumulator over the parameters, reset through the list of touched entries.
+    // Dense accumulator over the parameters; the voxels a pixel touches are listed (first touch:
+    // `stamp` differs from the pixel's) and their parameters collected and reset after the pixel.
     std::vector<Eigen::Vector3f> sum(static_cast<size_t>(parameters), Eigen::Vector3f::Zero());
+    std::vector<size_t> stamp(static_cast<size_t>(grid.VoxelCount()), SIZE_MAX);
     std::vector<int32_t> touched;
     for (size_t i = begin; i < end; ++i) {
       const SampledPixel& pixel = pixels[i];
       GS_CHECK_LT(static_cast<size_t>(pixel.view), views.size());
       touched.clear();
       WalkPixel(tracer, grid, prepared, pixel, views[pixel.view].view, paths, options.direct_paths, seed,
-                [&](int voxel, const std::array<Eigen::Vector3f, 6>& c) {
-                  for (int k = 0; k < 6; ++k) {
-                    if (c[k].maxCoeff() <= 0.0f) continue;
-                    const int32_t p = 6 * voxel + k;
-                    if (sum[p].maxCoeff() <= 0.0f) touched.push_back(p);
-                    sum[p] += c[k];
+                [&](const VoxelConnections& to, float scale) {
+                  for (int c = 0; c < to.count; ++c) {
+                    const int j = to.voxel[c];
+                    if (stamp[j] != i) {
+                      stamp[j] = i;
+                      touched.push_back(j);
+                    }
+                    Eigen::Vector3f* faces = &sum[6 * static_cast<size_t>(j)];
+                    for (int axis = 0; axis < 3; ++axis) {
+                      const float w = to.w[c][axis];
+                      if (w != 0.0f) faces[VoxelFace(axis, w)] += (to.base[c] * std::abs(w)) * scale;
+                    }
                   }
                 },
                 &rows[i].rays);
       std::sort(touched.begin(), touched.end());
-      touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
       Row& row = rows[i];
-      row.index = touched;
-      for (int32_t p : touched) {
-        row.coefficient.push_back(sum[p]);
-        sum[p].setZero();
+      for (int32_t j : touched) {
+        for (int32_t p = 6 * j; p < 6 * j + 6; ++p) {
+          if (sum[p].maxCoeff() > 0.0f) {
+            row.index.push_back(p);
+            row.coefficient.push_back(sum[p]);
+          }
+          sum[p].setZero();
+        }
       }
-      const size_t held = entries.fetch_add(touched.size()) + touched.size();
+      const size_t held = entries.fetch_add(row.index.size()) + row.index.size();
       if (cap_bytes > 0.0 && 2.0 * static_cast<double>(held * kEntryBytes + fixed) > cap_bytes) {
         throw Error(Format("light estimation: the path-coefficient cache outgrew the memory cap of ", cap_bytes / 1e6,
                            " MB (", held, " coefficients so far, ", pixels.size(), " pixels); lower lights ",
@@ -391,9 +399,15 @@ Eigen::Vector3f RenderSampledPixel(const PathTracer& tracer, const VoxelLightGri
   Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
   WalkPixel(tracer, grid, splitting, pixel, views.at(static_cast<size_t>(pixel.view)).view, options.Paths(),
             options.direct_paths, seed,
-            [&](int voxel, const std::array<Eigen::Vector3f, 6>& c) {
-              for (int k = 0; k < 6; ++k) {
-                radiance += c[k].cwiseProduct(grid.intensity[voxel]) * grid.weights[voxel][k];
+            [&](const VoxelConnections& to, float scale) {
+              for (int i = 0; i < to.count; ++i) {
+                const int j = to.voxel[i];
+                for (int axis = 0; axis < 3; ++axis) {
+                  const float w = to.w[i][axis];
+                  if (w == 0.0f) continue;
+                  const Eigen::Vector3f c = (to.base[i] * std::abs(w)) * scale;
+                  radiance += c.cwiseProduct(grid.intensity[j]) * grid.weights[j][VoxelFace(axis, w)];
+                }
               }
             },
             nullptr);
@@ -484,7 +498,8 @@ void FillSparse(const LightCache& first, const LightCache& second, double correc
 
 NormalEquations NormalEquations::FromCache(const LightCache& cache) { return FromCaches(cache, cache, 0.0); }
 
-NormalEquations NormalEquations::FromCaches(const LightCache& first, const LightCache& second, double correction) {
+NormalEquations NormalEquations::FromCaches(const LightCache& first, const LightCache& second, double correction,
+                                            const NormalEquations* known) {
   GS_CHECK_EQ(first.parameters, second.parameters);
   GS_CHECK_EQ(first.pixels.size(), second.pixels.size());
   NormalEquations eq;
@@ -502,6 +517,25 @@ NormalEquations NormalEquations::FromCaches(const LightCache& first, const Light
   }
   const int n = static_cast<int>(eq.used.size());
   const bool same = &first == &second;
+  // Parameters `known` holds (`known_at`: its compact index) and the others (`fresh`): only the
+  // entries of G with a fresh parameter are computed.
+  std::vector<int> known_at(static_cast<size_t>(n), -1), fresh;
+  if (known) {
+    GS_CHECK_EQ(known->parameters, eq.parameters);
+    GS_CHECK_EQ(known->pixels, eq.pixels);
+    for (int i = 0; i < n; ++i) {
+      const auto it = std::lower_bound(known->used.begin(), known->used.end(), eq.used[i]);
+      if (it != known->used.end() && *it == eq.used[i]) {
+        known_at[i] = static_cast<int>(it - known->used.begin());
+      } else {
+        fresh.push_back(i);
+      }
+    }
+  } else {
+    fresh.resize(static_cast<size_t>(n));
+    std::iota(fresh.begin(), fresh.end(), 0);
+  }
+  const bool incremental = fresh.size() < static_cast<size_t>(n);
   constexpr int kRows = 2048, kTile = 256;
   const int tiles = (n + kTile - 1) / kTile;
   std::vector<std::pair<int, int>> tile_pairs;
@@ -531,6 +565,19 @@ NormalEquations NormalEquations::FromCaches(const LightCache& first, const Light
       gram->block(ca, cb, wa, wb) += scale * block.cast<double>();
     }, 1);
   };
+  // With `known`: the columns of the fresh parameters, X = M^T M[:, fresh], by tiles of X.
+  const int fresh_n = static_cast<int>(fresh.size());
+  const int fresh_tiles = (fresh_n + kTile - 1) / kTile;
+  const auto accumulate_fresh = [&](const Eigen::MatrixXf& m, double scale, Eigen::MatrixXd* x) {
+    const Eigen::MatrixXf m_fresh = m(Eigen::placeholders::all, fresh);
+    ParallelFor(0, static_cast<size_t>(tiles) * fresh_tiles, [&](size_t t) {
+      const int ta = static_cast<int>(t) / fresh_tiles, tb = static_cast<int>(t) % fresh_tiles;
+      const int ca = ta * kTile, cb = tb * kTile;
+      const int wa = std::min(kTile, n - ca), wb = std::min(kTile, fresh_n - cb);
+      const Eigen::MatrixXf block = m.middleCols(ca, wa).transpose() * m_fresh.middleCols(cb, wb);
+      x->block(ca, cb, wa, wb) += scale * block.cast<double>();
+    }, 1);
+  };
   size_t nonzeros = 0;
   for (const LightCache* cache : {&first, &second}) nonzeros += cache->NonZeros();
   if (static_cast<double>(nonzeros) < 0.2 * static_cast<double>(n) * static_cast<double>(eq.pixels)) {
@@ -540,6 +587,8 @@ NormalEquations NormalEquations::FromCaches(const LightCache& first, const Light
   for (int c = 0; c < 3; ++c) {
     Eigen::MatrixXd& gram = eq.gram[c];
     gram = Eigen::MatrixXd::Zero(n, n);
+    Eigen::MatrixXd fresh_columns;
+    if (incremental) fresh_columns = Eigen::MatrixXd::Zero(n, fresh_n);
     eq.rhs[c] = Eigen::VectorXd::Zero(n);
     eq.observed_sq[c] = 0.0;
     Eigen::MatrixXf mean, half_difference;
@@ -550,10 +599,30 @@ NormalEquations NormalEquations::FromCaches(const LightCache& first, const Light
       for (size_t i = begin; i < end; ++i) observed[static_cast<Eigen::Index>(i - begin)] = first.pixels[i].observed[c];
       eq.observed_sq[c] += observed.squaredNorm();
       eq.rhs[c] += mean.cast<double>().transpose() * observed;
-      accumulate(mean, 1.0, &gram);
+      if (incremental) {
+        accumulate_fresh(mean, 1.0, &fresh_columns);
+      } else {
+        accumulate(mean, 1.0, &gram);
+      }
       if (!same && correction > 0.0) {
         fill(begin, end, c, -1.0f, &half_difference);
-        accumulate(half_difference, -correction, &gram);
+        if (incremental) {
+          accumulate_fresh(half_difference, -correction, &fresh_columns);
+        } else {
+          accumulate(half_difference, -correction, &gram);
+        }
+      }
+    }
+    if (incremental) {
+      for (int a = 0; a < n; ++a) {
+        if (known_at[a] < 0) continue;
+        for (int b = a; b < n; ++b) {
+          if (known_at[b] >= 0) gram(a, b) = known->gram[c](known_at[a], known_at[b]);
+        }
+      }
+      for (int f = 0; f < fresh_n; ++f) {
+        for (int a = 0; a <= fresh[f]; ++a) gram(a, fresh[f]) = fresh_columns(a, f);
+        for (int b = fresh[f] + 1; b < n; ++b) gram(fresh[f], b) = fresh_columns(b, f);
       }
     }
     gram.triangularView<Eigen::StrictlyLower>() = gram.transpose();
@@ -669,7 +738,18 @@ double LightCost::Evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradi
       const int j = eq_.used[i] / 6, k = eq_.used[i] % 6;
       x[i] = params[9 * j + c] * params[9 * j + 3 + k];
     }
-    gx[c].noalias() = eq_.gram[c].selfadjointView<Eigen::Upper>() * x;
+    // x is sparse once the penalty has switched most voxels off: then G x is a sum of the
+    // columns of the lit parameters, O(n nnz) instead of O(n^2).
+    std::vector<int> lit;
+    for (int i = 0; i < n; ++i) {
+      if (x[i] != 0.0) lit.push_back(i);
+    }
+    if (4 * lit.size() < static_cast<size_t>(n)) {
+      gx[c] = Eigen::VectorXd::Zero(n);
+      for (int i : lit) gx[c].noalias() += x[i] * eq_.gram[c].col(i);
+    } else {
+      gx[c].noalias() = eq_.gram[c].selfadjointView<Eigen::Upper>() * x;
+    }
     // |A x - I|^2 = x^T G x - 2 b^T x + I^T I.
     part[c] = x.dot(gx[c]) - 2.0 * eq_.rhs[c].dot(x) + eq_.observed_sq[c];
   }, 1);
@@ -738,16 +818,21 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
   const int n = static_cast<int>(eq.used.size());
   std::vector<int> voxel_of(static_cast<size_t>(n)), face_of(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) voxel_of[i] = eq.used[i] / 6, face_of[i] = eq.used[i] % 6;
-  // The L step works over the voxels some path reaches (`reached`, compact index `slot_of` per
-  // parameter): with adaptive refinement they are a few hundred of a finer grid's thousands.
-  std::vector<int> reached, slot_of(static_cast<size_t>(n));
+  // The L step works over the voxels some path reaches (`reached`): with adaptive refinement
+  // they are a few hundred of a finer grid's thousands. eq.used is sorted, so a voxel's
+  // parameters are the compact range [slot_begin[v], slot_begin[v + 1]).
+  std::vector<int> reached, slot_begin;
   std::vector<bool> is_reached(static_cast<size_t>(voxels), false);
   for (int i = 0; i < n; ++i) {
-    if (reached.empty() || reached.back() != voxel_of[i]) reached.push_back(voxel_of[i]);
-    slot_of[i] = static_cast<int>(reached.size()) - 1;
+    GS_CHECK(i == 0 || eq.used[i] > eq.used[i - 1]);
+    if (reached.empty() || reached.back() != voxel_of[i]) {
+      reached.push_back(voxel_of[i]);
+      slot_begin.push_back(i);
+    }
     is_reached[voxel_of[i]] = true;
   }
   const int slots = static_cast<int>(reached.size());
+  slot_begin.push_back(n);
 
   Eigen::MatrixXd light(voxels, 3);   // L
   Eigen::MatrixXd lambda(voxels, 6);  // lambda
@@ -844,26 +929,47 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
     }
     Eigen::VectorXd lambda_of(n);
     for (int i = 0; i < n; ++i) lambda_of[i] = lambda(voxel_of[i], face_of[i]);
-    // H = S^T D G D S as (G D S) then S^T D (.): column sums of G first (contiguous), then rows.
+    // Cyclic coordinate descent on L_jc with H = S^T D G D S never formed: H_jj is the voxel's
+    // 6 x 6 block, (H L)_j = sum_i lambda_i (G x)_i over its parameters, and a change of L_jc adds
+    // the voxel's columns of G to G x. A sweep costs O(n) plus O(n) per parameter of a voxel
+    // that changes; most stay dark. `gx` holds G_c x_c (current L, lambda) on entry and after.
     // Channels in parallel, each by one task.
     ParallelFor(0, 3, [&](size_t c) {
-      Eigen::MatrixXd h = Eigen::MatrixXd::Zero(slots, slots);
-      Eigen::VectorXd g = Eigen::VectorXd::Zero(slots);
       const Eigen::MatrixXd& gram = eq.gram[c];
-      Eigen::MatrixXd gds = Eigen::MatrixXd::Zero(n, slots);
-      for (int b = 0; b < n; ++b) {
-        const double lb = lambda_of[b];
-        if (lb == 0.0) continue;
-        g[slot_of[b]] += lb * eq.rhs[c][b];
-        gds.col(slot_of[b]).noalias() += lb * gram.col(b);
+      Eigen::VectorXd& gxc = gx[c];
+      Eigen::VectorXd h(slots), g(slots), l(slots);
+      for (int v = 0; v < slots; ++v) {
+        double hvv = 0.0, gv = 0.0;
+        for (int a = slot_begin[v]; a < slot_begin[v + 1]; ++a) {
+          if (lambda_of[a] == 0.0) continue;
+          gv += lambda_of[a] * eq.rhs[c][a];
+          for (int b = slot_begin[v]; b < slot_begin[v + 1]; ++b) hvv += lambda_of[a] * lambda_of[b] * gram(a, b);
+        }
+        h[v] = hvv;
+        g[v] = gv;
+        l[v] = light(reached[v], c);
       }
-      for (int a = 0; a < n; ++a) {
-        if (lambda_of[a] != 0.0) h.row(slot_of[a]).noalias() += lambda_of[a] * gds.row(a);
+      for (int sweep = 0; sweep < 10; ++sweep) {
+        double change = 0.0, scale = 0.0;
+        for (int v = 0; v < slots; ++v) {
+          double value = 0.0;
+          if (h[v] > 0.0) {
+            double hl = 0.0;
+            for (int a = slot_begin[v]; a < slot_begin[v + 1]; ++a) hl += lambda_of[a] * gxc[a];
+            value = std::max(0.0, l[v] - (hl - g[v] + 0.5 * q[v]) / h[v]);
+          }
+          const double delta = value - l[v];
+          if (delta != 0.0) {
+            for (int a = slot_begin[v]; a < slot_begin[v + 1]; ++a) {
+              if (lambda_of[a] != 0.0) gxc.noalias() += (lambda_of[a] * delta) * gram.col(a);
+            }
+            l[v] = value;
+          }
+          change = std::max(change, std::abs(delta) * std::sqrt(std::max(h[v], 0.0)));
+          scale = std::max(scale, std::abs(value) * std::sqrt(std::max(h[v], 0.0)));
+        }
+        if (change <= 1e-9 * scale) break;
       }
-      Eigen::VectorXd l(slots);
-      for (int v = 0; v < slots; ++v) l[v] = light(reached[v], c);
-      Eigen::VectorXd hl = h * l;
-      CoordinateDescent(h, g, q, 0.0, std::numeric_limits<double>::infinity(), 10, &l, &hl);
       for (int v = 0; v < slots; ++v) light(reached[v], c) = l[v];
     }, 1);
     // lambda step over the parameters of lit voxels: x_i = L_j(i)c lambda_i, so the quadratic
@@ -1177,7 +1283,13 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
         second = std::move(held_second);
       }
       auto t = std::chrono::steady_clock::now();
-      total = NormalEquations::FromCaches(last, second, options.noise_correction);
+      // A growing pass's caches hold the previous pass's entries: their part of G is kept.
+      if (pass == 0) {
+        total = NormalEquations::FromCaches(last, second, options.noise_correction);
+      } else {
+        const NormalEquations previous = std::move(total);
+        total = NormalEquations::FromCaches(last, second, options.noise_correction, &previous);
+      }
       r.gram_seconds = SecondsSince(t);
       t = std::chrono::steady_clock::now();
       LightEstimationOptions level_options = options;

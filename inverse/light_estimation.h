@@ -223,7 +223,11 @@ struct NormalEquations {
   // (errors-in-variables: it acts as a regulariser that shrinks and smears the lights);
   // E[D^T D] is that variance, so gamma = 1 is unbiased (= (A^T B + B^T A) / 2), gamma = 0 the
   // plain Gram matrix of the mean rows. gamma < 1 keeps G safely positive definite.
-  static NormalEquations FromCaches(const LightCache& first, const LightCache& second, double correction);
+  // `known`: the equations of the same caches before entries of further parameters were merged
+  // in (LightCache::Merge); the entries of G between two of its parameters are taken from it and
+  // only those with a new parameter are computed (dense rows only; sparse ones are recomputed).
+  static NormalEquations FromCaches(const LightCache& first, const LightCache& second, double correction,
+                                    const NormalEquations* known = nullptr);
   // Adds another cache's equations (same parameters), e.g. from a later tracing round.
   void Add(const NormalEquations& other);
 };

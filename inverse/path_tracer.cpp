@@ -303,16 +303,23 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
     prepared = &local_splitting;
   }
   const std::vector<Eigen::Vector3f>& centres = prepared->centres;
-  // The shadow rays of one vertex: voxel, weight and cos / d^2 per ray beside the arrays that
-  // OccludedFrom reads (directions to the voxels, segment lengths).
-  struct Candidate {
-    int voxel;
-    float weight, cos_over_d2;
+  // The shadow rays of one vertex (voxel, weight and cos / d^2 per ray beside the arrays that
+  // OccludedFrom reads: directions to the voxels, segment lengths), then the unblocked ones as
+  // the sink reads them. Per thread, so that a path allocates nothing.
+  struct Scratch {
+    std::vector<int> voxel, out_voxel;
+    std::vector<float> weight, cos_over_d2, t_max;
+    std::vector<Eigen::Vector3f> directions, out_w, out_base;
+    std::vector<uint8_t> blocked;
   };
-  std::vector<Candidate> candidates;
-  std::vector<Eigen::Vector3f> directions;
-  std::vector<float> t_max;
-  std::vector<uint8_t> blocked;
+  thread_local Scratch scratch;
+  const size_t most = std::max(prepared->connected.size(), static_cast<size_t>(std::max(splitting.samples, 0)));
+  if (scratch.voxel.size() < most) {
+    for (auto* v : {&scratch.voxel, &scratch.out_voxel}) v->resize(most);
+    for (auto* v : {&scratch.weight, &scratch.cos_over_d2, &scratch.t_max}) v->resize(most);
+    for (auto* v : {&scratch.directions, &scratch.out_w, &scratch.out_base}) v->resize(most);
+    scratch.blocked.resize(most);
+  }
 
   for (int depth = 1;; ++depth) {
     ++local.intersect;
@@ -328,9 +335,7 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
 
     // Shadow rays to the chosen voxels (as SampleLight + next-event estimation in Radiance()):
     // gathered first, traced together in packets from this vertex, then emitted in the gathered order.
-    candidates.clear();
-    directions.clear();
-    t_max.clear();
+    int n = 0;
     const auto consider = [&](int j, float weight) {
       const Eigen::Vector3f to_light = centres[j] - at.p;
       const float d2 = to_light.squaredNorm();
@@ -339,9 +344,12 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
       const Eigen::Vector3f wi = to_light / distance;
       const float cos_s = at.ns.dot(wi);
       if (cos_s <= 0.0f || at.ng.dot(wi) <= 0.0f) return;
-      candidates.push_back({j, weight, cos_s / d2});
-      directions.push_back(wi);
-      t_max.push_back(distance * (1.0f - 1e-4f));
+      scratch.voxel[n] = j;
+      scratch.weight[n] = weight;
+      scratch.cos_over_d2[n] = cos_s / d2;
+      scratch.directions[n] = wi;
+      scratch.t_max[n] = distance * (1.0f - 1e-4f);
+      ++n;
     };
     if (depth == 1 && first_vertex_weight <= 0.0f) {
       // direct light estimated by other paths
@@ -354,24 +362,20 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
         consider(j, static_cast<float>(1.0 / (splitting.samples * splitting.pmf[j])));
       }
     }
-    const int n = static_cast<int>(candidates.size());
     if (n > 0) {
-      blocked.resize(candidates.size());
       local.occluded += n;
-      tracer_->OccludedFrom(origin_offset, directions.data(), t_max.data(), n, 0.0f, blocked.data());
+      tracer_->OccludedFrom(origin_offset, scratch.directions.data(), scratch.t_max.data(), n, 0.0f,
+                            scratch.blocked.data());
+      int m = 0;
       for (int i = 0; i < n; ++i) {
-        if (blocked[i]) continue;
-        const Candidate& c = candidates[i];
+        if (scratch.blocked[i]) continue;
         // I(w) = L sum_k lambda_k max(0, w . d_k) with w = -wi, from the voxel to the surface.
-        const Eigen::Vector3f base = f_beta * (c.cos_over_d2 * c.weight);
-        std::array<Eigen::Vector3f, 6> coefficients;
-        const float w[3] = {-directions[i].x(), -directions[i].y(), -directions[i].z()};
-        for (int axis = 0; axis < 3; ++axis) {
-          coefficients[2 * axis] = base * std::max(0.0f, w[axis]);
-          coefficients[2 * axis + 1] = base * std::max(0.0f, -w[axis]);
-        }
-        sink(c.voxel, coefficients);
+        scratch.out_voxel[m] = scratch.voxel[i];
+        scratch.out_w[m] = -scratch.directions[i];
+        scratch.out_base[m] = f_beta * (scratch.cos_over_d2[i] * scratch.weight[i]);
+        ++m;
       }
+      if (m > 0) sink({m, scratch.out_voxel.data(), scratch.out_w.data(), scratch.out_base.data()});
     }
 
     const Eigen::Vector3f wi = SampleCosine(at.ns, rng.Uniform(), rng.Uniform());

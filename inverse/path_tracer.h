@@ -84,9 +84,21 @@ struct VoxelSplitting {
   void Prepare(const VoxelLightGrid& grid);
 };
 
-// Receives, for a path vertex connected to voxel j, the RGB coefficient c_k of each product
-// L_j * lambda_jk: the vertex's contribution to the pixel is sum_k c_k (*) L_j lambda_jk.
-using VoxelCoefficientSink = std::function<void(int voxel, const std::array<Eigen::Vector3f, 6>& c)>;
+// The unblocked connections of one path vertex to voxels. Connection i reaches voxel[i]; w[i] is
+// the unit direction from the voxel to the surface point and base[i] the RGB throughput x BRDF x
+// cosine / r^2 x weight. The coefficient of the product L_j lambda_jk is
+// c_k = base[i] max(0, w[i] . d_k), with the faces d_k = +x, -x, +y, -y, +z, -z (k = 2 axis, plus
+// 1 on the negative side): one face per axis at most, the one VoxelFace gives. The vertex's
+// contribution to the pixel is sum_i sum_k c_k (*) L_j lambda_jk.
+struct VoxelConnections {
+  int count = 0;
+  const int* voxel = nullptr;
+  const Eigen::Vector3f* w = nullptr;
+  const Eigen::Vector3f* base = nullptr;
+};
+// The face k on `axis` that a connection with direction component w_axis lights (w_axis != 0).
+inline int VoxelFace(int axis, float w_axis) { return 2 * axis + (w_axis < 0.0f ? 1 : 0); }
+using VoxelCoefficientSink = std::function<void(const VoxelConnections& connections)>;
 
 class PathTracer {
  public:
@@ -105,7 +117,8 @@ class PathTracer {
   // Light estimation's walk (issue 7): the same camera path as Radiance() (BSDF sampling,
   // Russian roulette, max_depth), but at every vertex it connects to the voxels of `splitting`
   // (positions from `grid`; its intensities are not read) with a shadow ray each, and reports
-  // the coefficient of every L_j lambda_jk to `sink` instead of adding radiance. Emitters and the
+  // the coefficients of the products L_j lambda_jk to `sink` (once per vertex, the connections
+  // whose shadow ray is not blocked) instead of adding radiance. Emitters and the
   // scene's own lights are ignored. The predicted radiance is linear in the products L lambda.
   // The connections of the first vertex (direct light) are weighted by `first_vertex_weight`
   // (0: not traced), so that direct and indirect light can be estimated from different numbers

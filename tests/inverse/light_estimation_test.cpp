@@ -248,6 +248,43 @@ TEST(LightCache, MergeOfTwoVoxelSetsEqualsOneTraceOfBoth) {
   EXPECT_THROW(merged.Merge(added), std::exception) << "a parameter in both caches was merged";
 }
 
+// The growing pass's normal equations: the entries between parameters of the equations before
+// the merge are taken from them, the others computed; the result equals computing all of them.
+TEST(NormalEquations, KnownPartOfAMergedCacheGivesTheSameEquations) {
+  SmallScene s;
+  const std::vector<TrainingView> views = Render(s.Lit(), {CornellLightViews(16, 12)[0]}, 8);
+  const PathTracer tracer(s.geometry);
+  LightEstimationOptions o;
+  o.pixels_per_view = 100;
+  o.spp = 4;
+  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+  VoxelSplitting first, second;
+  for (int j = 0; j < 27; ++j) {
+    first.enabled.push_back(j % 3 == 0 || j == 26);
+    second.enabled.push_back(j % 3 == 1);
+  }
+  LightCache a = TraceLightCache(tracer, s.grid, first, views, pixels, o, 5);
+  LightCache b = TraceLightCache(tracer, s.grid, first, views, pixels, o, ~5ull);
+  const NormalEquations known = NormalEquations::FromCaches(a, b, 0.5);
+  a.Merge(TraceLightCache(tracer, s.grid, second, views, pixels, o, 5));
+  b.Merge(TraceLightCache(tracer, s.grid, second, views, pixels, o, ~5ull));
+  const NormalEquations whole = NormalEquations::FromCaches(a, b, 0.5);
+  const NormalEquations grown = NormalEquations::FromCaches(a, b, 0.5, &known);
+  const double n = static_cast<double>(whole.used.size());
+  ASSERT_GT(whole.used.size(), known.used.size());
+  // Dense rows (the sparse ones are always computed whole).
+  ASSERT_GE(static_cast<double>(a.NonZeros() + b.NonZeros()), 0.2 * n * static_cast<double>(pixels.size()));
+  EXPECT_EQ(grown.used, whole.used);
+  for (int c = 0; c < 3; ++c) {
+    const double scale = whole.gram[c].cwiseAbs().maxCoeff();
+    ASSERT_GT(scale, 0.0);
+    EXPECT_LE((grown.gram[c] - whole.gram[c]).cwiseAbs().maxCoeff(), 1e-6 * scale) << "channel " << c;
+    EXPECT_EQ(grown.gram[c], grown.gram[c].transpose()) << "channel " << c;
+    EXPECT_LE((grown.rhs[c] - whole.rhs[c]).cwiseAbs().maxCoeff(), 1e-9 * whole.rhs[c].cwiseAbs().maxCoeff());
+    EXPECT_EQ(grown.observed_sq[c], whole.observed_sq[c]);
+  }
+}
+
 // Drawing from a pmf with zeros (the unused voxels of a finer grid) never returns one of them,
 // even for u just below 1 where the running sum's rounding could end short of 1.
 TEST(VoxelSplitting, NeverDrawsAVoxelOfProbabilityZero) {
