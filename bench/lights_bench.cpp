@@ -27,6 +27,8 @@
 #include <filesystem>
 #include <string>
 
+#include <CLI/CLI.hpp>
+
 #include "core/color.h"
 #include "core/frame_source.h"
 #include "core/image_io.h"
@@ -549,25 +551,39 @@ int main(int argc, char** argv) {
   double gd_seconds = -1.0;  // -1: ten times the cached method's time
   double gamma = LightEstimationOptions().noise_correction;
   std::vector<double> weights = {0.0, 1e-4, 1e-3, 1e-2};
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--out")) out = argv[i + 1];
-    if (!std::strcmp(argv[i], "--size")) std::sscanf(argv[i + 1], "%dx%d", &width, &height);
-    if (!std::strcmp(argv[i], "--ref-spp")) ref_spp = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--threads")) SetThreadCount(std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--spp")) spp = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--gamma")) gamma = std::atof(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--eval-spp")) eval_spp = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--gd-seconds")) gd_seconds = std::atof(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--gd-spp")) gd_spp = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--weights")) {
-      weights.clear();
-      for (const char* p = argv[i + 1]; *p;) {
-        char* end = nullptr;
-        weights.push_back(std::strtod(p, &end));
-        p = *end == ',' ? end + 1 : end;
-      }
-    }
+  int threads = 0;
+  std::string size = "160x120";
+  CLI::App app{"bench_lights: light estimation (issue 7) on our replica of the paper's Fig. 3 (a Cornell box lit by a "
+               "0.5 m ceiling light, 3 training + 2 novel views). Section 1 sweeps the penalty weights: a table of "
+               "active voxels, training and novel relative RMSE (raw and with the Monte Carlo noise of both images "
+               "taken out, *) and seconds, and OUT/fig3_lights.png. Section 2 compares time to error with plain "
+               "gradient descent on the per-pixel cost (a table and OUT/lights_time_to_error.png). The references "
+               "are rendered once and kept in OUT."};
+  app.add_option("--out", out, "folder for the references, the figure and the plot")->capture_default_str();
+  app.add_option("--size", size, "reference size, WIDTHxHEIGHT")->capture_default_str();
+  app.add_option("--ref-spp", ref_spp, "paths per pixel of the references")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--spp", spp, "paths per sampled pixel of the coarse rounds (even)")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--eval-spp", eval_spp, "paths per pixel of the renders of the estimate that are judged")
+      ->check(CLI::Range(2, 1 << 20))->capture_default_str();
+  app.add_option("--gamma", gamma, "noise_correction of the normal equations")->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  app.add_option("--weights", weights, "penalty weights of the sweep, comma-separated")->delimiter(',')->capture_default_str();
+  app.add_option("--gd-seconds", gd_seconds, "gradient descent's time budget (0: skip section 2; -1: ten times the cached method's)")
+      ->capture_default_str();
+  app.add_option("--gd-spp", gd_spp, "paths per pixel of every gradient-descent step")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--threads", threads, "worker threads (0: all cores)")->check(CLI::NonNegativeNumber);
+  app.footer("Environment: CYCLES=DIR runs the Cycles Cornell box of DIR/cbox-cycles instead (section 3). Overrides of the "
+             "estimate's options: MAXDEPTH ROUNDS REFINE RSCALE RFRAC RGROW RCOARSE RSPP RREACH DIRECT MVOX SPLIT. "
+             "Diagnostics: VOXEL_TRUTH SOLVER_CHECK FINE_CHECK ORACLE DUMP.");
+  CLI11_PARSE(app, argc, argv);
+  if (std::sscanf(size.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0) {
+    std::fprintf(stderr, "bench_lights: --size %s: expected WIDTHxHEIGHT, e.g. 160x120\n", size.c_str());
+    return 2;
   }
+  if (spp % 2 != 0) {
+    std::fprintf(stderr, "bench_lights: --spp %d: must be even (two independent halves)\n", spp);
+    return 2;
+  }
+  if (threads > 0) SetThreadCount(threads);
   fs::create_directories(out);
   if (std::getenv("SOLVER_CHECK")) {  // diagnostic: the solver's cost against the truth's
     const Replica replica = MakeReplica(width, height, ref_spp, out);

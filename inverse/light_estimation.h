@@ -211,7 +211,7 @@ Eigen::Vector3f RenderSampledPixel(const PathTracer& tracer, const VoxelLightGri
 struct NormalEquations {
   int parameters = 0;                     // 6 x voxels
   std::vector<int> used;                  // parameter index of each compact index
-  std::array<Eigen::MatrixXd, 3> gram;    // per channel, compact x compact
+  std::array<Eigen::MatrixXd, 3> gram;    // per channel, compact x compact (both triangles stored)
   std::array<Eigen::VectorXd, 3> rhs;     // per channel, compact
   std::array<double, 3> observed_sq{};    // per channel, sum of I^2
   size_t pixels = 0;
