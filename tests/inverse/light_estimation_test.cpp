@@ -397,6 +397,35 @@ TEST(EstimateLights, RefinementPutsALightInItsFinerVoxel) {
   EXPECT_LT(fine_error, 0.75 * coarse_error);
 }
 
+// Same seed, same lights whatever the thread count: the traces, the normal equations (with the
+// growing pass's kept block), the solve's channels in parallel.
+TEST(EstimateLights, SameSeedSameLightsWithOneOrTwoThreads) {
+  SmallScene s;
+  VoxelLightGrid truth = MakeVoxelGrid(s.geometry, 6, kSmallInset);
+  const int light = 2 + 6 * 3 + 36 * 5;
+  truth.intensity[light] = Eigen::Vector3f(2.0f, 1.5f, 1.0f);
+  truth.weights[light] = {0.1f, 0.1f, 0.1f, 0.1f, 0.0f, 1.0f};
+  const Scene lit = s.Lit(&truth);
+  const std::vector<TrainingView> views = TrainingViews(lit);
+  LightEstimationOptions o = SmallOptions();
+  o.refine_levels = 1;
+  o.refine_spp = 8;
+  std::vector<LightEstimate> results;
+  for (int threads : {1, 2}) {
+    SetThreadCount(threads);
+    results.push_back(EstimateLights(lit, views, o, 4));
+  }
+  SetThreadCount(0);
+  ASSERT_GE(results[0].rounds.size(), 3u) << "a coarse round, the finer level and its growing pass";
+  EXPECT_GT(results[0].active_voxels, 0);
+  ASSERT_EQ(results[0].lights.VoxelCount(), results[1].lights.VoxelCount());
+  for (int j = 0; j < results[0].lights.VoxelCount(); ++j) {
+    ASSERT_EQ(results[0].lights.intensity[j], results[1].lights.intensity[j]) << "voxel " << j;  // bit for bit
+    ASSERT_EQ(results[0].lights.weights[j], results[1].lights.weights[j]) << "voxel " << j;
+  }
+  EXPECT_EQ(results[0].train_rmse, results[1].train_rmse);
+}
+
 // The solve's moves: on equations of one voxel light, a start with the light in the neighbouring
 // voxel (a local minimum of the log penalty) ends with it in its own voxel, at the cost of the
 // truth or below.
