@@ -358,6 +358,12 @@ ImageRgb ReadColorImage(const fs::path& path, const CameraResponse& response) {
   cv::Mat as_float;
   const double scale = depth == CV_8U ? 1.0 / 255.0 : depth == CV_16U ? 1.0 / 65535.0 : 1.0;
   mat.convertTo(as_float, CV_32FC3, scale);
+  // A NaN or infinite colour (float images only) would poison every sum it enters: texturing's
+  // averages, light estimation's normal equations. Negative values are kept (filters with negative
+  // lobes give them; they are valid observations of a linear image).
+  size_t bad = 0;
+  int first_u = -1, first_v = -1;
+  float first_value = 0.0f;
   for (int v = 0; v < as_float.rows; ++v) {
     const cv::Vec3f* row = as_float.ptr<cv::Vec3f>(v);
     for (int u = 0; u < as_float.cols; ++u) {
@@ -365,9 +371,18 @@ ImageRgb ReadColorImage(const fs::path& path, const CameraResponse& response) {
       Eigen::Vector3f rgb(bgr[2], bgr[1], bgr[0]);
       if (!is_float) {
         for (int c = 0; c < 3; ++c) rgb[c] = response.ToLinear(rgb[c]);
+      } else if (!rgb.allFinite()) {
+        if (bad++ == 0) {
+          first_u = u, first_v = v;
+          first_value = std::isfinite(rgb[0]) ? (std::isfinite(rgb[1]) ? rgb[2] : rgb[1]) : rgb[0];
+        }
       }
       image(u, v) = rgb;
     }
+  }
+  if (bad > 0) {
+    throw Error(Format(path.string(), ": ", bad, " pixels have a NaN or infinite colour (first: ", first_value,
+                       " at pixel (", first_u, ", ", first_v, "))"));
   }
   return image;
 }

@@ -137,6 +137,26 @@ TEST(ImageIo, NanInfNegativeDepthAreRejected) {
   }
 }
 
+TEST(ImageIo, NanAndInfiniteColourAreRejectedNegativeKept) {
+  test::TempDir dir;
+  for (float bad : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
+    for (int c = 0; c < 3; ++c) {
+      ImageRgb image(8, 8, Eigen::Vector3f(0.5f, 0.25f, 0.125f));
+      image(3, 5)[c] = bad;
+      image(6, 7)[c] = bad;
+      WriteExr(dir / "bad.exr", image);
+      ExpectErrorNaming([&] { ReadColorImage(dir / "bad.exr", CameraResponse()); }, "2 pixels", "bad.exr");
+      ExpectErrorNaming([&] { ReadColorImage(dir / "bad.exr", CameraResponse()); }, "pixel (3, 5)", "bad.exr");
+    }
+  }
+  // A negative value is a valid observation of a linear image (filters with negative lobes).
+  ImageRgb image(8, 8, Eigen::Vector3f(0.5f, 0.25f, 0.125f));
+  image(2, 1) = Eigen::Vector3f(-0.01f, 0.0f, 0.3f);
+  WriteExr(dir / "negative.exr", image);
+  const ImageRgb back = ReadColorImage(dir / "negative.exr", CameraResponse());
+  EXPECT_EQ(back(2, 1), image(2, 1));
+}
+
 TEST(ImageIo, RealFormatsDecode) {
   GS_REQUIRE_SHARED_DATA(data);
   const auto other = data / "real/open3d-testdata-rgbd/other_formats";
