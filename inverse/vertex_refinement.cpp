@@ -331,6 +331,25 @@ double MeanEdgeLength(const DifferentiablePathTracer& tracer) {
   return count > 0 ? sum / count : 1.0;
 }
 
+// The faces of the refined meshes in parameter-vertex indices (3 v per face: x at 3 v).
+std::vector<Eigen::Vector3i> ParameterFaces(const DifferentiablePathTracer& tracer) {
+  std::vector<Eigen::Vector3i> faces;
+  for (size_t m = 0; m < tracer.scene().meshes.size(); ++m) {
+    const int mesh = static_cast<int>(m);
+    if (tracer.ParameterVertex(mesh, 0) < 0) continue;
+    for (const Eigen::Vector3i& f : tracer.scene().meshes[m].mesh.faces) {
+      faces.emplace_back(tracer.ParameterVertex(mesh, f[0]), tracer.ParameterVertex(mesh, f[1]),
+                         tracer.ParameterVertex(mesh, f[2]));
+    }
+  }
+  return faces;
+}
+
+Eigen::Vector3d FaceNormalAt(const Eigen::VectorXd& x, const Eigen::Vector3i& f) {
+  const Eigen::Vector3d a = x.segment<3>(3 * f[0]), b = x.segment<3>(3 * f[1]), c = x.segment<3>(3 * f[2]);
+  return (b - a).cross(c - a);
+}
+
 // The prior's information matrix per parameter vertex: 1 / sigma_n^2 along the vertex's starting
 // normal (area-weighted), 1 / sigma_t^2 across it (by default the same: the relaxation term, not
 // this prior, keeps the vertices from sliding across the surface, and a firm prior across the
@@ -663,6 +682,7 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   result.history.push_back(first);
   if (progress) progress(first, tracer);
 
+  const std::vector<Eigen::Vector3i> faces = ParameterFaces(tracer);
   double mu = options.damping;
   const double max_radius = options.max_step * MeanEdgeLength(tracer);
   double radius = max_radius;
@@ -694,6 +714,7 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
       for (int v = 0; v < tracer.VertexCount(); ++v) largest = std::max(largest, step.segment<3>(3 * v).norm());
       if (largest > radius) step *= radius / largest;
       if (options.average_after > 0 && it > options.average_after) step /= it - options.average_after;
+      record.held += HoldFoldingVertices(faces, result.initial, x, &step);
       const Eigen::VectorXd trial = x + step;
       const bool derivatives = it < options.iterations && !options.resample;
       tracer.SetPositions(trial, derivatives);
@@ -728,6 +749,32 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   }
   result.positions = x;
   return result;
+}
+
+int HoldFoldingVertices(const std::vector<Eigen::Vector3i>& faces, const Eigen::VectorXd& start, const Eigen::VectorXd& x,
+                        Eigen::VectorXd* step) {
+  const auto folded = [&](const Eigen::VectorXd& at, const Eigen::Vector3i& f) {
+    const Eigen::Vector3d n0 = FaceNormalAt(start, f), n = FaceNormalAt(at, f);
+    return n0.squaredNorm() > 0.0 && (n.squaredNorm() == 0.0 || n0.dot(n) <= 0.0);
+  };
+  std::vector<bool> held(static_cast<size_t>(x.size() / 3), false);
+  int count = 0;
+  for (int pass = 0; pass < 100; ++pass) {
+    const Eigen::VectorXd trial = x + *step;
+    bool any = false;
+    for (const Eigen::Vector3i& f : faces) {
+      if (!folded(trial, f) || folded(x, f)) continue;
+      for (int k = 0; k < 3; ++k) {
+        if (held[f[k]]) continue;
+        held[f[k]] = true;
+        step->segment<3>(3 * f[k]).setZero();
+        ++count;
+        any = true;
+      }
+    }
+    if (!any) break;
+  }
+  return count;
 }
 
 int FlippedFaces(const TriangleMesh& before, const TriangleMesh& after) {

@@ -123,6 +123,7 @@ struct RefineIteration {
   double step_rms = 0.0;       // RMS vertex move of this iteration's step, m (0 when rejected)
   double damping = 0.0;        // damping after this iteration
   int rejected = 0;            // steps rejected in this iteration
+  int held = 0;                // vertex moves zeroed because they would turn a face over (all trials)
   bool accepted = false;
   double seconds = 0.0;        // wall time of the iteration
   double jacobian_nonzeros_per_pixel = 0.0;  // non-zero scalar entries of the 3 rows of a pixel
@@ -137,6 +138,15 @@ struct RefineResult {
 };
 
 using RefineProgress = std::function<void(const RefineIteration&, const DifferentiablePathTracer&)>;
+
+// The guard every step of RefineVertices passes: zeroes the step of the vertices of every face
+// (vertex indices into x, 3 coordinates each) that x + step would turn over (its normal at or
+// past 90 degrees from its normal at `start`, or of zero area) while at x it is not, until no
+// face turns over; returns how many vertices were held. A fold is never a better fit of a
+// surface: it comes from a step the linear model over-reaches, or from noise on a thin face.
+// Faces of zero area at `start` have no orientation and are not checked.
+int HoldFoldingVertices(const std::vector<Eigen::Vector3i>& faces, const Eigen::VectorXd& start, const Eigen::VectorXd& x,
+                        Eigen::VectorXd* step);
 
 // Refines the tracer's parameter vertices so that its renders match the targets; leaves the
 // tracer at the final positions. `seed` keys the random numbers of the traces and of the pixel

@@ -154,6 +154,40 @@ TEST(VertexRefinement, FlippedFacesAreCounted) {
   EXPECT_LE(flipped, 6);
 }
 
+// The fold guard: on the icosphere, a step that pushes one vertex through the centre holds that
+// vertex (and, as its one-ring would turn over, nothing else moves that would not) while the
+// other vertices keep their steps; a step that folds nothing is left as it was.
+TEST(VertexRefinement, StepsThatWouldTurnFacesOverHoldThoseVertices) {
+  IcosphereBox box = MakeIcosphereBox();
+  const TriangleMesh& mesh = box.scene.meshes[box.sphere].mesh;
+  const int n = static_cast<int>(mesh.vertices.size());
+  Eigen::VectorXd start(3 * n);
+  for (int v = 0; v < n; ++v) start.segment<3>(3 * v) = mesh.vertices[v].cast<double>();
+  // Every vertex 1 % of the radius outwards: no face turns over.
+  Eigen::VectorXd step(3 * n);
+  for (int v = 0; v < n; ++v) step.segment<3>(3 * v) = 0.01 * (start.segment<3>(3 * v) - box.center);
+  const Eigen::VectorXd outwards = step;
+  EXPECT_EQ(HoldFoldingVertices(mesh.faces, start, start, &step), 0);
+  EXPECT_EQ(step, outwards);
+  // Vertex 0 pushed through the centre as well: its one-ring would turn over.
+  step.segment<3>(0) = -2.0 * (start.segment<3>(0) - box.center);
+  const int held = HoldFoldingVertices(mesh.faces, start, start, &step);
+  EXPECT_GE(held, 6);    // vertex 0 and its one-ring (5 or 6 neighbours)
+  EXPECT_LE(held, 7);
+  EXPECT_TRUE(step.segment<3>(0).isZero());
+  int moving = 0;
+  for (int v = 0; v < n; ++v) moving += step.segment<3>(3 * v).isZero() ? 0 : 1;
+  EXPECT_EQ(moving, n - held);
+  TriangleMesh after = mesh;
+  for (int v = 0; v < n; ++v) after.vertices[v] = (start + step).segment<3>(3 * v).cast<float>();
+  EXPECT_EQ(FlippedFaces(mesh, after), 0);
+  // A face already turned over at x is not the step's doing: it does not hold its vertices.
+  Eigen::VectorXd x = start;
+  x.segment<3>(0) = box.center - (start.segment<3>(0) - box.center);
+  step = outwards;
+  EXPECT_EQ(HoldFoldingVertices(mesh.faces, start, x, &step), 0);
+}
+
 // Refines the replica's sphere from `start` with `options`; expects no flipped face; returns the
 // refined positions.
 Eigen::VectorXd RefinedFrom(const Replica& replica, const Eigen::VectorXd& start, const RefineOptions& options) {
