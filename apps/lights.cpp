@@ -75,7 +75,8 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
                       {"nonzeros", r.nonzeros}, {"rays", r.rays},
                       {"trace_seconds", r.trace_seconds}, {"gram_seconds", r.gram_seconds},
                       {"solve_seconds", r.solve_seconds}, {"iterations", r.solve.iterations},
-                      {"cost", r.solve.cost}, {"active_voxels", r.active_voxels}, {"power_change", r.power_change}});
+                      {"cost", r.solve.cost}, {"data", r.solve.data}, {"active_voxels", r.active_voxels},
+                      {"power_change", r.power_change}});
   }
   estimate["rounds"] = rounds;
   for (const auto& [key, errors] : {std::pair{"train_views", &out.train}, std::pair{"novel_views", &out.novel}}) {

@@ -501,6 +501,17 @@ void TimeToError(const Replica& replica, const LightEstimationOptions& options, 
   std::printf("   plot: %s\n", (out / "lights_time_to_error.png").c_str());
 }
 
+// The estimate's rounds (levels, cache size, time, data term, active voxels) and notes.
+void PrintRounds(const LightEstimate& e) {
+  for (const LightRound& r : e.rounds) {
+    if (r.level > 0) std::printf("   level %d: %d candidate voxels\n", r.level, r.candidates);
+    std::printf("   round %d: %zu nnz, %.2f s trace, %.2f s gram, %.2f s solve (%d it), data %.4g, active %d, change %.3f\n",
+                r.round, r.nonzeros, r.trace_seconds, r.gram_seconds, r.solve_seconds, r.solve.iterations, r.solve.data,
+                r.active_voxels, r.power_change);
+  }
+  for (const std::string& note : e.notes) std::printf("   note: %s\n", note.c_str());
+}
+
 // Section 3: the Cycles Cornell box (../shared/data/cbox-cycles): lights from the 3 training
 // views, judged on the 2 novel views; the power-weighted centroid of the voxels against the light.
 void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, int eval_spp) {
@@ -518,6 +529,7 @@ void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, i
     ApplyEnvironment(&o);
     const double t = Now();
     const LightEstimate e = EstimateLights(scene, train, o, 7);
+    PrintRounds(e);
     const double seconds = Now() - t;
     Scene lit = WithoutLights(scene);
     lit.voxel_lights = e.lights;
@@ -731,13 +743,7 @@ int main(int argc, char** argv) {
     t = Now();
     const LightEstimate e = EstimateLights(replica.scene, replica.train, o, 7);
     const double seconds = Now() - t;
-    for (const LightRound& r : e.rounds) {
-      if (r.level > 0) std::printf("   level %d: %d candidate voxels\n", r.level, r.candidates);
-      std::printf("   round %d: %zu nnz, %.2f s trace, %.2f s gram, %.2f s solve (%d it), active %d, change %.3f\n",
-                  r.round, r.nonzeros, r.trace_seconds, r.gram_seconds, r.solve_seconds, r.solve.iterations,
-                  r.active_voxels, r.power_change);
-    }
-    for (const std::string& note : e.notes) std::printf("   note: %s\n", note.c_str());
+    PrintRounds(e);
     if (std::getenv("DUMP")) {
       for (int j : e.lights.ActiveVoxels(1e-3)) {
         const Eigen::Vector3d c = e.lights.VoxelCenter(j);

@@ -30,7 +30,8 @@
 //     finer voxels near the voxels that hold light, with growing passes that add the neighbours of
 //     the finer solution's lights. A point per coarse voxel cannot hold an extended light (a 0.5 m
 //     ceiling light: 5-7 % training error at best on 7^3, 1-2 % as 4x4 points); the result is the
-//     finer grid, dark outside the candidates.
+//     finer grid, dark outside the candidates, unless it fits the pixels worse than the coarser
+//     grid (its data term is larger): then the coarser result stands (a note says so).
 #pragma once
 
 #include <Eigen/Core>

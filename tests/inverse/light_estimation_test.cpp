@@ -404,6 +404,37 @@ TEST(EstimateLights, RefinementPutsALightInItsFinerVoxel) {
   EXPECT_LT(fine_error, 0.75 * coarse_error);
 }
 
+// A finer level that fits the pixels worse than the coarse grid is dropped: here only the
+// strongest coarse voxel is split (refine_fraction 1), so the finer grid has no voxel near the
+// second light (70 % of the first's power, two coarse voxels below it) and its data term is far
+// larger. The coarse result stands, as good as without refinement, and a note says why.
+TEST(EstimateLights, AFinerLevelThatFitsWorseLeavesTheCoarseResult) {
+  SmallScene s;
+  const Scene lit = s.Lit();
+  const std::vector<TrainingView> views = TrainingViews(lit);
+  LightEstimationOptions o = SmallOptions();
+  o.rounds = 1;
+  const LightEstimate coarse = EstimateLights(lit, views, o, 1);
+  o.refine_levels = 1;
+  o.refine_spp = 8;
+  o.refine_fraction = 1.0;
+  const LightEstimate e = EstimateLights(lit, views, o, 1);
+  ASSERT_GE(e.rounds.size(), 2u) << "a coarse round, then the finer level";
+  double finer_data = -1.0;
+  for (const LightRound& r : e.rounds) {
+    if (r.level == 1) finer_data = r.solve.data;
+  }
+  ASSERT_GE(finer_data, 0.0) << "the finer level was not tried";
+  EXPECT_GT(finer_data, 2.0 * coarse.rounds.back().solve.data);
+  EXPECT_EQ(e.lights.VoxelCount(), 27) << "the finer grid was kept although it fits worse";
+  EXPECT_EQ(e.active_voxels, coarse.active_voxels);
+  ASSERT_EQ(e.notes.size(), 1u);
+  EXPECT_NE(e.notes[0].find("fitted the pixels worse"), std::string::npos) << e.notes[0];
+  // The pixels are the same (pixels_per_view 300 < refine_coarse_pixels): the same result.
+  EXPECT_EQ(e.lights.intensity, coarse.lights.intensity);
+  EXPECT_NEAR(e.train_rmse, coarse.train_rmse, 1e-12);
+}
+
 // Same seed, same lights whatever the thread count: the traces, the normal equations (with the
 // growing pass's kept block), the solve's channels in parallel.
 TEST(EstimateLights, SameSeedSameLightsWithOneOrTwoThreads) {
