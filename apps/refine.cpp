@@ -127,7 +127,8 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
   for (size_t i = 0; i < out.result.history.size(); ++i) {
     const RefineIteration& it = out.result.history[i];
     nlohmann::ordered_json j = {{"iteration", it.iteration}, {"cost", it.cost}, {"image_rmse", it.data_rmse},
-                                {"step_rms_m", it.step_rms}, {"accepted", it.accepted}, {"rejected", it.rejected}, {"held_vertices", it.held},
+                                {"step_rms_m", it.step_rms}, {"accepted", it.accepted}, {"rejected", it.rejected},
+                                {"held_vertices", it.held},
                                 {"damping", it.damping}, {"seconds", it.seconds},
                                 {"jacobian_nonzeros_per_pixel", it.jacobian_nonzeros_per_pixel},
                                 {"rays", it.rays.total()}};

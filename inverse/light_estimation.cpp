@@ -1238,18 +1238,22 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     if (add_candidates(grid, fine, &enabled, &candidates, &left_out) == 0 && !left_out) break;
     // Lights spread over more voxels than refine_max_voxels can refine: the finer grid would drop
     // the ones left out (it is dark outside its candidates), so the coarser result stands.
+    // When the coarser result stands (here or below) and it is the coarse grid of a pixel subset,
+    // the coarse grid is estimated again from every sampled pixel.
+    const bool reestimate = level == 1 && coarse_pixels.size() < pixels.size();
     if (left_out) {
       out.notes.push_back(Format("adaptive refinement stopped before level ", level, ": the lights of the ",
                                  grid.dims.x(), "^3 grid spread over more than lights refine_max_voxels = ",
                                  options.refine_max_voxels, " finer voxels (a larger penalty_weight gives fewer)"));
-      // The coarse grid is the result: estimated again from every sampled pixel.
-      if (level == 1 && coarse_pixels.size() < pixels.size()) coarse_rounds(pixels);
+      if (reestimate) coarse_rounds(pixels);
       break;
     }
-    // The coarser result, kept in case this level fits worse (below).
+    // The coarser result, kept in case this level fits worse (below); its cache only when it
+    // would be the result's (not re-estimated).
     const double coarser_data = out.rounds.back().solve.data;
     VoxelLightGrid coarser = grid;
-    LightCache coarser_cache = std::move(last);
+    LightCache coarser_cache;
+    if (!reestimate) coarser_cache = std::move(last);
     const double coarser_bytes = static_cast<double>(coarser_cache.Bytes());
     std::vector<bool> traced(enabled.size(), false);
     LightCache second;
@@ -1319,10 +1323,8 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
                                  coarser.dims.x(), "^3 grid (data term ", finer_data, " against ", coarser_data,
                                  "): the coarser result stands"));
       second = LightCache();
-      if (level == 1 && coarse_pixels.size() < pixels.size()) {
-        // The coarse grid is the result: estimated again from every sampled pixel.
+      if (reestimate) {
         last = LightCache();
-        coarser_cache = LightCache();
         coarse_rounds(pixels);
       } else {
         grid = std::move(coarser);

@@ -225,14 +225,23 @@ TEST(LightCost, GramCostEqualsThePerPixelCost) {
 
 // A growing refinement pass traces only the voxels it adds and merges them into the caches: with
 // the same seed every path is the same, so the merge equals one trace of both sets, bit for bit.
-TEST(LightCache, MergeOfTwoVoxelSetsEqualsOneTraceOfBoth) {
+// One view of the small scene and 100 of its pixels, for the tests of caches traced in parts.
+struct PartsSetup {
   SmallScene s;
-  const std::vector<TrainingView> views = Render(s.Lit(), {CornellLightViews(16, 12)[0]}, 8);
-  const PathTracer tracer(s.geometry);
-  LightEstimationOptions o;
-  o.pixels_per_view = 100;
-  o.spp = 4;
-  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+  std::vector<TrainingView> views = Render(s.Lit(), {CornellLightViews(16, 12)[0]}, 8);
+  PathTracer tracer{s.geometry};
+  LightEstimationOptions o = [] {
+    LightEstimationOptions options;
+    options.pixels_per_view = 100;
+    options.spp = 4;
+    return options;
+  }();
+  std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+};
+
+TEST(LightCache, MergeOfTwoVoxelSetsEqualsOneTraceOfBoth) {
+  const PartsSetup p;
+  const auto& [s, views, tracer, o, pixels] = p;
   VoxelSplitting first, second, both;
   for (int j = 0; j < 27; ++j) {
     first.enabled.push_back(j % 3 == 0);
@@ -258,13 +267,8 @@ TEST(LightCache, MergeOfTwoVoxelSetsEqualsOneTraceOfBoth) {
 // The growing pass's normal equations: the entries between parameters of the equations before
 // the merge are taken from them, the others computed; the result equals computing all of them.
 TEST(NormalEquations, KnownPartOfAMergedCacheGivesTheSameEquations) {
-  SmallScene s;
-  const std::vector<TrainingView> views = Render(s.Lit(), {CornellLightViews(16, 12)[0]}, 8);
-  const PathTracer tracer(s.geometry);
-  LightEstimationOptions o;
-  o.pixels_per_view = 100;
-  o.spp = 4;
-  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+  const PartsSetup p;
+  const auto& [s, views, tracer, o, pixels] = p;
   VoxelSplitting first, second;
   for (int j = 0; j < 27; ++j) {
     first.enabled.push_back(j % 3 == 0 || j == 26);
