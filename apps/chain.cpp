@@ -8,7 +8,14 @@
 #include <ctime>
 #include <sstream>
 
+#include <memory>
+#include <mutex>
+#include <set>
+#include <utility>
+
 #include <nlohmann/json.hpp>
+#include <spdlog/sinks/base_sink.h>
+#include <spdlog/spdlog.h>
 
 #include "apps/fuse.h"
 #include "apps/ingest.h"
@@ -86,7 +93,45 @@ std::string Now() {
   return text;
 }
 
-// Runs one stage: skipped when its outputs are fresh, else timed, logged and summarised.
+// Collects the text of every warning (and error) logged through spdlog while it is attached to the
+// default logger; the default logger's own console sink still prints them.
+class WarningCollector : public spdlog::sinks::base_sink<std::mutex> {
+ public:
+  std::vector<std::string> Take() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return std::exchange(messages_, {});
+  }
+
+ protected:
+  void sink_it_(const spdlog::details::log_msg& msg) override {
+    if (msg.level >= spdlog::level::warn) messages_.emplace_back(msg.payload.data(), msg.payload.size());
+  }
+  void flush_() override {}
+
+ private:
+  std::vector<std::string> messages_;
+};
+
+// Attaches a WarningCollector to the default logger for its lifetime.
+class ScopedWarningCollector {
+ public:
+  ScopedWarningCollector() : sink_(std::make_shared<WarningCollector>()) {
+    spdlog::default_logger()->sinks().push_back(sink_);
+  }
+  ~ScopedWarningCollector() {
+    auto& sinks = spdlog::default_logger()->sinks();
+    sinks.erase(std::remove(sinks.begin(), sinks.end(), sink_), sinks.end());
+  }
+  ScopedWarningCollector(const ScopedWarningCollector&) = delete;
+  ScopedWarningCollector& operator=(const ScopedWarningCollector&) = delete;
+  std::vector<std::string> Take() { return sink_->Take(); }
+
+ private:
+  std::shared_ptr<WarningCollector> sink_;
+};
+
+// Runs one stage: skipped when its outputs are fresh, else timed, logged and summarised. Warnings
+// logged while the stage runs go into its row and the log.
 class StageRunner {
  public:
   StageRunner(bool redo, std::ostream& log, std::vector<StageRow>& rows, std::string until)
@@ -99,7 +144,7 @@ class StageRunner {
     const auto& stages = ChainStages();
     const size_t index = std::find(stages.begin(), stages.end(), stage) - stages.begin() + 1;
     if (!redo_ && Workspace::IsFresh(outputs, inputs)) {
-      StageRow row{stage, 0.0, PeakMegabytes(), true, "up to date (" + outputs.front().string() + "), skipped"};
+      StageRow row{stage, 0.0, PeakMegabytes(), true, "up to date (" + outputs.front().string() + "), skipped", {}};
       log_ << Now() << " " << stage << ": " << row.result << "\n" << std::flush;
       rows_.push_back(row);
       return;
@@ -107,15 +152,18 @@ class StageRunner {
     std::fprintf(stderr, "[%zu/%zu] %s\n", index, stages.size(), stage.c_str());
     log_ << Now() << " " << stage << ": start\n" << std::flush;
     const auto start = std::chrono::steady_clock::now();
+    warnings_.Take();
     std::string result;
     try {
       result = body();
     } catch (const std::exception& e) {
+      LogWarnings(stage, warnings_.Take());
       log_ << Now() << " " << stage << ": error: " << e.what() << "\n" << std::flush;
       throw;
     }
     StageRow row{stage, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
-                 PeakMegabytes(), false, result};
+                 PeakMegabytes(), false, result, warnings_.Take()};
+    LogWarnings(stage, row.warnings);
     log_ << Now() << " " << stage << ": done in " << Format(row.seconds) << " s: " << result << "\n" << std::flush;
     rows_.push_back(row);
   }
@@ -126,7 +174,17 @@ class StageRunner {
   std::vector<StageRow>& rows_;
   std::string until_;
   bool done_ = false;  // the `until` stage has run
+  ScopedWarningCollector warnings_;
+
+  void LogWarnings(const std::string& stage, const std::vector<std::string>& warnings) {
+    for (const std::string& w : warnings) log_ << Now() << " " << stage << ": warning: " << w << "\n";
+  }
 };
+
+// A stage's own warnings (returned in its summary) go to the console and the stage's row.
+void Warn(const std::vector<std::string>& warnings) {
+  for (const std::string& w : warnings) spdlog::warn("{}", w);
+}
 
 // The workspace's model as a scene: `mesh` with the Mesh Colors albedo and the voxel lights.
 inverse::Scene LoadModel(const Workspace& ws, const fs::path& mesh, std::vector<std::string>* warnings) {
@@ -203,7 +261,7 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
 
   stage.Run("lights", {ws.Lights()}, {ws.Mesh(), ws.Albedo(), ws.Keyframes()}, [&] {
     const LightsSummary s = LightsWorkspace({}, options.lights, seed, ws);
-    for (const std::string& w : s.warnings) log << "lights: warning: " << w << "\n";
+    Warn(s.warnings);
     return ToString(s);
   });
 
@@ -211,7 +269,7 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
     RefineInputs in;
     in.render_spp = 16;
     const RefineSummary s = RefineWorkspace(in, options.refine, seed, ws);
-    for (const std::string& w : s.warnings) log << "refine: warning: " << w << "\n";
+    Warn(s.warnings);
     return ToString(s);
   });
 
@@ -220,7 +278,7 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
             {ws.RefinedMesh(), ws.Albedo(), ws.Lights(), ws.Trajectory()}, [&] {
               std::vector<std::string> warnings;
               std::string result = ExportModel(ws, &warnings);
-              for (const std::string& w : warnings) log << "export: warning: " << w << "\n";
+              Warn(warnings);
               return result;
             });
 
@@ -309,7 +367,7 @@ void WriteSummaryJson(const Workspace& ws, const std::string& input, uint64_t se
   nlohmann::ordered_json stages = nlohmann::ordered_json::array();
   for (const StageRow& r : rows) {
     nlohmann::ordered_json row = {{"stage", r.stage}, {"seconds", r.seconds}, {"peak_megabytes", r.peak_megabytes},
-                                  {"skipped", r.skipped}, {"result", r.result}};
+                                  {"skipped", r.skipped}, {"result", r.result}, {"warnings", r.warnings}};
     // A skipped stage keeps the figures of the run that made its outputs.
     if (r.skipped && previous.contains("stages")) {
       for (const auto& old : previous["stages"]) {
@@ -335,6 +393,16 @@ std::string SummaryTable(const std::vector<StageRow>& rows) {
   }
   std::snprintf(line, sizeof(line), "%-10s %9.2f\n", "total", total);
   o << line;
+  // Each distinct warning once, under the first stage that gave it (ingest and fusion read the
+  // same source and warn alike).
+  std::set<std::string> seen;
+  std::ostringstream list;
+  for (const StageRow& r : rows) {
+    for (const std::string& w : r.warnings) {
+      if (seen.insert(w).second) list << "  " << r.stage << ": " << w << "\n";
+    }
+  }
+  if (!seen.empty()) o << "\n" << seen.size() << (seen.size() == 1 ? " warning" : " warnings") << ":\n" << list.str();
   return o.str();
 }
 

@@ -68,13 +68,15 @@ struct StageRow {
   double peak_megabytes = 0.0;  // the process's peak resident memory after the stage
   bool skipped = false;
   std::string result;           // the stage's own figures
+  std::vector<std::string> warnings;  // every warning the stage gave (console, log, summary)
 };
 
 // The chain's stages in order, for --help texts and the kill-and-resume test.
 const std::vector<std::string>& ChainStages();
 
 // Runs the chain on `input` into `ws`, appending one row per stage to `rows` and a line per event to
-// `log` (the workspace's genscene.log). `redo`: run stages whose outputs are up to date. When
+// `log` (the workspace's genscene.log). Every warning a stage gives (spdlog::warn anywhere below
+// it, or a warning its summary returns) reaches the console, the log and the stage's row. `redo`: run stages whose outputs are up to date. When
 // `input` holds a ground truth (scene.json of genscene-synth), an "evaluate" stage follows.
 // `until`: the last stage to run (empty: all); throws Error when it names no stage.
 void RunChain(const std::string& input, const SourceOptions& source, const ChainOptions& options, uint64_t seed,

@@ -6,6 +6,8 @@
 #include "capture/openni2_source.h"
 #include "core/check.h"
 
+#include <spdlog/spdlog.h>
+
 namespace genscene::apps {
 
 FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_options,
@@ -42,8 +44,24 @@ FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_o
   std::cerr << "\n";
   if (summary.frames == 0) throw Error(Format(input, ": the sequence has no frames"));
   fusion.Finish();
+  const size_t failed = summary.lost + summary.degenerate, tried = summary.frames - summary.blank;
+  if (options.tracking == "icp" && tried >= 2 && 2 * failed > tried) {
+    const CameraIntrinsics& k = source->Intrinsics();
+    std::string advice = source->KnownPoses().empty()
+                             ? ""
+                             : "; the recording has its own poses: --tracking known fuses with them";
+    throw Error(Format(input, ": ICP tracking failed on ", failed, " of ", tried, " frames (", summary.lost, " lost, ",
+                       summary.degenerate, " degenerate; ", summary.fused, " fused), too few for a model", advice,
+                       "; or check the intrinsics (--intrinsics; now fx ", k.fx, " fy ", k.fy, " cx ", k.cx, " cy ",
+                       k.cy, ") and the depth scale (--depth-scale)"));
+  }
   if (options.tracking == "icp" && source->KnownPoses().size() >= 3 && fusion.trajectory().size() >= 3) {
-    summary.ate = ComputeAte(fusion.trajectory(), source->KnownPoses());
+    try {  // an accuracy figure: a run never stops for it
+      summary.ate = ComputeAte(fusion.trajectory(), source->KnownPoses());
+    } catch (const Error& e) {
+      summary.warnings.push_back(Format("no trajectory error against the recording's poses: ", e.what()));
+      spdlog::warn("{}", summary.warnings.back());
+    }
   }
   fusion::SaveFusionOutputs(fusion, workspace, summary.ate);
   summary.blocks = fusion.volume().num_blocks();

@@ -5,6 +5,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "core/frame_source.h"
 #include "core/trajectory_metrics.h"
@@ -21,8 +22,11 @@ struct FuseSummary {
   size_t keyframes = 0;
   double seconds = 0.0;  // processing time of all frames (reading excluded)
   std::optional<AteResult> ate;  // against the source's known poses (tracking = icp only)
+  std::vector<std::string> warnings;  // also logged with spdlog::warn as they arise
 };
 
+// Throws Error, before writing anything, when ICP tracking lost or could not constrain most
+// frames: the message says how many and what to try.
 FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_options,
                          const fusion::FusionOptions& options, const Workspace& workspace);
 

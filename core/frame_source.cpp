@@ -82,8 +82,8 @@ class ListedFrameSource : public FrameSource {
  private:
   std::optional<Eigen::Isometry3d> PoseOf(size_t index, double timestamp) const {
     if (poses_.empty()) return std::nullopt;
-    if (poses_by_index_) {
-      if (auto p = poses_.Nearest(static_cast<double>(index), 0.0)) return p->world_from_camera;
+    if (poses_by_index_) {  // stamped with their frames' own time stamps
+      if (auto p = poses_.Nearest(timestamp, 0.0)) return p->world_from_camera;
       return std::nullopt;
     }
     // Interpolate between bracketing ground-truth poses when they are close; else the nearest.
@@ -271,7 +271,7 @@ std::unique_ptr<FrameSource> OpenTumFolder(const fs::path& folder, const SourceO
   } else if (fs::exists(folder / "intrinsics.txt", ec)) {
     intrinsics = ReadIntrinsicsFile(folder / "intrinsics.txt");
   } else if (auto guess = GuessTumCamera(folder)) {
-    spdlog::info("{}: no intrinsics given, using {} from the folder name", folder.string(), *guess);
+    spdlog::warn("{}: no intrinsics given, using {} from the folder name (--intrinsics to give them)", folder.string(), *guess);
     intrinsics = *NamedIntrinsics(*guess);
   } else {
     throw Error(Format(folder.string(), ": no intrinsics.txt; give --intrinsics FILE or one of ",
@@ -282,6 +282,13 @@ std::unique_ptr<FrameSource> OpenTumFolder(const fs::path& folder, const SourceO
   bool by_index = false;
   if (!options.trajectory.empty()) {
     poses = ReadPosesFile(options.trajectory, &by_index);
+    if (by_index) {  // pose i belongs to the i-th frame read, and takes its time stamp
+      Trajectory stamped;
+      for (size_t i = 0; i < entries.size(); ++i) {
+        if (auto p = poses.Nearest(static_cast<double>(i), 0.0)) stamped.Add(entries[i].timestamp, p->world_from_camera);
+      }
+      poses = stamped;
+    }
   } else if (fs::exists(folder / "groundtruth.txt", ec)) {
     poses = ReadTumTrajectory(folder / "groundtruth.txt");
   }
@@ -357,11 +364,13 @@ std::unique_ptr<FrameSource> OpenRedwoodFolder(const fs::path& folder, const fs:
   }
   // Frame indices are assigned before selection so that poses by index stay with their frames.
   std::vector<FrameEntry> selected = SelectFrames(entries, options, folder.string());
+  // Poses by index take their frame's time stamp, so that they pair with the frames (and with the
+  // estimated trajectory, for the ATE) by time like any other known poses.
   if (by_index && !poses.empty()) {
     Trajectory kept;
     for (const FrameEntry& e : selected) {
       const double index = std::round(e.timestamp * 30.0);
-      kept.Add(kept.size(), poses.Nearest(index, 0.0)->world_from_camera);
+      kept.Add(e.timestamp, poses.Nearest(index, 0.0)->world_from_camera);
     }
     poses = kept;
   }
@@ -379,7 +388,8 @@ std::unique_ptr<FrameSource> OpenRedwoodFolder(const fs::path& folder, const fs:
       }
     }
     if (!found) {
-      spdlog::info("{}: no intrinsics given, using the PrimeSense default (525, 525, 319.5, 239.5)",
+      spdlog::warn("{}: no intrinsics given, assuming the PrimeSense default (525, 525, 319.5, 239.5); give "
+                   "--intrinsics FILE for this camera's own",
                    folder.string());
       intrinsics = *NamedIntrinsics("primesense");
     }
@@ -388,6 +398,142 @@ std::unique_ptr<FrameSource> OpenRedwoodFolder(const fs::path& folder, const fs:
       Format("Redwood folder ", folder.string()), std::move(selected), intrinsics,
       MakeEncoding(options, 1000.0), CameraResponse::Parse(options.camera_response), std::move(poses),
       options.max_time_difference, by_index);
+}
+
+// The 3x3 camera matrix of a 7-Scenes / 3DMatch camera-intrinsics.txt, for images of the given size.
+CameraIntrinsics ReadCameraMatrixFile(const fs::path& path, int width, int height) {
+  const auto lines = ReadDataLines(path);
+  double m[9];
+  int n = 0;
+  for (const TextLine& line : lines) {
+    const std::string where = Format(path.string(), ":", line.number);
+    for (const std::string& t : SplitWhitespace(line.text)) {
+      if (n == 9) throw Error(Format(where, ": more than the 9 values of a 3x3 camera matrix"));
+      m[n++] = ParseDouble(t, where);
+    }
+  }
+  if (n != 9) throw Error(Format(path.string(), ": expected a 3x3 camera matrix (9 values), got ", n));
+  if (m[1] != 0.0 || m[3] != 0.0 || m[6] != 0.0 || m[7] != 0.0 || m[8] != 1.0) {
+    throw Error(Format(path.string(), ": not a camera matrix [fx 0 cx; 0 fy cy; 0 0 1]"));
+  }
+  CameraIntrinsics k;
+  k.fx = m[0];
+  k.cx = m[2];
+  k.fy = m[4];
+  k.cy = m[5];
+  k.width = width;
+  k.height = height;
+  k.Validate(path.string());
+  return k;
+}
+
+// A 7-Scenes / 3DMatch frame pose: a 4x4 camera-to-world matrix in metres.
+Eigen::Isometry3d ReadPoseMatrixFile(const fs::path& path) {
+  Eigen::Matrix4d m;
+  int n = 0;
+  for (const TextLine& line : ReadDataLines(path)) {
+    const std::string where = Format(path.string(), ":", line.number);
+    for (const std::string& t : SplitWhitespace(line.text)) {
+      if (n == 16) throw Error(Format(where, ": more than the 16 values of a 4x4 pose"));
+      m(n / 4, n % 4) = ParseDouble(t, where);
+      ++n;
+    }
+  }
+  if (n != 16) throw Error(Format(path.string(), ": expected a 4x4 pose matrix (16 values), got ", n));
+  if (!IsValidRigidTransform(m, 1e-3)) throw Error(Format(path.string(), ": the pose is not a rigid transform"));
+  Eigen::Isometry3d pose(m);
+  pose.linear() = Eigen::Quaterniond(pose.rotation()).normalized().toRotationMatrix();
+  return pose;
+}
+
+// True when `dir` holds 7-Scenes / 3DMatch frames (frame-XXXXXX.color.png beside .depth.png).
+bool HoldsSevenScenesFrames(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) return false;
+  for (const auto& entry : fs::directory_iterator(dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("frame-", 0) == 0 && name.size() > 10 && name.compare(name.size() - 10, 10, ".depth.png") == 0) {
+      return true;
+    }
+  }
+  return false;
+}
+
+// The native 7-Scenes / 3DMatch layout: frame-XXXXXX.{color,depth}.png (depth in millimetres,
+// 0 and 65535 = no data) with optional frame-XXXXXX.pose.txt, camera-intrinsics.txt in the frames'
+// folder or the one above. No time stamps: frame i is at i / 30 s.
+std::unique_ptr<FrameSource> OpenSevenScenesFolder(const fs::path& folder, const fs::path& frames,
+                                                   const SourceOptions& options) {
+  std::error_code ec;
+  std::vector<fs::path> depths;
+  for (const auto& entry : fs::directory_iterator(frames)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("frame-", 0) == 0 && name.size() > 10 && name.compare(name.size() - 10, 10, ".depth.png") == 0) {
+      depths.push_back(entry.path());
+    }
+  }
+  std::sort(depths.begin(), depths.end(), NaturalLess);
+  std::vector<FrameEntry> entries;
+  std::vector<fs::path> pose_files;
+  for (const fs::path& depth : depths) {
+    const std::string stem = depth.filename().string().substr(0, depth.filename().string().size() - 10);
+    const fs::path color = frames / (stem + ".color.png");
+    if (!fs::is_regular_file(color, ec)) {
+      throw Error(Format(depth.string(), ": no colour image beside it (", color.filename().string(), ")"));
+    }
+    entries.push_back({entries.size() / 30.0, color, depth});
+    pose_files.push_back(frames / (stem + ".pose.txt"));
+  }
+  Trajectory poses;
+  size_t with_pose = 0;
+  for (const fs::path& p : pose_files) with_pose += fs::is_regular_file(p, ec) ? 1 : 0;
+  if (!options.trajectory.empty()) {
+    bool by_index = false;
+    const Trajectory given = ReadPosesFile(options.trajectory, &by_index);
+    for (size_t i = 0; i < entries.size(); ++i) {
+      const auto p = by_index ? given.Nearest(static_cast<double>(i), 0.0) : given.Nearest(entries[i].timestamp, 0.0);
+      if (p) poses.Add(entries[i].timestamp, p->world_from_camera);
+    }
+  } else if (with_pose == entries.size()) {
+    for (size_t i = 0; i < entries.size(); ++i) poses.Add(entries[i].timestamp, ReadPoseMatrixFile(pose_files[i]));
+  } else if (with_pose > 0) {
+    throw Error(Format(frames.string(), ": ", with_pose, " of ", entries.size(),
+                       " frames have a .pose.txt; give all or none (or --trajectory FILE)"));
+  }
+  std::vector<FrameEntry> selected = SelectFrames(entries, options, frames.string());
+  if (!poses.empty()) {
+    Trajectory kept;
+    for (const FrameEntry& e : selected) {
+      if (auto p = poses.Nearest(e.timestamp, 0.0)) kept.Add(e.timestamp, p->world_from_camera);
+    }
+    poses = kept;
+  }
+  DepthEncoding encoding = MakeEncoding(options, 1000.0);
+  encoding.invalid_value = 65535;
+  CameraIntrinsics intrinsics;
+  if (!options.intrinsics.empty()) {
+    intrinsics = ResolveIntrinsics(options.intrinsics);
+  } else {
+    fs::path file;
+    for (const fs::path& dir : {frames, folder, frames.parent_path()}) {
+      if (fs::is_regular_file(dir / "camera-intrinsics.txt", ec)) {
+        file = dir / "camera-intrinsics.txt";
+        break;
+      }
+    }
+    if (file.empty()) {
+      throw Error(Format(frames.string(), ": no camera-intrinsics.txt beside the frames or above; give --intrinsics FILE or one of ",
+                         NamedIntrinsicsList()));
+    }
+    const ImageDepth first = ReadDepthImage(selected.front().depth, encoding);
+    intrinsics = ReadCameraMatrixFile(file, first.width(), first.height());
+  }
+  spdlog::warn("{}: 7-Scenes layout: colour and depth come from two unregistered cameras; colour is sampled at "
+               "the depth camera's pixels, a few pixels off",
+               frames.string());
+  return std::make_unique<ListedFrameSource>(Format("7-Scenes folder ", frames.string()), std::move(selected),
+                                             intrinsics, encoding, CameraResponse::Parse(options.camera_response),
+                                             std::move(poses), options.max_time_difference, true);
 }
 
 }  // namespace
@@ -404,12 +550,16 @@ std::unique_ptr<FrameSource> OpenFrameSource(const std::string& spec, const Sour
   if (!fs::exists(folder, ec)) throw Error(Format(spec, ": no such file or folder"));
   if (!fs::is_directory(folder, ec)) throw Error(Format(spec, ": not a folder (expected a TUM or Redwood folder)"));
   if (fs::exists(folder / "rgb.txt", ec) || !options.associations.empty()) return OpenTumFolder(folder, options);
+  for (const fs::path& frames : {folder, folder / "rgbd-frames"}) {
+    if (HoldsSevenScenesFrames(frames)) return OpenSevenScenesFolder(folder, frames, options);
+  }
   if (fs::is_directory(folder / "depth", ec)) {
     for (const char* name : {"color", "image", "rgb"}) {
       if (fs::is_directory(folder / name, ec)) return OpenRedwoodFolder(folder, folder / name, options);
     }
   }
-  throw Error(Format(spec, ": not a recognised sequence (no rgb.txt for TUM, no color/ + depth/ for Redwood)"));
+  throw Error(Format(spec, ": not a recognised sequence (no rgb.txt for TUM, no color/ + depth/ for Redwood, no "
+                     "frame-XXXXXX.depth.png for 7-Scenes)"));
 }
 
 std::vector<RgbdFrame> ReadAllFrames(FrameSource& source) {

@@ -327,6 +327,7 @@ void WriteWithOpenCv(const fs::path& path, const cv::Mat& mat, const std::vector
 float DecodeDepth(uint16_t raw, const DepthEncoding& encoding) {
   switch (encoding.kind) {
     case DepthEncoding::Kind::kScaled:
+      if (static_cast<int>(raw) == encoding.invalid_value) return 0.0f;
       return static_cast<float>(raw / encoding.scale);
     case DepthEncoding::Kind::kNyuDisparity: {
       // NYU raw PGMs hold the disparity little-endian although PGM is big-endian (OpenCV reads

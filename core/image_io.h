@@ -29,6 +29,7 @@ struct DepthEncoding {
   };
   Kind kind = Kind::kScaled;
   double scale = 5000.0;  // integer units per meter, kScaled only (TUM: 5000, millimetres: 1000)
+  int invalid_value = -1;  // kScaled: a raw value that also means "no measurement" (7-Scenes: 65535); -1 = none
 };
 
 // Depth image in meters. Float images (EXR) are meters already; integer images are decoded with

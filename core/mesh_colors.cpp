@@ -188,14 +188,14 @@ void MeshColors::SampleFacePoint(size_t sample, int* face, double* b1, double* b
   }
 }
 
-void MeshColors::Locate(int face, float b1, float b2, uint32_t idx[3], float w[3]) const {
-  const int r = face_resolution_[face];
-  b1 = std::max(b1, 0.0f);
-  b2 = std::max(b2, 0.0f);
-  if (!(b1 + b2 <= 1.0f)) {
+LatticeCell LocateInLattice(int r, float b1, float b2) {
+  // Into the triangle: NaN and negatives to 0, each coordinate at most 1, the sum at most 1.
+  b1 = b1 > 0.0f ? std::min(b1, 1.0f) : 0.0f;
+  b2 = b2 > 0.0f ? std::min(b2, 1.0f) : 0.0f;
+  if (b1 + b2 > 1.0f) {
     const float s = b1 + b2;
-    b1 = s > 0.0f ? b1 / s : 0.0f;  // NaN input lands on the first vertex
-    b2 = s > 0.0f ? b2 / s : 0.0f;
+    b1 /= s;
+    b2 /= s;
   }
   const float x = b1 * static_cast<float>(r);
   const float y = b2 * static_cast<float>(r);
@@ -211,25 +211,27 @@ void MeshColors::Locate(int face, float b1, float b2, uint32_t idx[3], float w[3
   }
   float fx = x - static_cast<float>(i);
   float fy = y - static_cast<float>(j);
-  if (fx + fy > 1.0f && i + j == r - 1) {  // beyond the hypotenuse by rounding
-    const float s = fx + fy;
-    fx /= s;
-    fy /= s;
-  }
-  if (fx + fy <= 1.0f) {
-    idx[0] = SampleIndex(face, i, j);
-    idx[1] = SampleIndex(face, i + 1, j);
-    idx[2] = SampleIndex(face, i, j + 1);
-    w[0] = std::max(0.0f, 1.0f - fx - fy);
-    w[1] = fx;
-    w[2] = fy;
+  LatticeCell cell;
+  // The upside-down sub-triangle exists only below the lattice's last diagonal; on that diagonal a
+  // point past it (by rounding, or by the rescaling above) is projected back onto it.
+  if (fx + fy > 1.0f && i + j < r - 1) {
+    cell = {{i + 1, i, i + 1}, {j + 1, j + 1, j}, {fx + fy - 1.0f, std::max(0.0f, 1.0f - fx), std::max(0.0f, 1.0f - fy)}};
   } else {
-    idx[0] = SampleIndex(face, i + 1, j + 1);
-    idx[1] = SampleIndex(face, i, j + 1);
-    idx[2] = SampleIndex(face, i + 1, j);
-    w[0] = fx + fy - 1.0f;
-    w[1] = std::max(0.0f, 1.0f - fx);
-    w[2] = std::max(0.0f, 1.0f - fy);
+    if (fx + fy > 1.0f) {
+      const float s = fx + fy;
+      fx /= s;
+      fy /= s;
+    }
+    cell = {{i, i + 1, i}, {j, j, j + 1}, {std::max(0.0f, 1.0f - fx - fy), fx, fy}};
+  }
+  return cell;
+}
+
+void MeshColors::Locate(int face, float b1, float b2, uint32_t idx[3], float w[3]) const {
+  const LatticeCell cell = LocateInLattice(face_resolution_[face], b1, b2);
+  for (int k = 0; k < 3; ++k) {
+    idx[k] = SampleIndex(face, cell.i[k], cell.j[k]);
+    w[k] = cell.w[k];
   }
 }
 

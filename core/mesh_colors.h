@@ -116,6 +116,17 @@ class MeshColors {
   uint64_t fingerprint_ = 0;
 };
 
+// The sub-triangle of a resolution-R lattice that holds barycentric point (b1, b2), its three
+// lattice points (i[k], j[k]) and barycentric weights w (each in [0, 1], summing to 1 up to
+// rounding). Any input is accepted: NaN and negative coordinates count as 0, coordinates above 1
+// as 1, and a point past the hypotenuse is projected back along the ray from the first vertex, so
+// the lattice points always satisfy 0 <= i, j and i + j <= R. viewer/shaders.h repeats it in GLSL.
+struct LatticeCell {
+  int i[3], j[3];
+  float w[3];
+};
+LatticeCell LocateInLattice(int r, float b1, float b2);
+
 // Sample counts for a face of resolution R: (R+1)(R+2)/2 in all, of which 3 at vertices,
 // 3(R-1) on edges and (R-1)(R-2)/2 inside.
 constexpr size_t MeshColorsInteriorCount(int r) { return r < 2 ? 0 : size_t(r - 1) * size_t(r - 2) / 2; }

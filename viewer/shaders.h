@@ -42,9 +42,8 @@ out vec4 frag_color;
 // The sub-triangle of the lattice holding (b1, b2), its three lattice points and weights:
 // MeshColors::Locate.
 void Locate(int r, vec2 b, out ivec2 p[3], out vec3 w) {
-  b = max(b, vec2(0.0));
-  float s = b.x + b.y;
-  if (!(s <= 1.0)) b = s > 0.0 ? b / s : vec2(0.0);
+  b = vec2(b.x > 0.0 ? min(b.x, 1.0) : 0.0, b.y > 0.0 ? min(b.y, 1.0) : 0.0);
+  if (b.x + b.y > 1.0) b /= (b.x + b.y);
   vec2 xy = b * float(r);
   int i = min(int(xy.x), r);
   int j = min(int(xy.y), r);
@@ -52,13 +51,13 @@ void Locate(int r, vec2 b, out ivec2 p[3], out vec3 w) {
     if (i >= j && i > 0) --i; else --j;
   }
   vec2 f = xy - vec2(i, j);
-  if (f.x + f.y > 1.0 && i + j == r - 1) f /= (f.x + f.y);
-  if (f.x + f.y <= 1.0) {
-    p[0] = ivec2(i, j); p[1] = ivec2(i + 1, j); p[2] = ivec2(i, j + 1);
-    w = vec3(max(0.0, 1.0 - f.x - f.y), f.x, f.y);
-  } else {
+  if (f.x + f.y > 1.0 && i + j < r - 1) {
     p[0] = ivec2(i + 1, j + 1); p[1] = ivec2(i, j + 1); p[2] = ivec2(i + 1, j);
     w = vec3(f.x + f.y - 1.0, max(0.0, 1.0 - f.x), max(0.0, 1.0 - f.y));
+  } else {
+    if (f.x + f.y > 1.0) f /= (f.x + f.y);
+    p[0] = ivec2(i, j); p[1] = ivec2(i + 1, j); p[2] = ivec2(i, j + 1);
+    w = vec3(max(0.0, 1.0 - f.x - f.y), f.x, f.y);
   }
 }
 

@@ -57,5 +57,41 @@ TEST(GensceneFuse, BadInputIsOneClearLineAndNoOutput) {
   EXPECT_FALSE(fs::exists(dir / "ws" / "trajectory.txt"));
 }
 
+// When ICP loses most frames the stage stops before writing anything and says what to try.
+TEST(GensceneFuse, TrackingLostOnMostFramesStopsWithAdvice) {
+  test::TempDir dir;
+  auto r = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 12 --size 96x72 --spp 1 --out " +
+                      (dir / "seq").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // Every frame moves farther than 1 mm or turns more than 0.1 degrees: every tracked frame is lost.
+  r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
+                 " --voxel-size 0.02 --truncation 0.08 --max-translation 0.001 --max-rotation 0.1");
+  EXPECT_NE(r.exit_code, 0) << r.output;
+  EXPECT_CONTAINS(r.output, "ICP tracking failed on 11 of 12 frames");
+  EXPECT_CONTAINS(r.output, "--tracking known");
+  EXPECT_CONTAINS(r.output, "--intrinsics");
+  EXPECT_FALSE(fs::exists(dir / "ws" / "tsdf.gsv"));
+  EXPECT_FALSE(fs::exists(dir / "ws" / "trajectory.txt"));
+}
+
+// The trajectory error is an optional figure: known poses that pair with no frame give a warning
+// and the stage finishes.
+TEST(GensceneFuse, AnAteThatCannotBeComputedIsAWarningNotAnError) {
+  test::TempDir dir;
+  auto r = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 12 --size 96x72 --spp 1 --out " +
+                      (dir / "seq").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  Trajectory shifted;
+  for (const StampedPose& p : ReadTumTrajectory(dir / "seq" / "groundtruth.txt").poses()) {
+    shifted.Add(p.timestamp + 0.5, p.world_from_camera);  // 12 frames span 0.37 s: every frame misses its pose by > 0.1 s
+  }
+  WriteTumTrajectory(dir / "seq" / "groundtruth.txt", shifted);
+  r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
+                 " --voxel-size 0.02 --truncation 0.08");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_CONTAINS(r.output, "no trajectory error against the recording's poses");
+  EXPECT_TRUE(fs::exists(dir / "ws" / "tsdf.gsv"));
+}
+
 }  // namespace
 }  // namespace genscene

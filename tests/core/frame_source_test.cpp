@@ -8,10 +8,13 @@
 #include "core/image_io.h"
 #include "core/sequence_writer.h"
 #include "core/synthetic.h"
+#include "core/trajectory_metrics.h"
 #include "tests/test_util.h"
 
 namespace genscene {
 namespace {
+
+namespace fs = std::filesystem;
 
 struct DepthRange {
   double lo = 1e9, hi = 0.0;
@@ -88,6 +91,79 @@ TEST(FrameSourceReal, Open3dRedwoodFolder) {
   ExpectKinectFrames(frames, 0.5, 0.2, 6.0);  // millimetres decoded: a living room
   // odometry.log: frame 0 at (2, 2, -0.3).
   EXPECT_TRUE(frames[0].world_from_camera->translation().isApprox(Eigen::Vector3d(2, 2, -0.3)));
+}
+
+// Poses given per frame (odometry.log) carry their frame's time stamp, so that the estimated
+// trajectory (stamped by frame time) pairs with every one of them for the ATE.
+TEST(FrameSourceReal, Open3dPosesByIndexPairWithTheirFramesByTime) {
+  GS_REQUIRE_SHARED_DATA(data);
+  auto source = OpenFrameSource((data / "real/open3d-testdata-rgbd").string(), SourceOptions());
+  const auto frames = ReadAllFrames(*source);
+  ASSERT_EQ(source->KnownPoses().size(), 5u);
+  Trajectory estimated;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    EXPECT_DOUBLE_EQ(source->KnownPoses().poses()[i].timestamp, frames[i].timestamp);
+    estimated.Add(frames[i].timestamp, *frames[i].world_from_camera);
+  }
+  const AteResult ate = ComputeAte(estimated, source->KnownPoses());
+  EXPECT_EQ(ate.pairs, 5u);
+  EXPECT_LT(ate.rmse, 1e-9);
+}
+
+// The native 7-Scenes layout: 50 frames with 4x4 poses and the 3x3 camera matrix.
+TEST(FrameSourceReal, SevenScenesNativeLayout) {
+  GS_REQUIRE_SHARED_DATA(data);
+  auto source = OpenFrameSource((data / "real/7scenes-redkitchen-50f").string(), SourceOptions());
+  EXPECT_EQ(source->FrameCount(), 50u);
+  EXPECT_DOUBLE_EQ(source->Intrinsics().fx, 585.0);
+  EXPECT_DOUBLE_EQ(source->Intrinsics().cy, 240.0);
+  EXPECT_EQ(source->Intrinsics().width, 640);
+  EXPECT_EQ(source->KnownPoses().size(), 50u);
+  const auto frames = ReadAllFrames(*source);
+  ASSERT_EQ(frames.size(), 50u);
+  ExpectKinectFrames(frames, 0.5, 0.3, 8.0);  // 65535 (no data) decoded as 0, not 65.5 m
+  // frame-000150.pose.txt: translation (-0.91287065, -0.34388667, 0.75986093).
+  EXPECT_TRUE(frames[0].world_from_camera->translation().isApprox(Eigen::Vector3d(-0.91287065, -0.34388667, 0.75986093), 1e-7));
+  EXPECT_NE(frames[49].depth_path.find("frame-000199.depth.png"), std::string::npos);
+}
+
+// A 7-Scenes folder written here: frames, poses, camera matrix; and what is wrong with one.
+TEST(FrameSource, SevenScenesLayoutAndItsBadInputs) {
+  test::TempDir dir;
+  const fs::path frames = dir / "seq-01";
+  fs::create_directories(frames);
+  ImageDepth depth(8, 6, 1.5f);
+  depth(2, 3) = 65.535f;  // raw 65535 at millimetres: the dataset's "no data"
+  ImageRgb color(8, 6, Eigen::Vector3f(0.2f, 0.4f, 0.6f));
+  for (int i = 0; i < 3; ++i) {
+    const std::string stem = Format("frame-", std::string(5, '0'), i);
+    WriteDepthPng(frames / (stem + ".depth.png"), depth, 1000.0);
+    WritePng(frames / (stem + ".color.png"), color);
+    test::WriteFile(frames / (stem + ".pose.txt"), Format("1 0 0 ", 0.1 * i, "\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"));
+  }
+  test::WriteFile(dir / "camera-intrinsics.txt", "6 0 3.5\n0 6 2.5\n0 0 1\n");
+  {
+    auto source = OpenFrameSource(frames.string(), SourceOptions());
+    EXPECT_EQ(source->Intrinsics().width, 8);
+    EXPECT_DOUBLE_EQ(source->Intrinsics().cx, 3.5);
+    const auto read = ReadAllFrames(*source);
+    ASSERT_EQ(read.size(), 3u);
+    EXPECT_FLOAT_EQ(read[0].depth(0, 0), 1.5f);
+    EXPECT_EQ(read[0].depth(2, 3), 0.0f);
+    EXPECT_NEAR(read[2].world_from_camera->translation().x(), 0.2, 1e-12);
+    EXPECT_DOUBLE_EQ(read[1].timestamp, 1.0 / 30.0);
+  }
+  fs::remove(frames / "frame-000001.pose.txt");
+  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }), "2 of 3 frames have a .pose.txt");
+  fs::remove(frames / "frame-000000.pose.txt");
+  fs::remove(frames / "frame-000002.pose.txt");
+  fs::remove(frames / "frame-000002.color.png");
+  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }), "frame-000002.depth.png: no colour image");
+  fs::remove(frames / "frame-000002.depth.png");
+  test::WriteFile(dir / "camera-intrinsics.txt", "6 0 3.5\n0 6 2.5\n");
+  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }), "expected a 3x3 camera matrix (9 values), got 6");
+  fs::remove(dir / "camera-intrinsics.txt");
+  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }), "no camera-intrinsics.txt");
 }
 
 TEST(FrameSourceReal, SlambookJoinMapFolder) {
