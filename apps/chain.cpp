@@ -8,6 +8,7 @@
 #include <ctime>
 #include <sstream>
 
+#include <atomic>
 #include <memory>
 #include <mutex>
 #include <set>
@@ -18,6 +19,7 @@
 #include <spdlog/spdlog.h>
 
 #include "apps/fuse.h"
+#include "apps/holdout.h"
 #include "apps/ingest.h"
 #include "apps/lights.h"
 #include "apps/refine.h"
@@ -25,6 +27,7 @@
 #include "apps/texture.h"
 #include "core/check.h"
 #include "core/options.h"
+#include "core/options_json.h"
 #include "core/image_io.h"
 #include "core/light_set.h"
 #include "inverse/path_tracer.h"
@@ -51,6 +54,17 @@ void ChainOptions::AddTo(CommandLine& cli) {
   cli.Add(evaluate, "Evaluation against a synthetic ground truth (flags --evaluate-*)", "evaluate");
 }
 
+ChainOptions RunChainOptions() {
+  ChainOptions o;
+  o.fusion.preprocess.max_depth = 4.0;
+  o.meshing.min_component_triangles = 200;
+  o.meshing.decimate_max_error = 0.002;
+  o.refine.iterations = 3;
+  o.refine.spp = 16;
+  o.refine.pixels_per_view = 3000;
+  return o;
+}
+
 ChainOptions DemoChainOptions() {
   ChainOptions o;
   o.meshing.decimate_max_error = 0.003;
@@ -73,6 +87,12 @@ const std::vector<std::string>& ChainStages() {
   return stages;
 }
 
+namespace {
+std::atomic<const char*> current_stage{nullptr};
+}  // namespace
+
+const char* RunningStage() { return current_stage.load(); }
+
 double PeakMegabytes() {
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
@@ -90,6 +110,16 @@ std::string Now() {
   const std::time_t t = std::time(nullptr);
   char text[32];
   std::strftime(text, sizeof(text), "%Y-%m-%d %H:%M:%S", std::localtime(&t));
+  return text;
+}
+
+// FNV-1a 64 of the parts' text, as 16 hex digits.
+template <typename... Parts>
+std::string Hash(const Parts&... parts) {
+  uint64_t h = kFnv1aOffset;
+  ((h = Fnv1a64(Format(parts) + '\x1f', h)), ...);
+  char text[17];
+  std::snprintf(text, sizeof(text), "%016llx", static_cast<unsigned long long>(h));
   return text;
 }
 
@@ -130,26 +160,41 @@ class ScopedWarningCollector {
   std::shared_ptr<WarningCollector> sink_;
 };
 
-// Runs one stage: skipped when its outputs are fresh, else timed, logged and summarised. Warnings
-// logged while the stage runs go into its row and the log.
+// Runs one stage: skipped when its outputs exist and were made from inputs of the same content with
+// the same settings (the stage's fingerprint: its settings and the content of every input file,
+// kept in WS/stages.json), else timed, logged and summarised. A live camera is never the same
+// input twice. Warnings logged while the stage runs go into its row and the log.
 class StageRunner {
  public:
-  StageRunner(bool redo, std::ostream& log, std::vector<StageRow>& rows, std::string until)
-      : redo_(redo), log_(log), rows_(rows), until_(std::move(until)) {}
+  StageRunner(const Workspace& ws, bool redo, std::ostream& log, std::vector<StageRow>& rows, std::string until)
+      : ws_(ws), redo_(redo), log_(log), rows_(rows), until_(std::move(until)) {
+    if (fs::exists(ws.StageFingerprints())) {
+      try {
+        stored_ = nlohmann::json::parse(ReadTextFile(ws.StageFingerprints()));
+      } catch (const std::exception&) {  // unreadable: every stage runs again
+      }
+      if (!stored_.is_object()) stored_ = nlohmann::json::object();
+    }
+  }
 
   template <typename F>
-  void Run(const std::string& stage, const std::vector<fs::path>& outputs, const std::vector<fs::path>& inputs, F&& body) {
+  void Run(const std::string& stage, const std::vector<fs::path>& outputs, const std::vector<fs::path>& inputs,
+           const std::string& settings, F&& body) {
     if (done_) return;
     done_ = stage == until_;
     const auto& stages = ChainStages();
     const size_t index = std::find(stages.begin(), stages.end(), stage) - stages.begin() + 1;
-    if (!redo_ && Workspace::IsFresh(outputs, inputs)) {
+    std::string fingerprint = Hash(stage, settings);
+    for (const fs::path& in : inputs) fingerprint = Hash(fingerprint, Content(in));
+    const bool outputs_exist = std::all_of(outputs.begin(), outputs.end(), [](const fs::path& p) { return fs::exists(p); });
+    if (!redo_ && outputs_exist && stored_.value(stage, std::string()) == fingerprint) {
       StageRow row{stage, 0.0, PeakMegabytes(), true, "up to date (" + outputs.front().string() + "), skipped", {}};
       log_ << Now() << " " << stage << ": " << row.result << "\n" << std::flush;
       rows_.push_back(row);
       return;
     }
     std::fprintf(stderr, "[%zu/%zu] %s\n", index, stages.size(), stage.c_str());
+    current_stage.store(stages[index - 1].c_str());
     log_ << Now() << " " << stage << ": start\n" << std::flush;
     const auto start = std::chrono::steady_clock::now();
     warnings_.Take();
@@ -157,18 +202,41 @@ class StageRunner {
     try {
       result = body();
     } catch (const std::exception& e) {
-      LogWarnings(stage, warnings_.Take());
+      StageRow failed{stage, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                      PeakMegabytes(), false, Format("failed: ", e.what()), warnings_.Take()};
+      failed.failed = true;
+      LogWarnings(stage, failed.warnings);
       log_ << Now() << " " << stage << ": error: " << e.what() << "\n" << std::flush;
+      rows_.push_back(std::move(failed));
+      current_stage.store(nullptr);
       throw;
     }
+    current_stage.store(nullptr);
     StageRow row{stage, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
                  PeakMegabytes(), false, result, warnings_.Take()};
     LogWarnings(stage, row.warnings);
     log_ << Now() << " " << stage << ": done in " << Format(row.seconds) << " s: " << result << "\n" << std::flush;
     rows_.push_back(row);
+    stored_[stage] = fingerprint;  // after the stage's outputs: a killed stage has none
+    WriteTextFileAtomically(ws_.StageFingerprints(), stored_.dump(1) + "\n");
   }
 
  private:
+  // The content fingerprint of an input file or folder, once per run (no stage writes what an
+  // earlier one read; the recording is read by two).
+  std::string Content(const fs::path& path) {
+    std::error_code ec;
+    if (!fs::exists(path, ec)) {  // openni2[:URI]: a live camera
+      return Hash(path.string(), std::chrono::system_clock::now().time_since_epoch().count());
+    }
+    auto it = content_.find(path.string());
+    if (it == content_.end()) it = content_.emplace(path.string(), Hash(ContentFingerprint(path))).first;
+    return it->second;
+  }
+
+  const Workspace& ws_;
+  nlohmann::json stored_ = nlohmann::json::object();
+  std::map<std::string, std::string> content_;
   bool redo_;
   std::ostream& log_;
   std::vector<StageRow>& rows_;
@@ -215,8 +283,14 @@ std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings)
     for (std::string& w : inverse::ExportMitsubaXml(dir / "model.xml", scene, {})) warnings->push_back(std::move(w));
   }
   return Format(colored.vertices.size(), " coloured vertices (", (dir / "model.ply").string(), "), ",
-                scene.voxel_lights->ActiveVoxels().size(), " voxel lights as emissive cube faces (", (dir / "model.xml").string(),
-                "), trajectory (", (dir / "trajectory.txt").string(), ")");
+                scene.voxel_lights->ActiveVoxels().size(), " active voxel lights (",
+                scene.voxel_lights->ActiveVoxels(0.0).size(), " with any power, all exported) as emissive cube faces (",
+                (dir / "model.xml").string(), "), trajectory (", (dir / "trajectory.txt").string(), ")");
+}
+
+template <typename O>
+std::string OptionsText(const O& options) {
+  return OptionsToJson(options).dump();
 }
 
 }  // namespace
@@ -229,20 +303,30 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
     for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
     throw Error(Format("--until ", until, ": no such stage (stages: ", known, ")"));
   }
-  StageRunner stage(redo, log, rows, until);
+  StageRunner stage(ws, redo, log, rows, until);
+  // Each stage's settings: its options (and the seed where it draws random numbers); the source
+  // options and the content of the files they name for the stages that read the recording.
+  std::string source_settings = OptionsText(source);
+  for (const std::string& file : {source.intrinsics, source.associations, source.trajectory}) {
+    std::error_code ec;
+    if (!file.empty() && fs::is_regular_file(file, ec)) source_settings += Hash(ContentFingerprint(file));
+  }
   const fs::path summary_path = ws.root() / "sequence.json";
-  stage.Run("ingest", {summary_path}, {input}, [&] { return Describe(IngestSequence(input, source, summary_path)); });
+  stage.Run("ingest", {summary_path}, {input}, source_settings,
+            [&] { return Describe(IngestSequence(input, source, summary_path)); });
 
-  stage.Run("fusion", {ws.Trajectory(), ws.Tsdf(), ws.root() / "fusion.json"}, {input}, [&] {
+  stage.Run("fusion", {ws.Trajectory(), ws.Tsdf(), ws.root() / "fusion.json"}, {input},
+            source_settings + OptionsText(options.fusion), [&] {
     const FuseSummary s = FuseSequence(input, source, options.fusion, ws);
     std::string result = Format(s.fused, "/", s.frames, " frames fused (", s.lost, " lost, ", s.degenerate,
                                 " degenerate, ", s.blank, " blank), ", s.blocks, " blocks (", s.megabytes, " MB), ",
                                 s.keyframes, " keyframes");
+    if (s.held_out > 0) result += Format(", ", s.held_out, " held out");
     if (s.ate) result += Format(", ATE ", 100.0 * s.ate->rmse, " cm");
     return result;
   });
 
-  stage.Run("meshing", {ws.Mesh()}, {ws.Tsdf()}, [&] {
+  stage.Run("meshing", {ws.Mesh()}, {ws.Tsdf()}, OptionsText(options.meshing), [&] {
     const TsdfVolume volume = ReadTsdfVolume(ws.Tsdf());
     const auto r = meshing::ExtractMesh(volume, options.meshing);
     if (r.mesh.empty()) throw Error(Format(ws.Tsdf().string(), ": the volume holds no surface; no mesh written"));
@@ -250,22 +334,25 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
     return Format(r.stats.vertices, " vertices, ", r.stats.triangles, " triangles (", ws.Mesh().string(), ")");
   });
 
-  stage.Run("texturing", {ws.Texture(), ws.TexturePly()}, {ws.Mesh(), ws.Keyframes()}, [&] {
+  stage.Run("texturing", {ws.Texture(), ws.TexturePly()}, {ws.Mesh(), ws.Keyframes()},
+            OptionsText(options.texturing) + source.camera_response, [&] {
     SourceOptions keyframes;
     keyframes.camera_response = source.camera_response;
     return ToString(TextureWorkspace({}, keyframes, options.texturing, ws));
   });
 
-  stage.Run("albedo", {ws.Albedo(), ws.AlbedoPly()}, {ws.Mesh(), ws.Texture()},
+  stage.Run("albedo", {ws.Albedo(), ws.AlbedoPly()}, {ws.Mesh(), ws.Texture()}, OptionsText(options.albedo),
             [&] { return ToString(AlbedoWorkspace({}, options.albedo, ws)); });
 
-  stage.Run("lights", {ws.Lights()}, {ws.Mesh(), ws.Albedo(), ws.Keyframes()}, [&] {
+  stage.Run("lights", {ws.Lights()}, {ws.Mesh(), ws.Albedo(), ws.Keyframes()}, Hash(OptionsText(options.lights), seed),
+            [&] {
     const LightsSummary s = LightsWorkspace({}, options.lights, seed, ws);
     Warn(s.warnings);
     return ToString(s);
   });
 
-  stage.Run("refine", {ws.RefinedMesh()}, {ws.Mesh(), ws.Albedo(), ws.Lights(), ws.Keyframes()}, [&] {
+  stage.Run("refine", {ws.RefinedMesh()}, {ws.Mesh(), ws.Albedo(), ws.Lights(), ws.Keyframes()},
+            Hash(OptionsText(options.refine), seed), [&] {
     RefineInputs in;
     in.render_spp = 16;
     const RefineSummary s = RefineWorkspace(in, options.refine, seed, ws);
@@ -275,21 +362,44 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
 
   const fs::path exported = ws.root() / "export";
   stage.Run("export", {exported / "model.xml", exported / "model.ply", exported / "trajectory.txt"},
-            {ws.RefinedMesh(), ws.Albedo(), ws.Lights(), ws.Trajectory()}, [&] {
+            {ws.RefinedMesh(), ws.Albedo(), ws.Lights(), ws.Trajectory(), ws.Keyframes()}, "", [&] {
               std::vector<std::string> warnings;
               std::string result = ExportModel(ws, &warnings);
               Warn(warnings);
               return result;
             });
 
-  // Synthetic sequences (genscene-synth, the demo) carry their ground truth: judge the model.
-  if (fs::exists(fs::path(input) / "scene.json")) {
-    const fs::path judged = ws.root() / "evaluation" / "evaluation.json";
-    stage.Run("evaluate", {judged}, {ws.RefinedMesh(), ws.Albedo(), ws.Lights()}, [&] {
-      const DemoEvaluation e = EvaluateAgainstTruth(ws, input, options.lights, options.evaluate, seed);
-      return Format(e.views.size(), " novel views against the ground truth: relative RMSE ", e.relative_rmse,
-                    " (noise taken out, ", options.evaluate.block, "x", options.evaluate.block, " pixel tiles) (",
-                    judged.string(), ")");
+  // Judge the model: against the ground truth when the input carries one (genscene-synth, the
+  // demo), and on the frames fusion held out when it held some out.
+  const bool synthetic = fs::exists(fs::path(input) / "scene.json");
+  const bool held_out = fs::exists(ws.HeldOut() / "rgb.txt");
+  if (synthetic || held_out) {
+    const fs::path judged = ws.root() / "evaluation" / "evaluation.json", holdout = ws.root() / "evaluation" / "holdout.json";
+    std::vector<fs::path> outputs, inputs = {ws.RefinedMesh(), ws.Albedo(), ws.Lights()};
+    if (synthetic) outputs.push_back(judged), inputs.push_back(input);
+    if (held_out) outputs.push_back(holdout), inputs.push_back(ws.HeldOut()), inputs.push_back(ws.Texture());
+    stage.Run("evaluate", outputs, inputs, Hash(OptionsText(options.evaluate), OptionsText(options.lights), seed), [&] {
+      std::string result;
+      if (synthetic) {
+        const DemoEvaluation e = EvaluateAgainstTruth(ws, input, options.lights, options.evaluate, seed);
+        result = Format(e.views.size(), " novel views against the ground truth: relative RMSE ", e.relative_rmse,
+                        " (noise taken out, ", options.evaluate.block, "x", options.evaluate.block, " pixel tiles) (",
+                        judged.string(), ")");
+      }
+      if (held_out) {
+        const HeldOutEvaluation h = EvaluateHeldOut(ws, options.lights, options.evaluate.model_spp, seed);
+        result += Format(result.empty() ? "" : "; ", h.frames.size(), " held-out frames: model relative RMSE ",
+                         h.model.rmse, " (render noise ", h.noise, "), SSIM ", h.model.ssim, "; unlit texture ",
+                         h.texture.rmse, ", SSIM ", h.texture.ssim, "; albedo under ambient ", h.ambient.rmse,
+                         ", SSIM ", h.ambient.ssim, " (", holdout.string(), ")");
+        if (h.model.rmse > std::min(h.texture.rmse, h.ambient.rmse)) {
+          spdlog::warn("on the held-out frames the model's renders are further from the real images (relative RMSE {:.3f}) "
+                       "than the {} ({:.3f})",
+                       h.model.rmse, h.texture.rmse < h.ambient.rmse ? "unlit observed-colour texture" : "albedo under ambient light",
+                       std::min(h.texture.rmse, h.ambient.rmse));
+        }
+      }
+      return result;
     });
   }
 }
@@ -367,11 +477,15 @@ void WriteSummaryJson(const Workspace& ws, const std::string& input, uint64_t se
   nlohmann::ordered_json stages = nlohmann::ordered_json::array();
   for (const StageRow& r : rows) {
     nlohmann::ordered_json row = {{"stage", r.stage}, {"seconds", r.seconds}, {"peak_megabytes", r.peak_megabytes},
-                                  {"skipped", r.skipped}, {"result", r.result}, {"warnings", r.warnings}};
-    // A skipped stage keeps the figures of the run that made its outputs.
+                                  {"skipped", r.skipped}, {"failed", r.failed}, {"result", r.result},
+                                  {"warnings", r.warnings}};
+    // A skipped stage keeps the figures of the run that made its outputs, marked skipped.
     if (r.skipped && previous.contains("stages")) {
       for (const auto& old : previous["stages"]) {
-        if (old.value("stage", "") == r.stage) row = old;
+        if (old.value("stage", "") == r.stage) {
+          row = old;
+          row["skipped"] = true;
+        }
       }
     }
     stages.push_back(row);

@@ -1,8 +1,9 @@
-// The whole chain of `genscene run` and `genscene demo` (issue 11): ingest -> fusion -> meshing ->
-// texturing -> albedo -> lights -> refine -> export, on one workspace (DESIGN.md §2). Each stage
-// is skipped when its outputs exist and are newer than its inputs; every output is written
-// atomically and the stage's completion marker last, so a run killed in any stage and started
-// again finishes with the same files.
+// The whole chain of `genscene run` and `genscene demo`: ingest -> fusion -> meshing -> texturing
+// -> albedo -> lights -> refine -> export, on one workspace (DESIGN.md §2). Each stage is skipped
+// when its outputs exist and were made from inputs of the same content with the same options
+// (WS/stages.json); every output is written atomically and the stage's completion marker last, so
+// a run killed in any stage and started again finishes with the same files, and a run with a
+// changed option or recording re-runs exactly the stages that depend on it.
 //
 // Export (WS/export/): model.ply (the refined mesh subdivided to its Mesh Colors texels, albedo as
 // 8-bit sRGB vertex colours: MeshLab, Open3D, Blender), model.xml (Mitsuba 3: the refined mesh,
@@ -58,6 +59,15 @@ struct ChainOptions {
   void AddTo(CommandLine& cli);
 };
 
+// The options `genscene run` starts from: the stages' own defaults, except depth to 4 m (a
+// Kinect-class sensor's noise there is about 2.6 cm, farther it passes 6 cm and fills the volume
+// with noise: 1.5 M triangles from five NYU frames to 9.8 m), fragments under 200 triangles
+// removed, the mesh simplified within 2 mm (a fifth of a voxel; real depth noise is larger), and
+// vertex refinement on 3000 sampled pixels per view at 16 paths for 3 iterations, so that a real
+// recording's model takes minutes on 2 cores, not hours (every pixel of a 640x480 view at 64
+// paths: 150 s an iteration).
+ChainOptions RunChainOptions();
+
 // The options `genscene demo` starts from: a decimated mesh (the Cornell box is planar), a 5^3
 // light grid and small pixel samples, so that the whole chain takes about a minute on 2 cores.
 ChainOptions DemoChainOptions();
@@ -69,7 +79,12 @@ struct StageRow {
   bool skipped = false;
   std::string result;           // the stage's own figures
   std::vector<std::string> warnings;  // every warning the stage gave (console, log, summary)
+  bool failed = false;                // the stage stopped with an error (result: "failed: ...")
 };
+
+// The stage RunChain is running now (one of ChainStages()), or nullptr between stages; safe to
+// read from a signal handler.
+const char* RunningStage();
 
 // The chain's stages in order, for --help texts and the kill-and-resume test.
 const std::vector<std::string>& ChainStages();

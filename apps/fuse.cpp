@@ -67,6 +67,7 @@ FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_o
   summary.blocks = fusion.volume().num_blocks();
   summary.megabytes = fusion.volume().allocated_bytes() / 1e6;
   summary.keyframes = fusion.keyframes().size();
+  summary.held_out = fusion.held_out().size();
   return summary;
 }
 
@@ -78,6 +79,7 @@ std::string ToString(const FuseSummary& s) {
       << "speed:      " << s.frames / std::max(s.seconds, 1e-9) << " frames/s (" << s.seconds << " s)\n"
       << "volume:     " << s.blocks << " blocks, " << s.megabytes << " MB\n"
       << "keyframes:  " << s.keyframes << "\n";
+  if (s.held_out > 0) out << "held out:   " << s.held_out << " frames (tracked only, to judge the model on)\n";
   if (s.ate) {
     out << "ATE:        RMSE " << 100.0 * s.ate->rmse << " cm, max " << 100.0 * s.ate->max << " cm over "
         << s.ate->pairs << " poses (against the source's known poses, Horn-aligned)\n";

@@ -51,6 +51,10 @@ int main(int argc, char** argv) {
         ->capture_default_str();
     app.add_option("--record-fps", file_fps, "frame rate stored in the .oni file")
         ->capture_default_str();
+    bool mirror = false;
+    app.add_flag("--record-mirrored", mirror,
+                 "write the .oni as a camera with mirroring on records it (xnMirror = 1, every frame flipped "
+                 "left-right, as NiViewer's recordings); genscene reads either kind the right way round");
     if (auto code = cli.Parse(argc, argv)) return *code;
 
     if (out.empty() && record.empty()) {
@@ -70,6 +74,7 @@ int main(int argc, char** argv) {
     genscene::capture::RecordSettings settings;
     settings.max_frames = frames;
     settings.fps = file_fps;
+    settings.mirror = mirror;
     settings.response = genscene::CameraResponse::Parse(source.camera_response);
     settings.stop = &g_stop;
     settings.progress = [](size_t n, std::optional<size_t> total) {

@@ -5,7 +5,11 @@
 // The chain (apps/chain.h): ingest -> fusion -> meshing -> texturing -> albedo -> lights -> refine
 // -> export (-> evaluate, when the input carries a synthetic ground truth). Stages whose outputs
 // are up to date are skipped, so a run that was stopped resumes where it stopped.
+#include <unistd.h>
+
 #include <chrono>
+#include <csignal>
+#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
@@ -24,8 +28,8 @@ using genscene::apps::StageRow;
 
 // Runs the chain with the workspace's log open (appended), then prints and logs the summary.
 void RunLogged(const std::string& input, const genscene::SourceOptions& source,
-               const genscene::apps::ChainOptions& chain, uint64_t seed, const genscene::Workspace& ws, bool redo,
-               const std::string& until, std::vector<StageRow>& rows) {
+               const genscene::apps::ChainOptions& chain, uint64_t seed, const genscene::Workspace& ws, bool existed,
+               bool redo, const std::string& until, std::vector<StageRow>& rows) {
   const bool fresh_log = !std::filesystem::exists(ws.Log());
   std::ofstream log(ws.Log(), std::ios::app);
   if (!log) throw genscene::Error(ws.Log().string() + ": cannot open the log for writing");
@@ -33,12 +37,18 @@ void RunLogged(const std::string& input, const genscene::SourceOptions& source,
   try {
     genscene::apps::RunChain(input, source, chain, seed, ws, redo, log, rows, until);
   } catch (...) {
-    // Bad input found before any stage finished leaves no file behind (the error is on stderr).
+    // Bad input found before any stage finished leaves no file behind (the error is on stderr),
+    // and no workspace folder this run made. Otherwise the summary says how far the run came.
     bool finished = false;
-    for (const StageRow& r : rows) finished = finished || (!r.skipped && r.stage != "synth");
+    for (const StageRow& r : rows) finished = finished || (!r.skipped && !r.failed && r.stage != "synth");
     if (fresh_log && !finished) {
       log.close();
       std::filesystem::remove(ws.Log());
+      std::error_code ec;
+      if (!existed) std::filesystem::remove(ws.root(), ec);  // only when empty
+    } else {
+      genscene::apps::WriteSummaryJson(ws, input, seed, rows);
+      log << genscene::apps::SummaryTable(rows) << std::flush;
     }
     throw;
   }
@@ -70,7 +80,7 @@ int Demo(int argc, char** argv) {
   std::vector<StageRow> rows;
   if (!redo && std::filesystem::exists(ws.Input())) {
     rows.push_back({"synth", 0.0, genscene::apps::PeakMegabytes(), true,
-                    "up to date (" + ws.Input().string() + "), skipped"});
+                    "up to date (" + ws.Input().string() + "), skipped", {}});
   } else {
     std::fprintf(stderr, "[0/%zu] synth\n", genscene::apps::ChainStages().size());
     const auto start = std::chrono::steady_clock::now();
@@ -78,9 +88,10 @@ int Demo(int argc, char** argv) {
     rows.push_back({"synth", std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
                     genscene::apps::PeakMegabytes(), false,
                     genscene::Format(s.frames, " frames ", s.width, "x", s.height, ", ground-truth mesh ",
-                                     s.mesh_faces, " triangles")});
+                                     s.mesh_faces, " triangles"),
+                    {}});
   }
-  RunLogged(ws.Input().string(), genscene::SourceOptions(), chain, cli.seed(), ws, redo, until, rows);
+  RunLogged(ws.Input().string(), genscene::SourceOptions(), chain, cli.seed(), ws, true, redo, until, rows);
   if (report && until.empty()) {
     genscene::apps::ReportOptions options;
     options.sweep = true;
@@ -113,7 +124,7 @@ int Run(int argc, char** argv) {
   genscene::CommandLine cli(app);
   genscene::SourceOptions source;
   cli.Add(source, "Input");
-  genscene::apps::ChainOptions chain;
+  genscene::apps::ChainOptions chain = genscene::apps::RunChainOptions();
   chain.AddTo(cli);
   std::string input, out;
   bool redo = false;
@@ -124,9 +135,10 @@ int Run(int argc, char** argv) {
   app.add_option("--until", until, "last stage to run: ingest, fusion, meshing, texturing, albedo, lights, refine, export, evaluate");
   if (auto code = cli.Parse(argc, argv)) return *code;
 
+  const bool existed = std::filesystem::exists(out);
   const genscene::Workspace ws(out);
   std::vector<StageRow> rows;
-  RunLogged(input, source, chain, cli.seed(), ws, redo, until, rows);
+  RunLogged(input, source, chain, cli.seed(), ws, existed, redo, until, rows);
   return 0;
 }
 
@@ -162,9 +174,28 @@ void PrintUsage() {
                "  inspect   read and check a recording (or a PLY mesh) and print what it holds\n";
 }
 
+// Ctrl-C: say which stage was interrupted and that the same command resumes (finished stages and
+// every output are written atomically, so what is on disk is whole). Only async-signal-safe calls.
+void OnInterrupt(int) {
+  const char* stage = genscene::apps::RunningStage();
+  const char head[] = "\ngenscene: interrupted";
+  const char mid[] = " in stage ";
+  const char tail[] = "; the finished stages are kept: run the same command again to resume\n";
+  ssize_t ignored = write(STDERR_FILENO, head, sizeof(head) - 1);
+  if (stage) {
+    ignored = write(STDERR_FILENO, mid, sizeof(mid) - 1);
+    ignored = write(STDERR_FILENO, stage, std::strlen(stage));
+  }
+  ignored = write(STDERR_FILENO, tail, sizeof(tail) - 1);
+  (void)ignored;
+  _exit(130);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  std::signal(SIGINT, OnInterrupt);
+  std::signal(SIGTERM, OnInterrupt);
   return genscene::RunApp("genscene", [&] {
     if (argc < 2) {
       PrintUsage();

@@ -53,6 +53,16 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
       WritePng(dir / (Stamp(prefix, i) + ".png"), render);
     }
   }
+  // The baseline: the albedo under a constant ambient light, on the same pixels. It has no render
+  // noise, so the renders' error with their noise taken out is what it is compared with.
+  out.ambient = FitAmbientBaseline(tracer, train, options);
+  for (const ViewError& e : out.train) out.train_rmse += e.rmse_bias / out.train.size();
+  if (!out.train.empty() && out.train_rmse > out.ambient.mean_rmse) {
+    out.warnings.push_back(Format("the voxel lights fit the training views worse than a constant ambient light (relative RMSE ",
+                                  out.train_rmse, " without render noise, against ", out.ambient.mean_rmse,
+                                  " for ambient radiance (", out.ambient.radiance.transpose(),
+                                  ")): the light model does not describe these images"));
+  }
   try {
     std::vector<View> views;
     for (const TrainingView& v : train) views.push_back(v.view);
@@ -79,6 +89,8 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
                       {"power_change", r.power_change}});
   }
   estimate["rounds"] = rounds;
+  estimate["ambient_baseline"] = {{"radiance", {out.ambient.radiance.x(), out.ambient.radiance.y(), out.ambient.radiance.z()}},
+                                  {"train_relative_rmse", out.ambient.mean_rmse}};
   for (const auto& [key, errors] : {std::pair{"train_views", &out.train}, std::pair{"novel_views", &out.novel}}) {
     nlohmann::ordered_json list = nlohmann::ordered_json::array();
     for (const ViewError& e : *errors) {
@@ -103,6 +115,7 @@ std::string ToString(const LightsSummary& s) {
     std::snprintf(line, sizeof(line), "; %s views: relative RMSE %.3f (%.3f without render noise)", name, rmse, bias);
     o << line;
   }
+  if (!s.train.empty()) o << "; ambient baseline " << Format(s.ambient.mean_rmse);
   return o.str();
 }
 

@@ -29,6 +29,8 @@ struct LightsInputs {
 struct LightsSummary {
   inverse::LightEstimate estimate;
   std::vector<inverse::ViewError> train, novel;  // renders against the images
+  inverse::AmbientBaseline ambient;               // the baseline on the training views' pixels
+  double train_rmse = 0.0;                        // mean relative RMSE of the training renders, noise taken out
   std::vector<std::string> warnings;
 };
 

@@ -42,14 +42,20 @@ std::vector<bool> ChooseMeshes(const Scene& scene, const std::vector<std::string
   return refined;
 }
 
-// The refined meshes as one mesh (vertices in parameter order), normals area-weighted.
+// The refined meshes as one mesh (vertices in parameter order), normals area-weighted, with the
+// vertex colours of the meshes when every one has them.
 TriangleMesh RefinedMesh(const Scene& scene, const std::vector<bool>& refined) {
   TriangleMesh out;
+  bool colored = true;
+  for (size_t m = 0; m < scene.meshes.size(); ++m) {
+    if (refined[m]) colored = colored && scene.meshes[m].mesh.vertex_colors.size() == scene.meshes[m].mesh.vertices.size();
+  }
   for (size_t m = 0; m < scene.meshes.size(); ++m) {
     if (!refined[m]) continue;
     const TriangleMesh& mesh = scene.meshes[m].mesh;
     const int offset = static_cast<int>(out.vertices.size());
     out.vertices.insert(out.vertices.end(), mesh.vertices.begin(), mesh.vertices.end());
+    if (colored) out.vertex_colors.insert(out.vertex_colors.end(), mesh.vertex_colors.begin(), mesh.vertex_colors.end());
     for (const Eigen::Vector3i& f : mesh.faces) out.faces.push_back(f + Eigen::Vector3i::Constant(offset));
   }
   out.ComputeVertexNormals();
@@ -113,6 +119,16 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
     }
   };
   out.result = RefineVertices(tracer, targets, options, seed, progress);
+  // Judged on pixels it did not fit: never a mesh that explains the images worse than its input.
+  out.held_out = CompareOnFreshPixels(tracer, targets, options, seed ^ 0x6a09e667f3bcc909ull, out.result.initial,
+                                      out.result.positions);
+  if (out.held_out.rmse_b > out.held_out.rmse_a) {
+    out.kept_unrefined = true;
+    tracer.SetPositions(out.result.initial, false);
+    out.warnings.push_back(Format("the refined mesh fits ", out.held_out.pixels, " held-out pixels worse than the unrefined one "
+                                  "(image RMSE ", out.held_out.rmse_b, " against ", out.held_out.rmse_a,
+                                  "): the unrefined mesh is kept as ", ws.RefinedMesh().filename().string()));
+  }
   const TriangleMesh final_mesh = RefinedMesh(tracer.scene(), refined);
   out.flipped_faces = FlippedFaces(start, final_mesh);
 
@@ -123,6 +139,8 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
   report["vertices"] = out.vertices;
   report["pixels"] = out.result.pixels;
   report["flipped_faces"] = out.flipped_faces;
+  report["held_out"] = {{"pixels", out.held_out.pixels}, {"image_rmse_unrefined", out.held_out.rmse_a},
+                        {"image_rmse_refined", out.held_out.rmse_b}, {"kept_unrefined", out.kept_unrefined}};
   nlohmann::ordered_json iterations = nlohmann::ordered_json::array();
   for (size_t i = 0; i < out.result.history.size(); ++i) {
     const RefineIteration& it = out.result.history[i];
@@ -150,7 +168,8 @@ std::string ToString(const RefineSummary& s) {
   if (!s.vertex_rms.empty()) {
     o << "; vertex RMS error " << Format(s.vertex_rms.front()) << " -> " << Format(s.vertex_rms.back()) << " m";
   }
-  o << "; " << s.flipped_faces << " flipped faces";
+  o << "; " << s.flipped_faces << " flipped faces; held-out pixels: image RMSE " << Format(s.held_out.rmse_a)
+    << " unrefined, " << Format(s.held_out.rmse_b) << " refined" << (s.kept_unrefined ? " (unrefined mesh kept)" : "");
   return o.str();
 }
 

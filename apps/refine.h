@@ -31,6 +31,10 @@ struct RefineSummary {
   int vertices = 0;
   std::vector<double> vertex_rms, vertex_max;  // per iteration, when a truth is given (m)
   int flipped_faces = 0;                  // against the starting mesh
+  // The baseline: the unrefined and the refined mesh on a fresh sample of pixels; when the refined
+  // one fits them worse, the unrefined mesh is what the stage writes (kept_unrefined, a warning).
+  inverse::HeldOutComparison held_out;
+  bool kept_unrefined = false;
   std::vector<std::string> warnings;
 };
 

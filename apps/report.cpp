@@ -279,7 +279,41 @@ void Refinement(const Workspace& ws, const fs::path& dir, std::ostream& md) {
   md << Fixed(seconds, 1) << " s in all.\n\n![image error per iteration](refine_error.png)\n\nShading after each iteration (every albedo grey, the paper's Fig. 4):\n\n" << ImageRow(row);
 }
 
+// The judge on real frames (apps/holdout.h): the model and both baselines on the held-out frames.
+void HeldOut(const Workspace& ws, const fs::path& dir, std::ostream& md) {
+  const auto h = ReadJson(ws.root() / "evaluation" / "holdout.json");
+  if (!h) return;
+  const Json& mean = (*h)["mean"];
+  md << "## Held-out frames\n\nThe model rendered at the poses of " << (*h)["frames"].size()
+     << " frames kept out of fusion, keyframes, texturing, lights and refinement, against those frames, over the "
+        "pixels the model covers; each prediction with its own per-channel gain (exposure and white balance). "
+        "Relative RMSE in linear RGB, SSIM of the sRGB luminance.\n\n"
+     << "| prediction | relative RMSE | SSIM |\n|---|---:|---:|\n"
+     << "| full model (" << (*h)["spp"].get<int>() << " spp; render noise " << Fixed(mean["noise"].get<double>()) << ") | "
+     << Fixed(mean["model"]["relative_rmse"].get<double>()) << " | " << Fixed(mean["model"]["ssim"].get<double>()) << " |\n"
+     << "| observed-colour texture, unlit | " << Fixed(mean["texture_unlit"]["relative_rmse"].get<double>()) << " | "
+     << Fixed(mean["texture_unlit"]["ssim"].get<double>()) << " |\n"
+     << "| albedo under white ambient light | " << Fixed(mean["albedo_ambient"]["relative_rmse"].get<double>()) << " | "
+     << Fixed(mean["albedo_ambient"]["ssim"].get<double>()) << " |\n\n";
+  for (size_t k = 0; k < (*h)["frames"].size(); ++k) {
+    const Json& f = (*h)["frames"][k];
+    std::vector<std::pair<std::string, std::string>> row;
+    for (const auto& [suffix, label] : std::vector<std::pair<std::string, std::string>>{
+             {"real", "real frame"},
+             {"model", Format("model (", Fixed(f["model"]["relative_rmse"].get<double>()), ")")},
+             {"texture", Format("unlit texture (", Fixed(f["texture_unlit"]["relative_rmse"].get<double>()), ")")},
+             {"ambient", Format("albedo, ambient (", Fixed(f["albedo_ambient"]["relative_rmse"].get<double>()), ")")},
+             {"error", "model error x4"}}) {
+      char name[48];
+      std::snprintf(name, sizeof(name), "holdout_%02zu_%s.png", k, suffix.c_str());
+      row.push_back({label, CopyImage(ws.root() / "evaluation" / name, dir, name)});
+    }
+    md << ImageRow(row);
+  }
+}
+
 void Evaluation(const Workspace& ws, const fs::path& dir, std::ostream& md) {
+  HeldOut(ws, dir, md);
   const auto eval = ReadJson(ws.root() / "evaluation" / "evaluation.json");
   if (!eval) return;
   const int block = eval->contains("block") ? (*eval)["block"].get<int>() : 1;

@@ -211,7 +211,7 @@ void OniWriter::WriteHeaderRecords() {
       general_property("xnCropping", Fields().U32(0).U16(0).U16(0).U16(0).U16(0));
     }
     general_property("xnFOV", Fields().F64(hfov).F64(vfov));
-    int_property("xnMirror", 0);
+    int_property("xnMirror", layout_.mirrored ? 1 : 0);
     if (depth) int_property("xnDeviceMaxDepth", 10000);
     general_property("gsIntrinsics", Fields().F64(k.fx).F64(k.fy).F64(k.cx).F64(k.cy));
     WriteRecord(kNodeStateReady, node, "", nullptr, 0, 0);
@@ -245,13 +245,33 @@ void OniWriter::Add(const OniRawFrame& frame) {
   }
   const uint32_t frame_number = static_cast<uint32_t>(frames_ + 1);  // the container counts from 1
   const Fields fields = Fields().U64(frame.timestamp_us).U32(frame_number);
+  // A mirrored recording stores each row reversed, as a mirroring device delivers it.
+  std::vector<uint16_t> depth_flipped;
+  std::vector<uint8_t> color_flipped;
+  const uint16_t* depth = frame.depth_mm.data();
+  const uint8_t* color = frame.color_rgb.data();
+  if (layout_.mirrored) {
+    depth_flipped = frame.depth_mm;
+    color_flipped = frame.color_rgb;
+    const size_t w = static_cast<size_t>(layout_.width);
+    for (size_t row = 0; row < pixels; row += w) {
+      for (size_t u = 0; u < w; ++u) {
+        depth_flipped[row + u] = frame.depth_mm[row + w - 1 - u];
+        for (size_t c = 0; c < 3 && !color_flipped.empty(); ++c) {
+          color_flipped[3 * (row + u) + c] = frame.color_rgb[3 * (row + w - 1 - u) + c];
+        }
+      }
+    }
+    depth = depth_flipped.data();
+    color = color_flipped.data();
+  }
   for (size_t node = 0; node < nodes_.size(); ++node) {
     const uint64_t offset = static_cast<uint64_t>(out_.tellp());
     if (node == 0) {
-      WriteRecord(kNewData, 0, fields.str(), frame.depth_mm.data(),
+      WriteRecord(kNewData, 0, fields.str(), depth,
                   static_cast<uint32_t>(pixels * sizeof(uint16_t)), nodes_[0].last_data);
     } else {
-      WriteRecord(kNewData, 1, fields.str(), frame.color_rgb.data(),
+      WriteRecord(kNewData, 1, fields.str(), color,
                   static_cast<uint32_t>(3 * pixels), nodes_[1].last_data);
     }
     nodes_[node].last_data = offset;
@@ -339,6 +359,7 @@ void ApplyProperty(OniNodeInfo& node, uint32_t type, FieldReader& r) {
     std::memcpy(&v, value.data(), 8);
     if (name == "oniPixelFormat") node.pixel_format = static_cast<uint32_t>(v);
     if (name == "oniRequiredFrameSize" || name == "RequiredDataSize") node.required_frame_size = v;
+    if (name == "xnMirror") node.mirrored = v != 0;
   } else if (type == kGeneralProperty) {
     if (name == "xnMapOutputMode" && size == 12)
       node.map_output_mode = std::array<uint32_t, 3>{u32_at(0), u32_at(1), u32_at(2)};

@@ -53,6 +53,9 @@ struct OniLayout {
   CameraIntrinsics intrinsics;
   // Test knob: false leaves out xnCropping, which makes OpenNI2's player drop every frame.
   bool write_cropping = true;
+  // Mirrored, as NiViewer and many recorders store streams with OpenNI's mirroring on: xnMirror = 1
+  // on both streams and every frame stored left-right flipped.
+  bool mirrored = false;
 
   void Validate() const;
 };
@@ -111,6 +114,7 @@ struct OniNodeInfo {
   std::optional<uint32_t> pixel_format;                    // OniPixelFormat
   std::optional<uint64_t> required_frame_size;             // bytes
   bool has_cropping = false;
+  bool mirrored = false;  // xnMirror = 1: the frames are stored left-right flipped
   std::optional<std::array<double, 2>> field_of_view;  // horizontal, vertical, radians
   std::optional<std::array<double, 4>> gs_intrinsics;  // fx fy cx cy, written by genscene
 

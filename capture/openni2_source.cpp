@@ -180,6 +180,9 @@ class OpenNI2Source : public FrameSource {
       // xnCropping would otherwise end in a crash, a hang or no frames inside OpenNI2.
       info = InspectOniFile(spec_);
       RequirePlayableRgbd(*info);
+      // OpenNI2's player delivers a stream recorded with mirroring on as it was stored: flipped.
+      mirrored_depth_ = info->FindNode(kOniNodeDepth)->mirrored;
+      mirrored_color_ = info->FindNode(kOniNodeImage)->mirrored;
       OpenDevice(spec_.c_str());
       // Listening from before the first start: the event may come before Close asks for it.
       eof_listener_.emplace(device_.getDeviceInfo().getUri());
@@ -453,7 +456,7 @@ class OpenNI2Source : public FrameSource {
       const auto* row = reinterpret_cast<const uint16_t*>(
           depth_bytes + static_cast<size_t>(v) * depth_frame_.getStrideInBytes());
       for (int u = 0; u < width_; ++u)
-        out.depth(u, v) = static_cast<float>(row[u] / units_per_meter);
+        out.depth(mirrored_depth_ ? width_ - 1 - u : u, v) = static_cast<float>(row[u] / units_per_meter);
     }
     // Colour: RGB888 code values -> linear with the camera response.
     if (color_frame_.getVideoMode().getPixelFormat() != openni::PIXEL_FORMAT_RGB888) {
@@ -465,8 +468,8 @@ class OpenNI2Source : public FrameSource {
     for (int v = 0; v < height_; ++v) {
       const uint8_t* row = color_bytes + static_cast<size_t>(v) * color_frame_.getStrideInBytes();
       for (int u = 0; u < width_; ++u) {
-        out.color(u, v) = {to_linear_[row[3 * u]], to_linear_[row[3 * u + 1]],
-                           to_linear_[row[3 * u + 2]]};
+        out.color(mirrored_color_ ? width_ - 1 - u : u, v) = {to_linear_[row[3 * u]], to_linear_[row[3 * u + 1]],
+                                                              to_linear_[row[3 * u + 2]]};
       }
     }
     out.Validate();
@@ -478,6 +481,7 @@ class OpenNI2Source : public FrameSource {
   CaptureOptions capture_;
   std::array<float, 256> to_linear_;
   bool is_file_ = false;
+  bool mirrored_depth_ = false, mirrored_color_ = false;  // a recording's xnMirror: flipped back
   bool any_started_ = false;  // a stream was started (the player may hold a frame; see Close)
   static constexpr int kEndOfFileWaitMs = 2000;
   std::optional<EndOfFileListener> eof_listener_;  // recordings only (see Close)
@@ -514,7 +518,7 @@ std::unique_ptr<FrameSource> OpenOpenNI2Source(const std::string& spec,
 
 std::unique_ptr<FrameSource> OpenAnySource(const std::string& spec, const SourceOptions& options,
                                            const CaptureOptions& capture) {
-  if (IsOpenNI2Spec(spec)) return OpenOpenNI2Source(spec, options, capture);
+  if (IsOpenNI2Spec(spec)) return Undistorted(OpenOpenNI2Source(spec, options, capture));
   return OpenFrameSource(spec, options);
 }
 

@@ -45,6 +45,7 @@ RecordSummary RecordFrames(FrameSource& source, const RecordTargets& targets,
     layout.width = layout.intrinsics.width;
     layout.height = layout.intrinsics.height;
     layout.fps = settings.fps;
+    layout.mirrored = settings.mirror;
     WriteFileAtomically(targets.oni, [&](const fs::path& tmp) {
       OniWriter writer(tmp, layout);
       read_frames(&writer);

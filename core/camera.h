@@ -18,8 +18,8 @@ struct CameraIntrinsics {
   double cy = 0.0;
   int width = 0;   // image size in pixels
   int height = 0;
-  // Lens distortion k1 k2 p1 p2 k3 (OpenCV order). Carried so that calibrations round-trip;
-  // no stage undistorts yet (all our sources are already rectified or synthetic).
+  // Lens distortion k1 k2 p1 p2 k3 (OpenCV order). Sources take it out at ingest
+  // (core/frame_source.h Undistorted): every stage sees a camera without distortion.
   std::array<double, 5> distortion{};
 
   // Camera-frame direction through pixel (u, v), with z = 1.

@@ -1,5 +1,6 @@
 #include "core/file_util.h"
 
+#include <algorithm>
 #include <limits>
 
 #include <unistd.h>
@@ -130,6 +131,43 @@ fs::path ResolveRelativeTo(const fs::path& list_file, const std::string& entry) 
   const fs::path p(entry);
   if (p.is_absolute()) return p;
   return list_file.parent_path() / p;
+}
+
+uint64_t Fnv1a64(const void* data, size_t size, uint64_t hash) {
+  const auto* bytes = static_cast<const unsigned char*>(data);
+  for (size_t i = 0; i < size; ++i) {
+    hash ^= bytes[i];
+    hash *= 1099511628211ull;
+  }
+  return hash;
+}
+
+uint64_t ContentFingerprint(const fs::path& path) {
+  std::vector<std::pair<std::string, fs::path>> files;
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    for (auto it = fs::recursive_directory_iterator(path, ec); !ec && it != fs::recursive_directory_iterator();
+         it.increment(ec)) {
+      if (it->is_regular_file(ec)) files.emplace_back(fs::relative(it->path(), path).generic_string(), it->path());
+    }
+    if (ec) throw Error(Format(path.string(), ": cannot list the folder (", ec.message(), ")"));
+    std::sort(files.begin(), files.end());
+  } else {
+    files.emplace_back("", path);
+  }
+  uint64_t hash = kFnv1aOffset;
+  std::vector<char> buffer(1 << 20);
+  for (const auto& [name, file] : files) {
+    if (!name.empty()) hash = Fnv1a64(name + '\0', hash);  // a folder's files: path, then bytes
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw Error(Format(file.string(), ": cannot read"));
+    while (in) {
+      in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+      hash = Fnv1a64(buffer.data(), static_cast<size_t>(in.gcount()), hash);
+    }
+    if (in.bad()) throw Error(Format(file.string(), ": read error"));
+  }
+  return hash;
 }
 
 }  // namespace genscene

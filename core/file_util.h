@@ -3,6 +3,7 @@
 // leaves a half-written output behind.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -46,5 +47,17 @@ std::filesystem::path TemporaryPathFor(const std::filesystem::path& path);
 // Resolves a path found inside a list file: relative paths are relative to the list's folder.
 std::filesystem::path ResolveRelativeTo(const std::filesystem::path& list_file,
                                         const std::string& entry);
+
+// 64-bit FNV-1a of `size` bytes, continuing from `hash` (start: kFnv1aOffset).
+constexpr uint64_t kFnv1aOffset = 14695981039346656037ull;
+uint64_t Fnv1a64(const void* data, size_t size, uint64_t hash = kFnv1aOffset);
+inline uint64_t Fnv1a64(const std::string& text, uint64_t hash = kFnv1aOffset) {
+  return Fnv1a64(text.data(), text.size(), hash);
+}
+
+// FNV-1a 64 of a file's bytes, or of every regular file below a folder (in sorted order of their
+// relative paths, each path and its bytes): the same content gives the same fingerprint wherever
+// it lies and whatever its time stamps. Throws Error naming the file that cannot be read.
+uint64_t ContentFingerprint(const std::filesystem::path& path);
 
 }  // namespace genscene

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <filesystem>
+#include <opencv2/imgproc.hpp>
 #include <spdlog/spdlog.h>
 
 #include "core/check.h"
@@ -247,7 +248,7 @@ std::unique_ptr<FrameSource> OpenTumFolder(const fs::path& folder, const SourceO
                          RequireFile(folder / t[3], assoc)});
     }
     if (entries.empty()) throw Error(Format(assoc.string(), ": empty associations file (no frames)"));
-  } else {
+  } else try {
     const auto rgb = ReadTimedList(rgb_list);
     if (!fs::exists(depth_list, ec)) {
       for (const auto& r : rgb) entries.push_back({r.timestamp, RequireFile(ResolveRelativeTo(rgb_list, r.path), rgb_list), {}});
@@ -262,6 +263,19 @@ std::unique_ptr<FrameSource> OpenTumFolder(const fs::path& folder, const SourceO
                            RequireFile(ResolveRelativeTo(depth_list, depth[j].path), depth_list)});
       }
     }
+  } catch (const Error& e) {
+    // An excerpt of a TUM sequence keeps the full lists; an associations file beside them may
+    // name just the frames that are there.
+    std::vector<std::string> lists;
+    for (const auto& entry : fs::directory_iterator(folder, ec)) {
+      const std::string name = entry.path().filename().string();
+      if (name.rfind("assoc", 0) == 0 && entry.path().extension() == ".txt") lists.push_back(name);
+    }
+    if (lists.empty()) throw;
+    std::sort(lists.begin(), lists.end());
+    std::string names;
+    for (const std::string& n : lists) names += (names.empty() ? "" : ", ") + n;
+    throw Error(Format(e.what(), "; the folder has ", names, ": give --associations FILE to read the pairs it lists"));
   }
   entries = SelectFrames(entries, options, folder.string());
 
@@ -536,9 +550,86 @@ std::unique_ptr<FrameSource> OpenSevenScenesFolder(const fs::path& folder, const
                                              std::move(poses), options.max_time_difference, true);
 }
 
+// Resamples every frame of a source with lens distortion to the same camera without it.
+class UndistortingSource : public FrameSource {
+ public:
+  explicit UndistortingSource(std::unique_ptr<FrameSource> source)
+      : source_(std::move(source)), intrinsics_(source_->Intrinsics()) {
+    intrinsics_.distortion = {};
+    const CameraIntrinsics& k = source_->Intrinsics();
+    const auto& d = k.distortion;
+    map_x_.create(k.height, k.width, CV_32F);
+    map_y_.create(k.height, k.width, CV_32F);
+    for (int v = 0; v < k.height; ++v) {
+      for (int u = 0; u < k.width; ++u) {
+        // Where the undistorted pixel (u, v) lies in the distorted image (OpenCV's model).
+        const double x = (u - k.cx) / k.fx, y = (v - k.cy) / k.fy;
+        const double r2 = x * x + y * y;
+        const double radial = 1.0 + r2 * (d[0] + r2 * (d[1] + r2 * d[4]));
+        const double xd = x * radial + 2.0 * d[2] * x * y + d[3] * (r2 + 2.0 * x * x);
+        const double yd = y * radial + d[2] * (r2 + 2.0 * y * y) + 2.0 * d[3] * x * y;
+        map_x_.at<float>(v, u) = static_cast<float>(k.fx * xd + k.cx);
+        map_y_.at<float>(v, u) = static_cast<float>(k.fy * yd + k.cy);
+      }
+    }
+  }
+
+  std::string Describe() const override { return source_->Describe() + ", undistorted"; }
+  std::optional<size_t> FrameCount() const override { return source_->FrameCount(); }
+  const CameraIntrinsics& Intrinsics() const override { return intrinsics_; }
+  const Trajectory& KnownPoses() const override { return source_->KnownPoses(); }
+
+  std::optional<RgbdFrame> Next() override {
+    std::optional<RgbdFrame> frame = source_->Next();
+    if (!frame) return frame;
+    for (const auto& [image_size, path] : {std::pair{Eigen::Vector2i(frame->color.width(), frame->color.height()), frame->color_path},
+                                          std::pair{Eigen::Vector2i(frame->depth.width(), frame->depth.height()), frame->depth_path}}) {
+      if (image_size != Eigen::Vector2i::Zero() && image_size != Eigen::Vector2i(map_x_.cols, map_x_.rows)) {
+        throw Error(Format(path, ": image is ", image_size.x(), "x", image_size.y(), " but the intrinsics are for ",
+                           map_x_.cols, "x", map_x_.rows));
+      }
+    }
+    if (!frame->color.empty()) {
+      ImageRgb out(frame->color.width(), frame->color.height());
+      const cv::Mat in(frame->color.height(), frame->color.width(), CV_32FC3, frame->color.data());
+      cv::Mat dst(out.height(), out.width(), CV_32FC3, out.data());
+      cv::remap(in, dst, map_x_, map_y_, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar::all(0));
+      frame->color = std::move(out);
+    }
+    if (!frame->depth.empty()) {
+      ImageDepth out(frame->depth.width(), frame->depth.height());
+      const cv::Mat in(frame->depth.height(), frame->depth.width(), CV_32F, frame->depth.data());
+      cv::Mat dst(out.height(), out.width(), CV_32F, out.data());
+      cv::remap(in, dst, map_x_, map_y_, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar::all(0));
+      frame->depth = std::move(out);
+    }
+    frame->intrinsics = intrinsics_;
+    return frame;
+  }
+
+ private:
+  std::unique_ptr<FrameSource> source_;
+  CameraIntrinsics intrinsics_;
+  cv::Mat map_x_, map_y_;
+};
+
+std::unique_ptr<FrameSource> OpenFolderSource(const std::string& spec, const SourceOptions& options);
+
 }  // namespace
 
+std::unique_ptr<FrameSource> Undistorted(std::unique_ptr<FrameSource> source) {
+  const auto& d = source->Intrinsics().distortion;
+  if (std::all_of(d.begin(), d.end(), [](double c) { return c == 0.0; })) return source;
+  return std::make_unique<UndistortingSource>(std::move(source));
+}
+
 std::unique_ptr<FrameSource> OpenFrameSource(const std::string& spec, const SourceOptions& options) {
+  return Undistorted(OpenFolderSource(spec, options));
+}
+
+namespace {
+
+std::unique_ptr<FrameSource> OpenFolderSource(const std::string& spec, const SourceOptions& options) {
   options.Validate();
   if (spec.empty()) throw Error("no input given (a TUM or Redwood folder, or a view set)");
   if (spec == "openni2" || spec.rfind("openni2:", 0) == 0 || fs::path(spec).extension() == ".oni") {
@@ -561,6 +652,8 @@ std::unique_ptr<FrameSource> OpenFrameSource(const std::string& spec, const Sour
   throw Error(Format(spec, ": not a recognised sequence (no rgb.txt for TUM, no color/ + depth/ for Redwood, no "
                      "frame-XXXXXX.depth.png for 7-Scenes)"));
 }
+
+}  // namespace
 
 std::vector<RgbdFrame> ReadAllFrames(FrameSource& source) {
   std::vector<RgbdFrame> frames;

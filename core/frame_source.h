@@ -70,10 +70,18 @@ struct SourceOptions {
   void Validate() const;
 };
 
-// Opens a source by its specification: a folder (TUM layout with rgb.txt, a view set, or a
-// Redwood folder with color/ and depth/). Throws Error naming the path when it is not
-// recognised, a list is empty or names a missing file, or sizes disagree.
+// Opens a source by its specification: a folder (TUM layout with rgb.txt, a view set, a Redwood
+// folder with color/ and depth/, or the 7-Scenes / 3DMatch layout), undistorted (Undistorted).
+// Throws Error naming the path when it is not recognised, a list is empty or names a missing
+// file, or sizes disagree.
 std::unique_ptr<FrameSource> OpenFrameSource(const std::string& spec, const SourceOptions& options);
+
+// The source with lens distortion taken out: when its intrinsics carry distortion (k1 k2 p1 p2
+// k3, OpenCV's model), every frame's colour (bilinear) and depth (nearest, so that no depth is
+// mixed across an edge) are resampled once, at ingest, to the same camera without distortion,
+// which Intrinsics() and the frames then report; pixels whose source falls outside the image
+// are black and without depth. Other sources are returned as they are.
+std::unique_ptr<FrameSource> Undistorted(std::unique_ptr<FrameSource> source);
 
 // Reads every frame of a source (for small sequences and tests).
 std::vector<RgbdFrame> ReadAllFrames(FrameSource& source);

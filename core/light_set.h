@@ -44,6 +44,9 @@ struct VoxelLightGrid {
   std::vector<Eigen::Vector3f> intensity;        // L per voxel, x fastest, then y, then z
   std::vector<std::array<float, 6>> weights;     // lambda per voxel
   double cube_size = 0.01;                       // side of the exported emitting cube, meters
+  // Share of the largest voxel power from which a voxel counts as an active light (the estimate's
+  // own threshold, kept with the lights so that every stage and the viewer count alike).
+  double active_fraction = 1e-3;
 
   static const std::array<Eigen::Vector3d, 6>& Directions();
   int VoxelCount() const { return dims.x() * dims.y() * dims.z(); }
@@ -60,8 +63,10 @@ struct VoxelLightGrid {
   // when no voxel has power): where the light is, as the light-estimation tests and bench judge it.
   double TotalPowerLuminance() const;
   Eigen::Vector3d PowerCentroid() const;
-  // Voxels whose power luminance is at least `fraction` of the largest one (0: any power > 0).
-  std::vector<int> ActiveVoxels(double fraction = 0.0) const;
+  // Voxels whose power luminance is at least `fraction` of the largest one (0: any power > 0);
+  // without an argument, at least active_fraction of it.
+  std::vector<int> ActiveVoxels(double fraction) const;
+  std::vector<int> ActiveVoxels() const { return ActiveVoxels(active_fraction); }
   void Validate() const;
 };
 

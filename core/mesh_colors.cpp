@@ -26,12 +26,11 @@ int Log2(int r) {
 }  // namespace
 
 uint64_t MeshFingerprint(const TriangleMesh& mesh) {
-  uint64_t h = 14695981039346656037ull;
+  uint64_t h = kFnv1aOffset;
   auto mix = [&h](uint32_t value) {
-    for (int b = 0; b < 4; ++b) {
-      h ^= (value >> (8 * b)) & 0xffu;
-      h *= 1099511628211ull;
-    }
+    const unsigned char bytes[4] = {static_cast<unsigned char>(value), static_cast<unsigned char>(value >> 8),
+                                    static_cast<unsigned char>(value >> 16), static_cast<unsigned char>(value >> 24)};
+    h = Fnv1a64(bytes, 4, h);
   };
   mix(static_cast<uint32_t>(mesh.vertices.size()));
   for (const Eigen::Vector3i& f : mesh.faces) {

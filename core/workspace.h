@@ -23,6 +23,8 @@ class Workspace {
   std::filesystem::path Trajectory() const { return root_ / "trajectory.txt"; }
   std::filesystem::path Tsdf() const { return root_ / "tsdf.gsv"; }
   std::filesystem::path Keyframes() const { return root_ / "keyframes"; }
+  // Frames kept out of the model (fusion's holdout), posed, to judge the model on.
+  std::filesystem::path HeldOut() const { return root_ / "holdout"; }
   std::filesystem::path Mesh() const { return root_ / "mesh.ply"; }
   std::filesystem::path Texture() const { return root_ / "texture.mcol"; }
   std::filesystem::path TexturePly() const { return root_ / "texture.ply"; }
@@ -31,20 +33,13 @@ class Workspace {
   std::filesystem::path Lights() const { return root_ / "lights.json"; }
   std::filesystem::path RefinedMesh() const { return root_ / "mesh_refined.ply"; }
   std::filesystem::path Log() const { return root_ / "genscene.log"; }
+  // What each stage of the chain was made from: {"stage": fingerprint of its inputs and options}.
+  std::filesystem::path StageFingerprints() const { return root_ / "stages.json"; }
   std::filesystem::path Report() const { return root_ / "report"; }
-
-  // True when every output exists and none is older than the newest input (folders count by
-  // their newest file). False when an output or an input is missing.
-  static bool IsFresh(const std::vector<std::filesystem::path>& outputs,
-                      const std::vector<std::filesystem::path>& inputs);
 
  private:
   std::filesystem::path root_;
 };
 
-// Newest modification time of a file, or of any file below a folder; nullopt when missing.
-std::optional<std::filesystem::file_time_type> NewestTime(const std::filesystem::path& path);
-// Oldest modification time of a file, or of any file below a folder; nullopt when missing.
-std::optional<std::filesystem::file_time_type> OldestTime(const std::filesystem::path& path);
 
 }  // namespace genscene

@@ -43,6 +43,9 @@ void FusionOptions::Validate() const {
   RequireRange("model_subsample", model_subsample, 1, 4);
   RequireRange("allocation_stride", allocation_stride, 0, 16);
   RequireOneOf("weighting", weighting, {"noise", "uniform"});
+  if (holdout == 1 || holdout < 0 || holdout > 100000) {
+    throw Error(Format("option holdout = ", holdout, " is not 0 (none) or in [2, 100000]"));
+  }
   preprocess.Validate();
   icp.Validate();
   keyframes.Validate();
@@ -66,6 +69,7 @@ const char* ToString(FrameStatus status) {
     case FrameStatus::kDegenerate: return "degenerate";
     case FrameStatus::kLost: return "lost";
     case FrameStatus::kBlank: return "blank";
+    case FrameStatus::kHeldOut: return "held_out";
   }
   return "?";
 }
@@ -127,6 +131,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     pose = *frame.world_from_camera;
     report.status = FrameStatus::kKnownPose;
     report.seconds_preprocess = SecondsSince(start);
+    if (started_ && HeldOut(report.index)) return finish(HoldOut(frame, depth, pose, report));
   } else if (!started_) {
     // The first frame defines the world: its known pose when the source has one (so that the
     // model lines up with the ground truth), else the identity.
@@ -155,6 +160,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
       return finish(report);
     }
     pose = last_good_ * model_from_live;
+    if (HeldOut(report.index)) return finish(HoldOut(frame, depth, pose, report));
     if (icp.degenerate) {
       // The pose is kept along the unconstrained directions; fusing would smear the model along
       // them if the camera did move that way, so the frame is not fused.
@@ -194,6 +200,19 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   posed.world_from_camera = pose;
   keyframe_selector_.Offer(posed);
   return finish(report);
+}
+
+FrameReport KinectFusion::HoldOut(const RgbdFrame& frame, const ImageDepth& depth, const Eigen::Isometry3d& pose,
+                                  FrameReport report) {
+  report.status = FrameStatus::kHeldOut;
+  report.world_from_camera = pose;
+  if (held_out_.size() < static_cast<size_t>(FusionOptions::kMaxHeldOut) && !frame.color.empty()) {
+    RgbdFrame kept = frame;
+    kept.depth = depth;
+    kept.world_from_camera = pose;
+    held_out_.push_back(std::move(kept));
+  }
+  return report;
 }
 
 void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
@@ -237,7 +256,8 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
                         {"truncation_m", volume.truncation()},
                         {"blocks", volume.num_blocks()},
                         {"megabytes", volume.allocated_bytes() / 1e6},
-                        {"keyframes", fusion.keyframes().size()}};
+                        {"keyframes", fusion.keyframes().size()},
+                        {"held_out", fusion.held_out().size()}};
   if (ate) {
     summary["ate"] = {{"pairs", ate->pairs}, {"rmse_m", ate->rmse}, {"mean_m", ate->mean},
                       {"median_m", ate->median}, {"max_m", ate->max}};
@@ -246,11 +266,12 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
 
   WriteTumTrajectory(workspace.Trajectory(), fusion.trajectory());
   WriteTsdfVolume(workspace.Tsdf(), volume);
-  if (!fusion.keyframes().empty()) {
-    TumWriteOptions write;
-    write.linear_exr = true;
-    WriteTumSequence(workspace.Keyframes(), fusion.keyframes(), write);
-  }
+  TumWriteOptions write;
+  write.linear_exr = true;
+  if (!fusion.keyframes().empty()) WriteTumSequence(workspace.Keyframes(), fusion.keyframes(), write);
+  std::error_code ec;
+  std::filesystem::remove_all(workspace.HeldOut(), ec);  // an earlier run's held-out frames are not this run's
+  if (!fusion.held_out().empty()) WriteTumSequence(workspace.HeldOut(), fusion.held_out(), write);
   WriteTextFileAtomically(workspace.root() / "fusion.json",
                           json({{"summary", summary}, {"options", options}, {"frames", frames}}).dump(1) + "\n");
 }

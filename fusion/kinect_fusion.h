@@ -58,6 +58,11 @@ struct FusionOptions {
   // Measurements weighted by the inverse variance of a structured-light sensor's depth noise
   // ("noise", integrate.h's ObservationWeight) or all alike ("uniform", as Open3D does).
   std::string weighting = "noise";
+  // Every holdout-th frame (the 2nd, ... of each holdout; 0 = none) is tracked for its pose but
+  // neither fused nor offered as a keyframe: the real views the model is judged on (the first
+  // kMaxHeldOut of them are kept, HeldOut()).
+  int holdout = 0;
+  static constexpr int kMaxHeldOut = 50;
   PreprocessOptions preprocess;
   IcpOptions icp;
   KeyframeOptions keyframes;
@@ -73,6 +78,8 @@ struct FusionOptions {
     v("model_subsample", model_subsample, "", "raycast the model for tracking at 1/N of the depth's resolution (1 = full)");
     v("allocation_stride", allocation_stride, "px", "allocate TSDF blocks along the band of every Nth pixel (1 = all, 0 = width / 160)");
     v("weighting", weighting, "", "TSDF measurement weights: noise (1 / sigma(z)^2 of Kinect-like depth noise) or uniform");
+    v("holdout", holdout, "frames",
+      "keep every Nth frame out of the model (tracked for its pose only) to judge the model on it (0 = none)");
     v("depth_min", preprocess.min_depth, "m", "nearer depth is invalid");
     v("depth_max", preprocess.max_depth, "m", "farther depth is invalid");
     v("bilateral_radius", preprocess.bilateral_radius, "px", "bilateral filter half-width for tracking (0 = off)");
@@ -93,6 +100,7 @@ struct FusionOptions {
     v("keyframe_translation", keyframes.translation, "m", "camera motion that makes a new keyframe due");
     v("keyframe_rotation", keyframes.rotation, "deg", "camera rotation that makes a new keyframe due");
     v("keyframe_window", keyframes.window, "frames", "the sharpest of this many frames becomes the keyframe");
+    v("min_keyframes", keyframes.min_keyframes, "", "at least this many keyframes, spread over the recording, when it has the frames");
     v("max_keyframes", keyframes.max_keyframes, "", "keyframe limit");
   }
   void Validate() const;
@@ -108,6 +116,7 @@ enum class FrameStatus {
   kDegenerate,  // ICP left directions unconstrained: pose kept along them, not fused
   kLost,        // ICP failed: not fused, pose not updated
   kBlank,       // too few valid depth pixels: skipped
+  kHeldOut,     // tracked (or at its known pose) for judging the model: not fused, not a keyframe
 };
 const char* ToString(FrameStatus status);
 
@@ -139,6 +148,8 @@ class KinectFusion {
   const Trajectory& trajectory() const { return trajectory_; }  // fused/tracked frames only
   const std::vector<FrameReport>& reports() const { return reports_; }
   const std::vector<RgbdFrame>& keyframes() const { return keyframe_selector_.keyframes(); }
+  // The held-out frames with their estimated poses, in order (at most kMaxHeldOut).
+  const std::vector<RgbdFrame>& held_out() const { return held_out_; }
   const CameraIntrinsics& intrinsics() const { return intrinsics_; }
   const FusionOptions& options() const { return options_; }
   // The model as seen from the last good pose, which ICP tracks against; empty before the first
@@ -146,6 +157,12 @@ class KinectFusion {
   const RaycastResult& model() const { return model_; }
 
  private:
+  bool HeldOut(size_t index) const {
+    return options_.holdout > 0 && index % static_cast<size_t>(options_.holdout) == static_cast<size_t>(options_.holdout - 1);
+  }
+  // Records a held-out frame at `pose` (kept while fewer than kMaxHeldOut are) and its report.
+  FrameReport HoldOut(const RgbdFrame& frame, const ImageDepth& depth, const Eigen::Isometry3d& pose, FrameReport report);
+
   FusionOptions options_;
   CameraIntrinsics intrinsics_;
   TsdfVolume volume_;
@@ -157,6 +174,7 @@ class KinectFusion {
   Trajectory trajectory_;
   std::vector<FrameReport> reports_;
   KeyframeSelector keyframe_selector_;
+  std::vector<RgbdFrame> held_out_;
 };
 
 // Writes the stage's outputs into the workspace, each atomically: trajectory.txt (TUM),

@@ -1100,6 +1100,7 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   }
   out.lights = MakeVoxelGrid(tracer.scene(), options.grid, options.boundary_inset);
   VoxelLightGrid& grid = out.lights;
+  grid.active_fraction = options.active_fraction;
   // The dense normal equations are known before any path is traced: refuse them up front.
   const double cap_bytes = options.memory_cap * 1e6;
   const double equation_bytes = NormalEquationsBoundBytes(options.grid);
@@ -1232,6 +1233,7 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   };
   for (int level = 1; level <= options.refine_levels; ++level) {
     VoxelLightGrid fine = MakeVoxelGrid(tracer.scene(), 2 * grid.dims.x(), options.boundary_inset);
+    fine.active_fraction = options.active_fraction;
     std::vector<bool> enabled(static_cast<size_t>(fine.VoxelCount()), false);
     int candidates = 0;
     bool left_out = false;
@@ -1344,6 +1346,45 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   out.train_rmse = ref > 0.0 ? std::sqrt(err / ref) : 0.0;
   out.active_voxels = static_cast<int>(grid.ActiveVoxels(options.active_fraction).size());  // of the result's grid
   out.seconds = SecondsSince(start);
+  return out;
+}
+
+AmbientBaseline FitAmbientBaseline(const PathTracer& tracer, const std::vector<TrainingView>& views,
+                                   const LightEstimationOptions& options) {
+  // Per view: the valid pixels' first-hit albedo a and observed colour o.
+  std::vector<std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>> samples(views.size());
+  Eigen::Vector3d ao = Eigen::Vector3d::Zero(), aa = Eigen::Vector3d::Zero();
+  for (size_t t = 0; t < views.size(); ++t) {
+    const TrainingView& tv = views[t];
+    const Image<uint8_t> valid = ValidPixels(tracer, tv, options);
+    const Eigen::Matrix3f rotation = tv.view.world_from_camera.rotation().cast<float>();
+    const Eigen::Vector3f eye = tv.view.world_from_camera.translation().cast<float>();
+    for (int v = 0; v < valid.height(); ++v) {
+      for (int u = 0; u < valid.width(); ++u) {
+        if (!valid(u, v)) continue;
+        const Eigen::Vector3f dir = rotation * tv.view.intrinsics.RayDirection(u, v).cast<float>().normalized();
+        const auto hit = tracer.tracer().Intersect(eye, dir);
+        if (!hit) continue;
+        const SceneMesh& mesh = tracer.scene().meshes[static_cast<size_t>(hit->mesh)];
+        const Eigen::Vector3d a = mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2).cast<double>();
+        const Eigen::Vector3d o = tv.image(u, v).cast<double>();
+        samples[t].emplace_back(a, o);
+        ao += a.cwiseProduct(o);
+        aa += a.cwiseProduct(a);
+      }
+    }
+  }
+  AmbientBaseline out;
+  for (int c = 0; c < 3; ++c) out.radiance[c] = aa[c] > 0.0 ? ao[c] / aa[c] : 0.0;
+  for (const auto& view : samples) {
+    double err = 0.0, ref = 0.0;
+    for (const auto& [a, o] : view) {
+      err += (a.cwiseProduct(out.radiance) - o).squaredNorm();
+      ref += o.squaredNorm();
+    }
+    out.rmse.push_back(ref > 0.0 ? std::sqrt(err / ref) : 0.0);
+    out.mean_rmse += out.rmse.back() / static_cast<double>(samples.size());
+  }
   return out;
 }
 

@@ -320,4 +320,15 @@ ViewError CompareRender(const PathTracer& lit, const TrainingView& reference,
                         double reference_noise_rms = 0.0, ImageRgb* render = nullptr,
                         int block = 1);
 
+// The baseline a light estimate must beat: each valid pixel (as CompareRender masks them)
+// predicted as its camera ray's first hit's albedo times one ambient radiance per channel, fitted
+// by least squares over all the views (no shadows, no bounces). `rmse` per view as ViewError::rmse.
+struct AmbientBaseline {
+  Eigen::Vector3d radiance = Eigen::Vector3d::Zero();
+  std::vector<double> rmse;
+  double mean_rmse = 0.0;
+};
+AmbientBaseline FitAmbientBaseline(const PathTracer& tracer, const std::vector<TrainingView>& views,
+                                   const LightEstimationOptions& options);
+
 }  // namespace genscene::inverse

@@ -589,6 +589,24 @@ RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, 
   return l;
 }
 
+HeldOutComparison CompareOnFreshPixels(DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
+                                       const RefineOptions& options, uint64_t seed, const Eigen::VectorXd& a,
+                                       const Eigen::VectorXd& b) {
+  const std::vector<PixelRef> pixels = SamplePixels(tracer, PathTracer(tracer.scene()), targets, options.pixels_per_view,
+                                                    options.edge_margin, options.refined_pixels_only, seed);
+  HeldOutComparison out;
+  out.pixels = static_cast<int>(pixels.size());
+  if (pixels.empty()) return out;
+  const double rms = ReferenceRms(targets, pixels), channels = 3.0 * pixels.size();
+  const auto rmse_at = [&](const Eigen::VectorXd& x) {
+    tracer.SetPositions(x, false);
+    return std::sqrt(Evaluate(tracer, targets, pixels, options, seed, 1.0, false).sum_squared / channels) / rms;
+  };
+  out.rmse_a = rmse_at(a);
+  out.rmse_b = rmse_at(b);
+  return out;
+}
+
 RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
                             const RefineOptions& options, uint64_t seed, const RefineProgress& progress) {
   options.Validate();

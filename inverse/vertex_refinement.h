@@ -166,6 +166,18 @@ RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, 
                                         const RefineOptions& options, uint64_t seed = 1,
                                         const Eigen::VectorXd* direction = nullptr);
 
+// The image error of two sets of positions on the same pixels: a fresh sample (keyed by `seed`,
+// drawn at the tracer's current positions; with a seed other than the refinement's, pixels the
+// refinement did not fit) traced with the same random numbers at both. RMS of (I - I*) over RMS of
+// I*, as RefineIteration::data_rmse. Leaves the tracer at `b`.
+struct HeldOutComparison {
+  int pixels = 0;
+  double rmse_a = 0.0, rmse_b = 0.0;
+};
+HeldOutComparison CompareOnFreshPixels(DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
+                                       const RefineOptions& options, uint64_t seed, const Eigen::VectorXd& a,
+                                       const Eigen::VectorXd& b);
+
 // Faces whose normal turned by more than 90 degrees between `before` and `after` (same faces),
 // plus faces that lost all their area: the tangles a refinement must not create.
 int FlippedFaces(const TriangleMesh& before, const TriangleMesh& after);

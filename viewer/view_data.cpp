@@ -72,10 +72,10 @@ ViewData LoadWorkspace(const fs::path& root) {
             [&] { data.trajectory = ReadTumTrajectory(ws.Trajectory()); });
   LoadPiece(ws.Keyframes(), "run genscene-fuse", missing,
             [&] { data.keyframes = ReadViewSet(ws.Keyframes()); });
-  // Voxel lights: a glyph per voxel with at least 0.1 % of the strongest voxel's power.
+  // Voxel lights: a glyph per active voxel (the estimate's threshold, kept in lights.json).
   LoadPiece(ws.Lights(), "light estimation has not run (genscene-lights)", missing, [&] {
     const VoxelLightGrid grid = ReadLightsJson(ws.Lights());
-    for (int j : grid.ActiveVoxels(1e-3)) {
+    for (int j : grid.ActiveVoxels()) {
       LightGlyph glyph;
       glyph.position = grid.VoxelCenter(j);
       glyph.power = grid.intensity[j];

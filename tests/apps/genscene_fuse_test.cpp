@@ -82,7 +82,8 @@ TEST(GensceneFuse, AnAteThatCannotBeComputedIsAWarningNotAnError) {
                       (dir / "seq").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   Trajectory shifted;
-  for (const StampedPose& p : ReadTumTrajectory(dir / "seq" / "groundtruth.txt").poses()) {
+  const Trajectory truth = ReadTumTrajectory(dir / "seq" / "groundtruth.txt");
+  for (const StampedPose& p : truth.poses()) {
     shifted.Add(p.timestamp + 0.5, p.world_from_camera);  // 12 frames span 0.37 s: every frame misses its pose by > 0.1 s
   }
   WriteTumTrajectory(dir / "seq" / "groundtruth.txt", shifted);
@@ -91,6 +92,43 @@ TEST(GensceneFuse, AnAteThatCannotBeComputedIsAWarningNotAnError) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_CONTAINS(r.output, "no trajectory error against the recording's poses");
   EXPECT_TRUE(fs::exists(dir / "ws" / "tsdf.gsv"));
+}
+
+// --holdout 3: frames 2, 5, 8, 11 are tracked for their poses only: not fused, not keyframes,
+// written to WS/holdout/ with their estimated poses.
+TEST(GensceneFuse, HeldOutFramesAreTrackedButNotFused) {
+  test::TempDir dir;
+  auto r = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 12 --size 96x72 --spp 1 --out " +
+                      (dir / "seq").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
+                 " --voxel-size 0.02 --truncation 0.08 --holdout 3");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_CONTAINS(r.output, "held out:   4 frames");
+  const auto report = FusionReport(dir / "ws");
+  std::vector<int> held;
+  for (const auto& f : report["frames"]) {
+    if (f["status"] == "held_out") {
+      held.push_back(f["index"].get<int>());
+      EXPECT_FALSE(f["fused"].get<bool>());
+    }
+  }
+  EXPECT_EQ(held, (std::vector<int>{2, 5, 8, 11}));
+  const Trajectory held_poses = ReadTumTrajectory(dir / "ws" / "holdout" / "groundtruth.txt");
+  const Trajectory truth = ReadTumTrajectory(dir / "seq" / "groundtruth.txt");
+  ASSERT_EQ(held_poses.size(), 4u);
+  for (const StampedPose& p : held_poses.poses()) {
+    const auto t = truth.Nearest(p.timestamp, 1e-6);
+    ASSERT_TRUE(t.has_value()) << p.timestamp;
+    EXPECT_LT((t->world_from_camera.translation() - p.world_from_camera.translation()).norm(), 0.02) << p.timestamp;
+    EXPECT_FALSE(ReadTumTrajectory(dir / "ws" / "keyframes" / "groundtruth.txt").Nearest(p.timestamp, 1e-6).has_value())
+        << "a held-out frame is no keyframe";
+    EXPECT_FALSE(ReadTumTrajectory(dir / "ws" / "trajectory.txt").Nearest(p.timestamp, 1e-6).has_value());
+  }
+  r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws2").string() +
+                 " --holdout 1");
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_CONTAINS(r.output, "holdout = 1 is not 0 (none) or in [2, 100000]");
 }
 
 }  // namespace

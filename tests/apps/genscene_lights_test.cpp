@@ -38,6 +38,24 @@ TEST(GensceneLights, EstimatesLightsFromASynthSequence) {
   for (const char* f : {"train_00.exr", "train_00.png", "train_02.png", "scene.xml"}) {
     EXPECT_TRUE(fs::exists(dir / "ws" / "lights" / f)) << f;
   }
+  // The estimate beats its baseline here: no warning. The counts agree with lights.json's.
+  EXPECT_CONTAINS(r.output, "ambient baseline");
+  EXPECT_EQ(r.output.find("worse than a constant ambient light"), std::string::npos) << r.output;
+  EXPECT_CONTAINS(r.output, Format(lights.ActiveVoxels().size(), " active voxels of 216"));
+}
+
+// A forced bad fit (a penalty that leaves every voxel dark) finishes, and says it is worse than
+// the ambient baseline on the console.
+TEST(GensceneLights, AFitWorseThanTheAmbientBaselineIsAWarning) {
+  test::TempDir dir;
+  const auto synth = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 3 --size 48x36 --spp 16 --out " +
+                                (dir / "seq").string());
+  ASSERT_EQ(synth.exit_code, 0) << synth.output;
+  const auto r = RunCommand(AppPath("genscene-lights") + " " + (dir / "ws").string() + " --scene " +
+                            (dir / "seq" / "scene.json").string() + " --views " + (dir / "seq").string() + kSmall +
+                            " --penalty-weight 1e6 --refine-levels 0");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_CONTAINS(r.output, "warning: the voxel lights fit the training views worse than a constant ambient light");
 }
 
 TEST(GensceneLights, BadInputIsOneLineAndWritesNothing) {

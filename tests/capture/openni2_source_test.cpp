@@ -159,6 +159,40 @@ TEST_F(OniFromTumFolder, SourceGivesTheFolderFramesBack) {
   EXPECT_FALSE(source->Next().has_value());
 }
 
+// A recording made with mirroring on (xnMirror = 1, frames stored flipped, as NiViewer records)
+// reads back as the same frames as the recording made without it: the room, not its mirror image.
+TEST_F(OniFromTumFolder, MirroredRecordingReadsAsTheUnmirroredOne) {
+  const fs::path mirrored = *dir_ / "mirrored.oni";
+  {
+    auto source = OpenFrameSource((*dir_ / "tum").string(), SourceOptions());
+    RecordSettings settings;
+    settings.mirror = true;
+    RecordTargets targets;
+    targets.oni = mirrored;
+    RecordFrames(*source, targets, settings);
+  }
+  const OniFileInfo info = InspectOniFile(mirrored);
+  EXPECT_TRUE(info.FindNode(kOniNodeDepth)->mirrored);
+  EXPECT_TRUE(info.FindNode(kOniNodeImage)->mirrored);
+  EXPECT_FALSE(InspectOniFile(Oni()).FindNode(kOniNodeDepth)->mirrored);
+  const auto plain = ReadAllFrames(*OpenAnySource(Oni().string(), SourceOptions()));
+  const auto flipped_back = ReadAllFrames(*OpenAnySource(mirrored.string(), SourceOptions()));
+  ASSERT_EQ(plain.size(), flipped_back.size());
+  for (size_t f = 0; f < plain.size(); ++f) {
+    EXPECT_EQ(plain[f].depth.pixels(), flipped_back[f].depth.pixels()) << "frame " << f;
+    EXPECT_EQ(plain[f].color.pixels(), flipped_back[f].color.pixels()) << "frame " << f;
+  }
+  // The frames as stored: every row reversed.
+  const OniRecording stored = ReadOniFile(mirrored), straight = ReadOniFile(Oni());
+  const int w = plain[0].depth.width();
+  for (int v = 0; v < plain[0].depth.height(); ++v) {
+    for (int u = 0; u < w; ++u) {
+      EXPECT_EQ(stored.frames[0].depth_mm[v * w + u], straight.frames[0].depth_mm[v * w + w - 1 - u]) << u << ", " << v;
+      EXPECT_EQ(stored.frames[0].color_rgb[3 * (v * w + u) + 1], straight.frames[0].color_rgb[3 * (v * w + w - 1 - u) + 1]);
+    }
+  }
+}
+
 TEST_F(OniFromTumFolder, FrameSelectionAndGivenIntrinsicsApply) {
   SourceOptions options;
   options.first_frame = 1;

@@ -18,6 +18,7 @@
 #include "apps/chain.h"
 #include "apps/scene_inputs.h"
 #include "core/file_util.h"
+#include "core/image_io.h"
 #include "core/light_set.h"
 #include "core/mesh_colors.h"
 #include "core/ply_io.h"
@@ -186,6 +187,109 @@ TEST_F(GensceneChain, KilledInEveryStageAndRestartedGivesTheUninterruptedModel) 
   EXPECT_EQ(a.weights, b.weights);
   EXPECT_EQ(nlohmann::json::parse(ReadTextFile(reference.root() / "evaluation" / "evaluation.json"))["relative_rmse"],
             nlohmann::json::parse(ReadTextFile(ws.root() / "evaluation" / "evaluation.json"))["relative_rmse"]);
+}
+
+// Which stages a run ran (not skipped), from its summary.json.
+std::vector<std::string> StagesRun(const fs::path& ws) {
+  std::vector<std::string> ran;
+  const auto summary = nlohmann::json::parse(ReadTextFile(ws / "summary.json"));
+  for (const auto& row : summary["stages"]) {
+    if (!row["skipped"].get<bool>()) ran.push_back(row["stage"].get<std::string>());
+  }
+  return ran;
+}
+
+// Resume after a change: a run with one stage's option changed re-runs exactly that stage and the
+// ones after it; the same run again skips everything; a changed input re-runs every stage.
+TEST_F(GensceneChain, ARerunAfterAChangedOptionRunsExactlyTheStagesThatDependOnIt) {
+  test::TempDir tmp;
+  const std::vector<std::string> all = apps::ChainStages();
+  const std::vector<std::pair<std::vector<std::string>, std::string>> changes = {
+      {{"--truncation", "0.1"}, "fusion"},
+      {{"--decimate-max-error", "0.001"}, "meshing"},
+      {{"--texel-spacing", "0.03"}, "texturing"},
+      {{"--chroma-bandwidth", "0.2"}, "albedo"},
+      {{"--lights-penalty-weight", "0.01"}, "lights"},
+      {{"--refine-spp", "2"}, "refine"},
+      {{"--evaluate-block", "2"}, "evaluate"},
+  };
+  for (const auto& [flags, first] : changes) {
+    const fs::path ws = tmp / first;
+    fs::copy(Reference().root(), ws, fs::copy_options::recursive);
+    std::vector<std::string> args = DemoArgs(ws);
+    const auto given = std::find(args.begin(), args.end(), flags.front());
+    if (given != args.end()) {
+      *(given + 1) = flags.back();  // a flag of the small demo: its value changes
+    } else {
+      args.insert(args.end(), flags.begin(), flags.end());
+    }
+    ASSERT_EQ(RunToEnd(args, tmp / (first + ".err")), 0) << Bytes(tmp / (first + ".err"));
+    // The changed stage and every later one (each reads what the one before it wrote).
+    const std::vector<std::string> expected(std::find(all.begin(), all.end(), first), all.end());
+    EXPECT_EQ(StagesRun(ws), expected) << flags.front();
+    ASSERT_EQ(RunToEnd(args, tmp / (first + "_again.err")), 0) << Bytes(tmp / (first + "_again.err"));
+    EXPECT_EQ(StagesRun(ws), std::vector<std::string>{}) << flags.front() << ", run again";
+  }
+  // Another recording in the same workspace (one depth image changed): every stage runs.
+  const fs::path ws = tmp / "input";
+  fs::copy(Reference().root(), ws, fs::copy_options::recursive);
+  const auto depth = ReadDataLines(ws / "input" / "depth.txt");
+  const fs::path first_depth = ws / "input" / SplitWhitespace(depth.front().text)[1];
+  ImageDepth image = ReadDepthImage(first_depth);
+  image(0, 0) += 0.01f;
+  WriteDepthPng(first_depth, image);
+  const std::vector<std::string> args = {AppPath("genscene"), "run", "--input", (ws / "input").string(), "--out",
+                                         ws.string(), "--decimate-max-error", "0", "--lights-grid", "3",
+                                         "--lights-pixels-per-view", "300", "--lights-rounds", "2",
+                                         "--refine-iterations", "1", "--refine-pixels-per-view", "200",
+                                         "--refine-spp", "4", "--evaluate-views", "1", "--evaluate-truth-spp", "16",
+                                         "--evaluate-model-spp", "8", "--seed", "3"};
+  ASSERT_EQ(RunToEnd(args, tmp / "input.err"), 0) << Bytes(tmp / "input.err");
+  EXPECT_EQ(StagesRun(ws), all);
+}
+
+// Ctrl-C in a stage: the run stops within a second, says which stage was interrupted and that a
+// re-run resumes; the re-run finishes with the uninterrupted run's mesh.
+TEST_F(GensceneChain, CtrlCSaysWhichStageWasInterruptedAndTheRerunResumes) {
+  test::TempDir tmp;
+  const fs::path ws = tmp / "ws";
+  const pid_t pid = Start(DemoArgs(ws), tmp / "run.err");
+  bool started = false;
+  for (int i = 0; i < 60000 && !started; ++i) {
+    started = Bytes(tmp / "run.err").find("] lights\n") != std::string::npos;
+    if (!started) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ASSERT_TRUE(started) << Bytes(tmp / "run.err");
+  kill(pid, SIGINT);
+  const auto sent = std::chrono::steady_clock::now();
+  EXPECT_EQ(Wait(pid), 130);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - sent).count(), 1.0);
+  EXPECT_CONTAINS(Bytes(tmp / "run.err"), "genscene: interrupted in stage lights");
+  EXPECT_CONTAINS(Bytes(tmp / "run.err"), "run the same command again to resume");
+  EXPECT_FALSE(fs::exists(ws / "lights.json"));
+  ASSERT_EQ(RunToEnd(DemoArgs(ws), tmp / "again.err"), 0) << Bytes(tmp / "again.err");
+  EXPECT_EQ(StagesRun(ws), (std::vector<std::string>{"lights", "refine", "export", "evaluate"}));
+  EXPECT_TRUE(Bytes(ws / "mesh_refined.ply") == Bytes(Reference().root() / "mesh_refined.ply"));
+}
+
+// A stage that fails leaves a summary that says how far the run came: the finished stages with
+// their figures and the failed one with its error.
+TEST_F(GensceneChain, AFailedRunWritesTheSummaryOfTheStagesItRan) {
+  test::TempDir tmp;
+  const fs::path ws = tmp / "ws";
+  fs::copy(Reference().root(), ws, fs::copy_options::recursive);
+  std::vector<std::string> args = DemoArgs(ws);
+  args.insert(args.end(), {"--lights-memory-cap", "1"});
+  EXPECT_EQ(RunToEnd(args, tmp / "run.err"), 1);
+  EXPECT_CONTAINS(Bytes(tmp / "run.err"), "genscene: error:");
+  const auto summary = nlohmann::json::parse(ReadTextFile(ws / "summary.json"));
+  const auto& rows = summary["stages"];
+  ASSERT_EQ(rows.size(), 7u);  // synth .. albedo skipped, lights failed
+  EXPECT_EQ(rows[6]["stage"], "lights");
+  EXPECT_TRUE(rows[6]["failed"].get<bool>());
+  EXPECT_CONTAINS(rows[6]["result"].get<std::string>(), "failed: ");
+  EXPECT_TRUE(rows[5]["skipped"].get<bool>());
+  EXPECT_FALSE(rows[5]["result"].get<std::string>().empty()) << "a skipped stage keeps its figures";
 }
 
 // Determinism of every stage at once: the small demo with one thread gives the files of the

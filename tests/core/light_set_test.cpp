@@ -41,7 +41,8 @@ TEST(LightSet, PowerAndActiveVoxels) {
   const VoxelLightGrid g = SmallGrid();
   // pi * L * sum(lambda) = pi * L * 2.6.
   EXPECT_NEAR(g.Power(5).x(), M_PI * 0.725 * 2.6, 1e-5);
-  EXPECT_EQ(g.ActiveVoxels(), (std::vector<int>{5, 17}));
+  EXPECT_EQ(g.ActiveVoxels(0.0), (std::vector<int>{5, 17}));
+  EXPECT_EQ(g.ActiveVoxels(), (std::vector<int>{5, 17}));  // 17 holds 1 % of 5's power: above 1e-3
   EXPECT_EQ(g.ActiveVoxels(0.5), (std::vector<int>{5}));
 }
 

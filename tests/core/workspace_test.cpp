@@ -19,21 +19,27 @@ void Touch(const fs::path& path, int seconds_ago) {
   fs::last_write_time(path, fs::file_time_type::clock::now() - std::chrono::seconds(seconds_ago));
 }
 
-TEST(Workspace, FreshnessFollowsModificationTimes) {
+// What the chain's resume compares: the same content gives the same fingerprint whatever its time
+// stamps or where the folder lies; a changed byte, a renamed or an added file changes it.
+TEST(Workspace, ContentFingerprintFollowsContentNotTimes) {
   test::TempDir dir;
-  Touch(dir / "input.txt", 100);
-  Touch(dir / "output.txt", 50);
-  EXPECT_TRUE(Workspace::IsFresh({dir / "output.txt"}, {dir / "input.txt"}));
-  Touch(dir / "input.txt", 10);  // input changed after the output was made
-  EXPECT_FALSE(Workspace::IsFresh({dir / "output.txt"}, {dir / "input.txt"}));
-  EXPECT_FALSE(Workspace::IsFresh({dir / "missing.txt"}, {dir / "input.txt"}));
-  EXPECT_FALSE(Workspace::IsFresh({dir / "output.txt"}, {dir / "missing.txt"}));
-  // Folders count by their newest file.
-  fs::create_directories(dir / "in");
-  Touch(dir / "in/a", 200);
-  Touch(dir / "in/b", 20);
-  Touch(dir / "out.txt", 30);
-  EXPECT_FALSE(Workspace::IsFresh({dir / "out.txt"}, {dir / "in"}));
+  fs::create_directories(dir / "a" / "sub");
+  Touch(dir / "a" / "x.txt", 100);
+  Touch(dir / "a" / "sub" / "y.txt", 50);
+  const uint64_t a = ContentFingerprint(dir / "a");
+  fs::copy(dir / "a", dir / "b", fs::copy_options::recursive);
+  Touch(dir / "b" / "x.txt", 5);  // same bytes, newer
+  EXPECT_EQ(ContentFingerprint(dir / "b"), a);
+  std::ofstream(dir / "b" / "x.txt") << "y";
+  EXPECT_NE(ContentFingerprint(dir / "b"), a);
+  fs::remove_all(dir / "b");
+  fs::copy(dir / "a", dir / "b", fs::copy_options::recursive);
+  fs::rename(dir / "b" / "x.txt", dir / "b" / "z.txt");
+  EXPECT_NE(ContentFingerprint(dir / "b"), a);
+  Touch(dir / "a" / "w.txt", 1);
+  EXPECT_NE(ContentFingerprint(dir / "a"), a);
+  EXPECT_EQ(ContentFingerprint(dir / "a" / "sub" / "y.txt"), Fnv1a64("x"));
+  EXPECT_CONTAINS(test::ErrorOf([&] { ContentFingerprint(dir / "missing"); }), "missing: cannot read");
 }
 
 TEST(Workspace, AtomicWriteLeavesNothingWhenTheWriterFails) {

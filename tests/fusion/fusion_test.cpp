@@ -1,4 +1,5 @@
 // Fusion on analytic scenes (core/synthetic.h): exact depth, known poses, closed-form surfaces.
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -10,6 +11,7 @@
 #include "core/se3.h"
 #include "core/synthetic.h"
 #include "core/trajectory_metrics.h"
+#include "fusion/keyframes.h"
 #include "fusion/kinect_fusion.h"
 #include "tests/test_util.h"
 
@@ -67,6 +69,74 @@ Trajectory GroundTruth(const std::vector<RgbdFrame>& frames) {
   Trajectory t;
   for (const RgbdFrame& f : frames) t.Add(f.timestamp, *f.world_from_camera);
   return t;
+}
+
+// A tracked frame for the keyframe selector: a pose along x, a checkerboard whose contrast
+// (sharpness) is `contrast`, its index in the time stamp.
+RgbdFrame KeyframeCandidate(int index, double x, float contrast = 1.0f) {
+  RgbdFrame f;
+  f.timestamp = index;
+  f.color = ImageRgb(16, 12);
+  for (int v = 0; v < 12; ++v) {
+    for (int u = 0; u < 16; ++u) f.color(u, v) = Eigen::Vector3f::Constant(0.5f + 0.5f * contrast * (((u + v) % 2) - 0.5f));
+  }
+  f.world_from_camera = Eigen::Isometry3d(Eigen::Translation3d(x, 0, 0));
+  return f;
+}
+
+std::vector<double> KeyframeTimes(const KeyframeSelector& s) {
+  std::vector<double> t;
+  for (const RgbdFrame& f : s.keyframes()) t.push_back(f.timestamp);
+  return t;
+}
+
+// Frames 0.5 m apart (a sparse multi-view recording): every one is a view of its own, not the
+// sharpest of a window of five.
+TEST(Keyframes, SparseRecordingKeepsEveryDistantView) {
+  KeyframeSelector s(KeyframeOptions{});
+  for (int i = 0; i < 5; ++i) s.Offer(KeyframeCandidate(i, 0.5 * i, i == 2 ? 0.5f : 1.0f));
+  s.Finish();
+  EXPECT_EQ(KeyframeTimes(s), (std::vector<double>{0, 1, 2, 3, 4}));
+}
+
+// Nine frames within 2 cm (a short recording): at least min_keyframes views, spread over it, in
+// the recording's order.
+TEST(Keyframes, ShortRecordingGetsMinKeyframesSpreadOverIt) {
+  KeyframeSelector s(KeyframeOptions{});
+  for (int i = 0; i < 9; ++i) s.Offer(KeyframeCandidate(i, 0.002 * i));
+  s.Finish();
+  const std::vector<double> t = KeyframeTimes(s);
+  ASSERT_EQ(t.size(), 3u);
+  EXPECT_TRUE(std::is_sorted(t.begin(), t.end()));
+  EXPECT_EQ(t.front(), 0.0);  // the first window's sharpest (all alike: the first)
+  EXPECT_EQ(t.back(), 8.0);   // the farthest from it
+  EXPECT_NEAR(t[1], 4.0, 1.0);
+  EXPECT_EQ(s.sharpness().size(), 3u);
+}
+
+// A long steady recording: a keyframe every 0.15 m, the sharpest of its window, and the held
+// candidates never exceed their bound (the recording is 400 frames).
+TEST(Keyframes, LongRecordingKeyframesFollowTheMotionAndSharpness) {
+  KeyframeSelector s(KeyframeOptions{});
+  for (int i = 0; i < 400; ++i) s.Offer(KeyframeCandidate(i, 0.01 * i, i % 5 == 2 ? 1.0f : 0.5f));
+  s.Finish();
+  const std::vector<double> t = KeyframeTimes(s);
+  EXPECT_GE(t.size(), 20u);  // 4 m at 0.15 m, each window at most 5 frames
+  EXPECT_LE(t.size(), 27u);
+  // The sharp frames win every full window (the recording's end may cut the last one short).
+  for (size_t k = 0; k < t.size(); ++k) {
+    if (t[k] < 400 - 5) {
+      EXPECT_EQ(static_cast<int>(t[k]) % 5, 2) << "keyframe " << k << " of " << t.size() << ": frame " << t[k];
+    }
+  }
+}
+
+// min_keyframes is validated against max_keyframes.
+TEST(Keyframes, MinAboveMaxIsAClearError) {
+  KeyframeOptions o;
+  o.min_keyframes = 10;
+  o.max_keyframes = 5;
+  EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }), "min_keyframes = 10 exceeds max_keyframes = 5");
 }
 
 TEST(Preprocess, MasksInvalidDepthAndKeepsEdgesSharp) {

@@ -1,0 +1,202 @@
+#include "apps/holdout.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "apps/scene_inputs.h"
+#include "core/check.h"
+#include "core/color.h"
+#include "core/file_util.h"
+#include "core/image_io.h"
+#include "core/light_set.h"
+#include "core/mesh_colors.h"
+#include "core/ply_io.h"
+#include "inverse/path_tracer.h"
+
+namespace genscene::apps {
+
+namespace fs = std::filesystem;
+using namespace genscene::inverse;
+
+namespace {
+
+float Luminance(const Eigen::Vector3f& c) { return 0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z(); }
+
+// The sRGB-encoded luminance of an image, clipped to [0, 1].
+cv::Mat EncodedLuminance(const ImageRgb& image) {
+  cv::Mat out(image.height(), image.width(), CV_32F);
+  for (int v = 0; v < image.height(); ++v) {
+    for (int u = 0; u < image.width(); ++u) {
+      out.at<float>(v, u) = LinearToSrgb(std::clamp(Luminance(image(u, v)), 0.0f, 1.0f));
+    }
+  }
+  return out;
+}
+
+// What the model predicts per pixel from the camera ray's first hit: the albedo and the texture.
+struct FirstHits {
+  Image<uint8_t> mask;  // 1: the ray hits the model and the frame's colour is finite
+  ImageRgb albedo, texture;
+};
+
+FirstHits TraceFirstHits(const PathTracer& tracer, const MeshColors& texture, const TrainingView& frame) {
+  const CameraIntrinsics& k = frame.view.intrinsics;
+  FirstHits out{Image<uint8_t>(k.width, k.height, 0), ImageRgb(k.width, k.height), ImageRgb(k.width, k.height)};
+  const Eigen::Matrix3f rotation = frame.view.world_from_camera.rotation().cast<float>();
+  const Eigen::Vector3f eye = frame.view.world_from_camera.translation().cast<float>();
+  const SceneMesh& mesh = tracer.scene().meshes.front();
+  for (int v = 0; v < k.height; ++v) {
+    for (int u = 0; u < k.width; ++u) {
+      if (!frame.image(u, v).allFinite()) continue;
+      const Eigen::Vector3f dir = rotation * k.RayDirection(u, v).cast<float>().normalized();
+      const auto hit = tracer.tracer().Intersect(eye, dir);
+      if (!hit || hit->mesh != 0) continue;
+      out.mask(u, v) = 1;
+      out.albedo(u, v) = mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2);
+      out.texture(u, v) = texture.Linear(hit->face, hit->b1, hit->b2);
+    }
+  }
+  return out;
+}
+
+// g P where the mask is set, the reference elsewhere (so that SSIM's window sees no false edge).
+ImageRgb Gained(const ImageRgb& prediction, const Eigen::Vector3d& gain, const ImageRgb& reference,
+                const Image<uint8_t>& mask) {
+  ImageRgb out = reference;
+  for (size_t i = 0; i < out.size(); ++i) {
+    if (mask.data()[i]) out.data()[i] = prediction.data()[i].cwiseProduct(gain.cast<float>());
+  }
+  return out;
+}
+
+nlohmann::ordered_json ToJson(const HeldOutScore& s) {
+  return {{"gain", {s.gain.x(), s.gain.y(), s.gain.z()}}, {"relative_rmse", s.rmse}, {"ssim", s.ssim}};
+}
+
+}  // namespace
+
+double MaskedSsim(const ImageRgb& a, const ImageRgb& b, const Image<uint8_t>& mask) {
+  GS_CHECK(a.SameSize(b) && a.SameSize(mask));
+  const cv::Mat x = EncodedLuminance(a), y = EncodedLuminance(b);
+  const auto blur = [](const cv::Mat& m) {
+    cv::Mat out;
+    cv::GaussianBlur(m, out, cv::Size(11, 11), 1.5, 1.5, cv::BORDER_REFLECT);
+    return out;
+  };
+  const cv::Mat mx = blur(x), my = blur(y);
+  const cv::Mat sxx = blur(x.mul(x)) - mx.mul(mx), syy = blur(y.mul(y)) - my.mul(my), sxy = blur(x.mul(y)) - mx.mul(my);
+  constexpr double c1 = 0.01 * 0.01, c2 = 0.03 * 0.03;
+  double sum = 0.0;
+  size_t n = 0;
+  for (int v = 0; v < mask.height(); ++v) {
+    for (int u = 0; u < mask.width(); ++u) {
+      if (!mask(u, v)) continue;
+      const double ux = mx.at<float>(v, u), uy = my.at<float>(v, u);
+      sum += ((2.0 * ux * uy + c1) * (2.0 * sxy.at<float>(v, u) + c2)) /
+             ((ux * ux + uy * uy + c1) * (sxx.at<float>(v, u) + syy.at<float>(v, u) + c2));
+      ++n;
+    }
+  }
+  return n > 0 ? sum / static_cast<double>(n) : 0.0;
+}
+
+HeldOutScore ScorePrediction(const ImageRgb& prediction, const ImageRgb& reference, const Image<uint8_t>& mask) {
+  Eigen::Vector3d pr = Eigen::Vector3d::Zero(), pp = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < mask.size(); ++i) {
+    if (!mask.data()[i]) continue;
+    const Eigen::Vector3d p = prediction.data()[i].cast<double>(), r = reference.data()[i].cast<double>();
+    pr += p.cwiseProduct(r);
+    pp += p.cwiseProduct(p);
+  }
+  HeldOutScore s;
+  for (int c = 0; c < 3; ++c) s.gain[c] = pp[c] > 0.0 ? pr[c] / pp[c] : 0.0;
+  double err = 0.0, ref = 0.0;
+  for (size_t i = 0; i < mask.size(); ++i) {
+    if (!mask.data()[i]) continue;
+    const Eigen::Vector3d r = reference.data()[i].cast<double>();
+    err += (prediction.data()[i].cast<double>().cwiseProduct(s.gain) - r).squaredNorm();
+    ref += r.squaredNorm();
+  }
+  s.rmse = ref > 0.0 ? std::sqrt(err / ref) : 0.0;
+  s.ssim = MaskedSsim(Gained(prediction, s.gain, reference, mask), reference, mask);
+  return s;
+}
+
+HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOptions& lights, int spp, uint64_t seed) {
+  const std::vector<TrainingView> frames = ReadViews(ws.HeldOut());
+  if (frames.empty()) throw Error(Format(ws.HeldOut().string(), ": no held-out frames to judge the model on"));
+  const fs::path mesh_path = fs::exists(ws.RefinedMesh()) ? ws.RefinedMesh() : ws.Mesh();
+  std::vector<std::string> warnings;
+  Scene model = LoadGeometry({{}, mesh_path, ws.Albedo()}, ws, &warnings);
+  model.voxel_lights = ReadLightsJson(ws.Lights());
+  const MeshColors texture = ReadMeshColors(ws.Texture(), model.meshes.front().mesh);
+  const PathTracer tracer(model);
+  const fs::path dir = ws.root() / "evaluation";
+  fs::create_directories(dir);
+
+  HeldOutEvaluation out;
+  nlohmann::ordered_json list = nlohmann::ordered_json::array();
+  for (size_t f = 0; f < frames.size(); ++f) {
+    const TrainingView& frame = frames[f];
+    const FirstHits hits = TraceFirstHits(tracer, texture, frame);
+    RenderOptions half = lights.Paths();
+    half.spp = std::max(1, spp / 2);
+    const ImageRgb a = tracer.Render(frame.view, half, seed + 3000 + f).radiance;
+    const ImageRgb b = tracer.Render(frame.view, half, (seed + 3000 + f) ^ 0xD1B54A32D192ED03ull).radiance;
+    ImageRgb render(a.width(), a.height());
+    for (size_t i = 0; i < render.size(); ++i) render.data()[i] = 0.5f * (a.data()[i] + b.data()[i]);
+
+    HeldOutFrame r;
+    r.timestamp = frame.view.timestamp;
+    for (size_t i = 0; i < hits.mask.size(); ++i) r.pixels += hits.mask.data()[i];
+    if (r.pixels == 0) continue;  // the model is not in view
+    r.model = ScorePrediction(render, frame.image, hits.mask);
+    r.texture = ScorePrediction(hits.texture, frame.image, hits.mask);
+    r.ambient = ScorePrediction(hits.albedo, frame.image, hits.mask);
+    double noise = 0.0, ref = 0.0;
+    ImageRgb error(render.width(), render.height());
+    for (size_t i = 0; i < render.size(); ++i) {
+      if (!hits.mask.data()[i]) continue;
+      const Eigen::Vector3d g = r.model.gain;
+      noise += 0.25 * (a.data()[i] - b.data()[i]).cast<double>().cwiseProduct(g).squaredNorm();
+      ref += frame.image.data()[i].cast<double>().squaredNorm();
+      error.data()[i] = 4.0f * (render.data()[i].cwiseProduct(g.cast<float>()) - frame.image.data()[i]).cwiseAbs();
+    }
+    r.noise = ref > 0.0 ? std::sqrt(noise / ref) : 0.0;
+
+    char stem[32];
+    std::snprintf(stem, sizeof(stem), "holdout_%02zu", f);
+    WritePng(dir / (std::string(stem) + "_real.png"), frame.image);
+    WritePng(dir / (std::string(stem) + "_model.png"), Gained(render, r.model.gain, ImageRgb(a.width(), a.height()), hits.mask));
+    WritePng(dir / (std::string(stem) + "_texture.png"), Gained(hits.texture, r.texture.gain, ImageRgb(a.width(), a.height()), hits.mask));
+    WritePng(dir / (std::string(stem) + "_ambient.png"), Gained(hits.albedo, r.ambient.gain, ImageRgb(a.width(), a.height()), hits.mask));
+    WritePng(dir / (std::string(stem) + "_error.png"), error);
+    list.push_back({{"timestamp", r.timestamp}, {"pixels", r.pixels}, {"noise", r.noise}, {"model", ToJson(r.model)},
+                    {"texture_unlit", ToJson(r.texture)}, {"albedo_ambient", ToJson(r.ambient)}});
+    out.frames.push_back(r);
+  }
+  if (out.frames.empty()) throw Error(Format(ws.HeldOut().string(), ": the model is in view of no held-out frame"));
+  const double n = static_cast<double>(out.frames.size());
+  for (const HeldOutFrame& r : out.frames) {
+    for (auto [mean, score] : {std::pair{&out.model, &r.model}, std::pair{&out.texture, &r.texture},
+                               std::pair{&out.ambient, &r.ambient}}) {
+      mean->rmse += score->rmse / n;
+      mean->ssim += score->ssim / n;
+      mean->gain += score->gain / n;
+    }
+    out.noise += r.noise / n;
+  }
+  nlohmann::ordered_json report;
+  report["spp"] = spp;
+  report["frames"] = list;
+  report["mean"] = {{"model", ToJson(out.model)}, {"noise", out.noise}, {"texture_unlit", ToJson(out.texture)},
+                    {"albedo_ambient", ToJson(out.ambient)}};
+  WriteTextFileAtomically(dir / "holdout.json", report.dump(1) + "\n");
+  return out;
+}
+
+}  // namespace genscene::apps
