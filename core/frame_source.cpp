@@ -582,32 +582,28 @@ class UndistortingSource : public FrameSource {
   std::optional<RgbdFrame> Next() override {
     std::optional<RgbdFrame> frame = source_->Next();
     if (!frame) return frame;
-    for (const auto& [image_size, path] : {std::pair{Eigen::Vector2i(frame->color.width(), frame->color.height()), frame->color_path},
-                                          std::pair{Eigen::Vector2i(frame->depth.width(), frame->depth.height()), frame->depth_path}}) {
-      if (image_size != Eigen::Vector2i::Zero() && image_size != Eigen::Vector2i(map_x_.cols, map_x_.rows)) {
-        throw Error(Format(path, ": image is ", image_size.x(), "x", image_size.y(), " but the intrinsics are for ",
-                           map_x_.cols, "x", map_x_.rows));
-      }
-    }
-    if (!frame->color.empty()) {
-      ImageRgb out(frame->color.width(), frame->color.height());
-      const cv::Mat in(frame->color.height(), frame->color.width(), CV_32FC3, frame->color.data());
-      cv::Mat dst(out.height(), out.width(), CV_32FC3, out.data());
-      cv::remap(in, dst, map_x_, map_y_, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar::all(0));
-      frame->color = std::move(out);
-    }
-    if (!frame->depth.empty()) {
-      ImageDepth out(frame->depth.width(), frame->depth.height());
-      const cv::Mat in(frame->depth.height(), frame->depth.width(), CV_32F, frame->depth.data());
-      cv::Mat dst(out.height(), out.width(), CV_32F, out.data());
-      cv::remap(in, dst, map_x_, map_y_, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar::all(0));
-      frame->depth = std::move(out);
-    }
+    if (!frame->color.empty()) frame->color = Remapped(frame->color, frame->color_path, CV_32FC3, cv::INTER_LINEAR);
+    // Nearest: a depth between a foreground and a background pixel would be a surface in mid-air.
+    if (!frame->depth.empty()) frame->depth = Remapped(frame->depth, frame->depth_path, CV_32F, cv::INTER_NEAREST);
     frame->intrinsics = intrinsics_;
     return frame;
   }
 
  private:
+  // The image resampled through the undistortion maps (pixels from outside the image: 0).
+  template <typename T>
+  Image<T> Remapped(const Image<T>& image, const std::string& path, int cv_type, int interpolation) const {
+    if (image.width() != map_x_.cols || image.height() != map_x_.rows) {
+      throw Error(Format(path, ": image is ", image.width(), "x", image.height(), " but the intrinsics are for ",
+                         map_x_.cols, "x", map_x_.rows));
+    }
+    Image<T> out(image.width(), image.height());
+    const cv::Mat in(image.height(), image.width(), cv_type, const_cast<T*>(image.data()));
+    cv::Mat dst(out.height(), out.width(), cv_type, out.data());
+    cv::remap(in, dst, map_x_, map_y_, interpolation, cv::BORDER_CONSTANT, cv::Scalar::all(0));
+    return out;
+  }
+
   std::unique_ptr<FrameSource> source_;
   CameraIntrinsics intrinsics_;
   cv::Mat map_x_, map_y_;
