@@ -74,6 +74,10 @@ int main(int argc, char** argv) {
     draw.lookup = options.lookup == "linear" ? Lookup::kLinear : Lookup::kNearest;
     draw.cull_back_faces = options.cull_back_faces;
     draw.show_overlay = !options.no_overlay;
+    draw.show_refined = options.refined;
+    if (options.refined && !data.refined_mesh) {
+      throw Error(Format(ws_path, ": --refined: no mesh_refined.ply to show (run genscene-refine)"));
+    }
     const PosedView view = ResolveCamera(ParseCameraSpec(options.camera), data, ParseSize(options.size));
 
     try {

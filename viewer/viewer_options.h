@@ -18,6 +18,7 @@ struct ViewerOptions {
   std::string lookup = "nearest";  // Mesh Colors lookup: nearest or linear
   bool cull_back_faces = false;    // hide faces seen from behind
   bool no_overlay = false;         // hide trajectory, keyframe frusta and light glyphs
+  bool refined = false;            // mesh_refined.ply's vertices instead of mesh.ply's (R in the window)
 
   template <typename V>
   void Visit(V&& v) {
@@ -28,6 +29,7 @@ struct ViewerOptions {
     v("lookup", lookup, "", "Mesh Colors lookup per fragment: nearest or linear");
     v("cull_back_faces", cull_back_faces, "", "hide faces seen from behind (look into a room from outside)");
     v("no_overlay", no_overlay, "", "hide the trajectory, keyframe frusta and light glyphs");
+    v("refined", refined, "", "show the refined mesh (mesh_refined.ply) instead of mesh.ply; R toggles it in the window");
   }
   // Throws Error naming the flag and value when one is malformed.
   void Validate() const;

@@ -288,6 +288,23 @@ TEST(ViewerApp, MissingPiecesAndNoDisplayAreReportedClearly) {
   EXPECT_GT(image(32, 24).x(), 0.3f);  // the grey quad in the middle
   EXPECT_LT(image(0, 0).x(), 0.1f);    // the background (0.08)
 
+  // --refined shows mesh_refined.ply's vertices (the quad moved 0.6 m right: the middle is empty);
+  // without one it is a clear error.
+  const std::string camera = " --size 64x48 --camera \"" + PoseText(LookAt({0.5, 0.45, 1.5}, {0.5, 0.5, 0.0})) + "\"";
+  r = RunViewer(ws.path().string() + " --refined" + camera + " --screenshot " + png.string());
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_CONTAINS(r.output, "--refined: no mesh_refined.ply to show");
+  TriangleMesh moved = quad;
+  for (Eigen::Vector3f& v : moved.vertices) v.x() += 0.6f;
+  WritePly(ws / "mesh_refined.ply", moved);
+  r = RunViewer(ws.path().string() + " --refined" + camera + " --screenshot " + png.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_LT(ReadColorImage(png, CameraResponse())(32, 24).x(), 0.1f);
+  r = RunViewer(ws.path().string() + camera + " --screenshot " + png.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_GT(ReadColorImage(png, CameraResponse())(32, 24).x(), 0.3f);
+  fs::remove(ws / "mesh_refined.ply");
+
   r = RunViewer(ws.path().string() + " --camera keyframe:2 --screenshot " + png.string());
   EXPECT_NE(r.exit_code, 0);
   EXPECT_CONTAINS(r.output, "keyframe:2: the workspace has 0 keyframes");
