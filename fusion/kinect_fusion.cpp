@@ -142,7 +142,10 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     const std::vector<PyramidLevel> pyramid = BuildPyramid(depth, k, options_.preprocess);
     report.seconds_preprocess = SecondsSince(start);
     start = std::chrono::steady_clock::now();
-    Eigen::Isometry3d model_from_live = Eigen::Isometry3d::Identity();  // predict: no motion
+    // Predict no motion since the last pose: the last fused frame's, or a held-out frame's after it
+    // (with a held-out frame between them, two frames' motion would start from the identity).
+    Eigen::Isometry3d model_from_live =
+        held_out_pose_ ? Eigen::Isometry3d(last_good_.inverse() * *held_out_pose_) : Eigen::Isometry3d::Identity();
     report.icp = TrackFrameToModel(pyramid, model_, model_intrinsics_, options_.icp, &model_from_live);
     report.seconds_track = SecondsSince(start);
     const double moved = model_from_live.translation().norm();
@@ -169,6 +172,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
                              icp.condition, ")");
       report.world_from_camera = pose;
       last_good_ = pose;
+      held_out_pose_.reset();
       trajectory_.Add(frame.timestamp, pose);
       return finish(report);
     }
@@ -193,6 +197,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     report.seconds_raycast = SecondsSince(start);
   }
   last_good_ = pose;
+  held_out_pose_.reset();
   report.world_from_camera = pose;
   trajectory_.Add(frame.timestamp, pose);
   RgbdFrame posed = frame;
@@ -206,6 +211,7 @@ FrameReport KinectFusion::HoldOut(const RgbdFrame& frame, const ImageDepth& dept
                                   FrameReport report) {
   report.status = FrameStatus::kHeldOut;
   report.world_from_camera = pose;
+  held_out_pose_ = pose;
   if (held_out_.size() < static_cast<size_t>(FusionOptions::kMaxHeldOut) && !frame.color.empty()) {
     RgbdFrame kept = frame;
     kept.depth = depth;

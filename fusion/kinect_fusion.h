@@ -175,6 +175,7 @@ class KinectFusion {
   std::vector<FrameReport> reports_;
   KeyframeSelector keyframe_selector_;
   std::vector<RgbdFrame> held_out_;
+  std::optional<Eigen::Isometry3d> held_out_pose_;  // a held-out frame's pose after last_good_
 };
 
 // Writes the stage's outputs into the workspace, each atomically: trajectory.txt (TUM),
