@@ -18,12 +18,18 @@ using test::RunCommand;
 
 nlohmann::json FusionReport(const fs::path& ws) { return nlohmann::json::parse(ReadTextFile(ws / "fusion.json")); }
 
+// The 12-frame 96x72 Cornell sequence (one path per pixel) the fusion tests track.
+::testing::AssertionResult SynthSequence(const fs::path& out) {
+  const auto r = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 12 --size 96x72 --spp 1 --out " +
+                            out.string());
+  if (r.exit_code == 0) return ::testing::AssertionSuccess();
+  return ::testing::AssertionFailure() << r.output;
+}
+
 TEST(GensceneFuse, FusesASynthSequenceIntoAWorkspace) {
   test::TempDir dir;
-  auto r = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 12 --size 96x72 --spp 1 --out " +
-                      (dir / "seq").string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
+  ASSERT_TRUE(SynthSequence(dir / "seq"));
+  auto r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
                  " --voxel-size 0.02 --truncation 0.08");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_CONTAINS(r.output, "ATE:");
@@ -60,11 +66,9 @@ TEST(GensceneFuse, BadInputIsOneClearLineAndNoOutput) {
 // When ICP loses most frames the stage stops before writing anything and says what to try.
 TEST(GensceneFuse, TrackingLostOnMostFramesStopsWithAdvice) {
   test::TempDir dir;
-  auto r = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 12 --size 96x72 --spp 1 --out " +
-                      (dir / "seq").string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ASSERT_TRUE(SynthSequence(dir / "seq"));
   // Every frame moves farther than 1 mm or turns more than 0.1 degrees: every tracked frame is lost.
-  r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
+  auto r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
                  " --voxel-size 0.02 --truncation 0.08 --max-translation 0.001 --max-rotation 0.1");
   EXPECT_NE(r.exit_code, 0) << r.output;
   EXPECT_CONTAINS(r.output, "ICP tracking failed on 11 of 12 frames");
@@ -78,16 +82,14 @@ TEST(GensceneFuse, TrackingLostOnMostFramesStopsWithAdvice) {
 // and the stage finishes.
 TEST(GensceneFuse, AnAteThatCannotBeComputedIsAWarningNotAnError) {
   test::TempDir dir;
-  auto r = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 12 --size 96x72 --spp 1 --out " +
-                      (dir / "seq").string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
+  ASSERT_TRUE(SynthSequence(dir / "seq"));
   Trajectory shifted;
   const Trajectory truth = ReadTumTrajectory(dir / "seq" / "groundtruth.txt");
   for (const StampedPose& p : truth.poses()) {
     shifted.Add(p.timestamp + 0.5, p.world_from_camera);  // 12 frames span 0.37 s: every frame misses its pose by > 0.1 s
   }
   WriteTumTrajectory(dir / "seq" / "groundtruth.txt", shifted);
-  r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
+  const auto r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
                  " --voxel-size 0.02 --truncation 0.08");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_CONTAINS(r.output, "no trajectory error against the recording's poses");
@@ -98,10 +100,8 @@ TEST(GensceneFuse, AnAteThatCannotBeComputedIsAWarningNotAnError) {
 // written to WS/holdout/ with their estimated poses.
 TEST(GensceneFuse, HeldOutFramesAreTrackedButNotFused) {
   test::TempDir dir;
-  auto r = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 12 --size 96x72 --spp 1 --out " +
-                      (dir / "seq").string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
+  ASSERT_TRUE(SynthSequence(dir / "seq"));
+  auto r = RunCommand(AppPath("genscene-fuse") + " --input " + (dir / "seq").string() + " " + (dir / "ws").string() +
                  " --voxel-size 0.02 --truncation 0.08 --holdout 3");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_CONTAINS(r.output, "held out:   4 frames");
