@@ -158,6 +158,33 @@ std::vector<std::pair<size_t, size_t>> AssociateByTime(const std::vector<TimedPa
   return matches;
 }
 
+// The entries of a TUM list whose files are in the folder. An excerpt of a sequence keeps the
+// sequence's full lists and the files of one stretch of it: the entries outside that stretch
+// are dropped (counted in `dropped`); a file missing inside it is a damaged copy, an error.
+std::vector<TimedPath> PresentStretch(const std::vector<TimedPath>& list, const fs::path& list_path, size_t* dropped) {
+  std::error_code ec;
+  std::vector<bool> present(list.size());
+  for (size_t i = 0; i < list.size(); ++i) {
+    present[i] = fs::is_regular_file(ResolveRelativeTo(list_path, list[i].path), ec);
+  }
+  const auto first = std::find(present.begin(), present.end(), true);
+  if (first == present.end()) {
+    throw Error(Format(list_path.string(), ": lists ", list.size(), " files and none exists (first: ",
+                       ResolveRelativeTo(list_path, list.front().path).string(), ")"));
+  }
+  const size_t begin = static_cast<size_t>(first - present.begin());
+  size_t end = list.size();
+  while (!present[end - 1]) --end;
+  for (size_t i = begin; i < end; ++i) {
+    if (!present[i]) {
+      throw Error(Format(list_path.string(), ": lists ", ResolveRelativeTo(list_path, list[i].path).string(),
+                         " which does not exist (between files that do)"));
+    }
+  }
+  *dropped = list.size() - (end - begin);
+  return {list.begin() + static_cast<std::ptrdiff_t>(begin), list.begin() + static_cast<std::ptrdiff_t>(end)};
+}
+
 fs::path RequireFile(const fs::path& path, const fs::path& listed_in) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) {
@@ -249,11 +276,21 @@ std::unique_ptr<FrameSource> OpenTumFolder(const fs::path& folder, const SourceO
     }
     if (entries.empty()) throw Error(Format(assoc.string(), ": empty associations file (no frames)"));
   } else try {
-    const auto rgb = ReadTimedList(rgb_list);
+    size_t rgb_dropped = 0, depth_dropped = 0;
+    const auto rgb = PresentStretch(ReadTimedList(rgb_list), rgb_list, &rgb_dropped);
     if (!fs::exists(depth_list, ec)) {
+      if (rgb_dropped > 0) {
+        spdlog::warn("{}: an excerpt: rgb.txt lists {} frames, {} of them are here; reading those", folder.string(),
+                     rgb.size() + rgb_dropped, rgb.size());
+      }
       for (const auto& r : rgb) entries.push_back({r.timestamp, RequireFile(ResolveRelativeTo(rgb_list, r.path), rgb_list), {}});
     } else {
-      const auto depth = ReadTimedList(depth_list);
+      const auto depth = PresentStretch(ReadTimedList(depth_list), depth_list, &depth_dropped);
+      if (rgb_dropped + depth_dropped > 0) {
+        spdlog::warn("{}: an excerpt: rgb.txt and depth.txt list {} and {} frames, {} and {} of them are here; "
+                     "reading those (--associations FILE to choose the pairs)",
+                     folder.string(), rgb.size() + rgb_dropped, depth.size() + depth_dropped, rgb.size(), depth.size());
+      }
       const auto matches = AssociateByTime(rgb, depth, options.max_time_difference);
       if (matches.empty()) {
         throw Error(Format(folder.string(), ": no rgb/depth pair closer than ", options.max_time_difference, " s"));

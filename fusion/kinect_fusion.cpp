@@ -48,6 +48,7 @@ void FusionOptions::Validate() const {
   }
   preprocess.Validate();
   icp.Validate();
+  features.Validate();
   keyframes.Validate();
 }
 
@@ -158,13 +159,29 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     } else if (moved > options_.icp.max_translation || turned > options_.icp.max_rotation) {
       report.reason = Format("jump of ", moved, " m and ", turned, " deg from the last good pose");
     }
-    if (!report.reason.empty()) {
+    // A lost frame, and a degenerate one (ICP kept the predicted pose along the directions the
+    // geometry leaves free), start again from the features, which fix all six.
+    std::optional<Eigen::Isometry3d> feature_pose;
+    if ((!report.reason.empty() || icp.degenerate) && options_.feature_tracking) {
+      start = std::chrono::steady_clock::now();
+      feature_pose = TrackFromFeatures(pyramid, frame, &report);
+      report.seconds_track += SecondsSince(start);
+      if (!feature_pose && !report.reason.empty()) {
+        report.reason += Format("; features: ", report.features.inliers, " of ", report.features.matches,
+                                " matches agree (", options_.features.min_inliers, " needed)");
+      }
+    }
+    if (!report.reason.empty() && !feature_pose) {
       report.status = FrameStatus::kLost;
       return finish(report);
     }
-    pose = last_good_ * model_from_live;
+    if (feature_pose) {
+      report.reason.clear();
+      report.feature_start = true;
+    }
+    pose = feature_pose ? *feature_pose : Eigen::Isometry3d(last_good_ * model_from_live);
     if (HeldOut(report.index)) return finish(HoldOut(frame, depth, pose, report));
-    if (icp.degenerate) {
+    if (icp.degenerate && !feature_pose) {
       // The pose is kept along the unconstrained directions; fusing would smear the model along
       // them if the camera did move that way, so the frame is not fused.
       report.status = FrameStatus::kDegenerate;
@@ -188,13 +205,13 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   report.seconds_integrate = SecondsSince(start);
   if (options_.tracking != "known") {  // with known poses nothing tracks against the model
     start = std::chrono::steady_clock::now();
-    // Normals over +-2 pixels at full resolution, +-1 for a subsampled model (the same baseline
-    // in metres: +-2 at half resolution smoothed the model's normals and raised the room's ATE
-    // from 0.52 to 0.66 cm).
-    const int normal_step = std::max(1, 2 / options_.model_subsample);
-    model_ = RaycastVolume(volume_, model_intrinsics_, pose, options_.preprocess.min_depth,
-                           options_.preprocess.max_depth, /*with_color=*/false, normal_step);
+    model_ = RaycastModel(pose);
     report.seconds_raycast = SecondsSince(start);
+    if (options_.feature_tracking && !frame.color.empty()) {
+      last_fused_.color = frame.color;
+      last_fused_.depth = frame.depth;  // unmasked: features far beyond depth_max still fix the pose
+      last_fused_.world_from_camera = pose;
+    }
   }
   last_good_ = pose;
   held_out_pose_.reset();
@@ -205,6 +222,39 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   posed.world_from_camera = pose;
   keyframe_selector_.Offer(posed);
   return finish(report);
+}
+
+RaycastResult KinectFusion::RaycastModel(const Eigen::Isometry3d& pose) const {
+  // Normals over +-2 pixels at full resolution, +-1 for a subsampled model (the same baseline
+  // in metres: +-2 at half resolution smoothed the model's normals and raised the room's ATE
+  // from 0.52 to 0.66 cm).
+  const int normal_step = std::max(1, 2 / options_.model_subsample);
+  return RaycastVolume(volume_, model_intrinsics_, pose, options_.preprocess.min_depth, options_.preprocess.max_depth,
+                       /*with_color=*/false, normal_step);
+}
+
+std::optional<Eigen::Isometry3d> KinectFusion::TrackFromFeatures(const std::vector<PyramidLevel>& pyramid,
+                                                                 const RgbdFrame& frame, FrameReport* report) const {
+  if (frame.color.empty() || !last_fused_.world_from_camera) return std::nullopt;
+  const auto reference_from_live = AlignByFeatures(last_fused_.color, last_fused_.depth, frame.color, intrinsics_,
+                                                   options_.features, &report->features);
+  if (!reference_from_live) return std::nullopt;
+  const Eigen::Isometry3d start = *last_fused_.world_from_camera * *reference_from_live;
+  // ICP against the model as seen from the features' pose: it must converge (the residual test)
+  // on enough of the frame and stay near that pose (the two agree), else the frame stays lost.
+  // A frame far from the last one overlaps the model less than tracking's min_inlier_ratio asks
+  // (slambook joinMap: 5-10 % of frame 1's pixels); ICP's corrections of PnP poses there were
+  // 1.5-12 cm and 0.2-1.6 deg, its wrong convergences 40 cm and 10 deg.
+  Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();
+  const IcpReport icp = TrackFrameToModel(pyramid, RaycastModel(start), model_intrinsics_, options_.icp, &correction);
+  constexpr double kMinOverlap = 0.05;
+  constexpr double kMaxCorrection = 0.15, kMaxCorrectionDeg = 5.0;  // m, degrees
+  if (icp.inlier_ratio < kMinOverlap || icp.rms_residual > options_.icp.max_rms_residual ||
+      correction.translation().norm() > kMaxCorrection || RotationAngle(correction) * 180.0 / M_PI > kMaxCorrectionDeg) {
+    return std::nullopt;
+  }
+  report->icp = icp;
+  return start * correction;
 }
 
 FrameReport KinectFusion::HoldOut(const RgbdFrame& frame, const ImageDepth& depth, const Eigen::Isometry3d& pose,
@@ -245,6 +295,8 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
               {"rms_residual_m", r.icp.rms_residual},
               {"condition", std::isfinite(r.icp.condition) ? json(r.icp.condition) : json("inf")},
               {"constrained_directions", r.icp.constrained_directions},
+              {"feature_start", r.feature_start},
+              {"feature_inliers", r.features.inliers},
               {"blocks_touched", r.integration.blocks_touched},
               {"blocks_allocated", r.integration.blocks_allocated},
               {"ms_preprocess", 1e3 * r.seconds_preprocess},

@@ -6,6 +6,10 @@
 //      implausible jump) or a degenerate one (the scene leaves directions unconstrained) is
 //      reported and NOT fused, so the model is never corrupted; tracking resumes from the last
 //      good pose, i.e. recovers when the camera comes back;
+//   3b. a frame ICP loses from the last pose (a jump, or a sparse recording's next view) or
+//      leaves degenerate starts again from colour features matched against the last fused frame
+//      (feature_align.h); ICP from that start, against the model raycast there, must agree with
+//      it, and the features then fix the directions the geometry leaves free;
 //   4. fuse the masked raw depth and colour into the TSDF and raycast the model for the next frame;
 //   5. offer the frame to the keyframe selector.
 #pragma once
@@ -20,6 +24,7 @@
 #include "core/trajectory_metrics.h"
 #include "core/tsdf_volume.h"
 #include "core/workspace.h"
+#include "fusion/feature_align.h"
 #include "fusion/icp.h"
 #include "fusion/integrate.h"
 #include "fusion/keyframes.h"
@@ -63,8 +68,13 @@ struct FusionOptions {
   // kMaxHeldOut of them are kept, HeldOut()).
   int holdout = 0;
   static constexpr int kMaxHeldOut = 50;
+  // A frame ICP loses from the last pose is started again from ORB features matched against the
+  // last fused frame (needs colour). On the 5 far-apart frames of slambook's joinMap (0.3-0.7 m,
+  // 15-25 deg between frames) ICP alone loses 4; on recordings it tracks nothing changes.
+  bool feature_tracking = true;
   PreprocessOptions preprocess;
   IcpOptions icp;
+  FeatureAlignOptions features;
   KeyframeOptions keyframes;
 
   template <typename V>
@@ -97,6 +107,10 @@ struct FusionOptions {
     v("max_rms_residual", icp.max_rms_residual, "m", "tracking is lost above this RMS residual");
     v("max_translation", icp.max_translation, "m", "tracking is lost when a frame moves farther");
     v("max_rotation", icp.max_rotation, "deg", "tracking is lost when a frame turns more");
+    v("feature_tracking", feature_tracking, "",
+      "a frame ICP loses starts again from ORB features matched against the last fused frame");
+    v("feature_max", features.max_features, "", "ORB keypoints per image for feature tracking");
+    v("feature_min_inliers", features.min_inliers, "", "feature matches consistent with one pose needed to start ICP from it");
     v("keyframe_translation", keyframes.translation, "m", "camera motion that makes a new keyframe due");
     v("keyframe_rotation", keyframes.rotation, "deg", "camera rotation that makes a new keyframe due");
     v("keyframe_window", keyframes.window, "frames", "the sharpest of this many frames becomes the keyframe");
@@ -128,6 +142,8 @@ struct FrameReport {
   std::string reason;  // why a frame was lost, blank or degenerate
   MaskStats mask;
   IcpReport icp;
+  FeatureAlignReport features;  // when ICP lost the frame and features were tried
+  bool feature_start = false;   // tracked by ICP from the features' pose
   IntegrationStats integration;
   std::optional<Eigen::Isometry3d> world_from_camera;  // the estimate (none when lost/blank)
   double seconds_preprocess = 0.0, seconds_track = 0.0, seconds_integrate = 0.0, seconds_raycast = 0.0;
@@ -162,6 +178,12 @@ class KinectFusion {
   }
   // Records a held-out frame at `pose` (kept while fewer than kMaxHeldOut are) and its report.
   FrameReport HoldOut(const RgbdFrame& frame, const ImageDepth& depth, const Eigen::Isometry3d& pose, FrameReport report);
+  // The model raycast at `pose` for tracking.
+  RaycastResult RaycastModel(const Eigen::Isometry3d& pose) const;
+  // Step 3b: the pose of a frame ICP lost, from features against the last fused frame refined by
+  // ICP, when both agree; `report` gets the feature and ICP figures.
+  std::optional<Eigen::Isometry3d> TrackFromFeatures(const std::vector<PyramidLevel>& pyramid, const RgbdFrame& frame,
+                                                     FrameReport* report) const;
 
   FusionOptions options_;
   CameraIntrinsics intrinsics_;
@@ -176,6 +198,7 @@ class KinectFusion {
   KeyframeSelector keyframe_selector_;
   std::vector<RgbdFrame> held_out_;
   std::optional<Eigen::Isometry3d> held_out_pose_;  // a held-out frame's pose after last_good_
+  RgbdFrame last_fused_;  // colour, depth and pose of the last fused frame (feature tracking)
 };
 
 // Writes the stage's outputs into the workspace, each atomically: trajectory.txt (TUM),

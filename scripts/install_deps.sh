@@ -9,6 +9,8 @@ PACKAGES=(
   # core
   libeigen3-dev libtbb-dev libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopenexr-dev
+  # fusion (ORB features and PnP when ICP cannot track a frame from the last pose)
+  libopencv-features2d-dev libopencv-calib3d-dev
   libopenmesh-dev
   # inverse (path tracer, Mitsuba XML scenes)
   libembree-dev libtinyxml2-dev

@@ -4,7 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <memory>
 #include <optional>
+#include <random>
+#include <utility>
+#include <vector>
 #include <string>
 
 #include "core/check.h"
@@ -38,6 +42,26 @@ bool InCi();
     GTEST_SKIP() << "../shared/data not found (set GENSCENE_SHARED_DATA); skipping";         \
   }                                                                                          \
   const std::filesystem::path var = *var##_opt
+
+// Barycentric inputs (b1, b2) as the tracers and the refinement produce them: `uniform` points
+// in the triangle; per_edge points on each of the three edges (the long edge computed as 1 - b in
+// float and in double, so that sums round either way), just past the long edge and a few ulps
+// outside the short ones; the vertices, far outside, NaN and infinite.
+std::vector<std::pair<float, float>> HardBarycentrics(std::mt19937& rng, int uniform, int per_edge);
+
+// Collects what spdlog logs (every level, formatted "[level] message") while it lives.
+class LogCapture {
+ public:
+  LogCapture();
+  ~LogCapture();
+  LogCapture(const LogCapture&) = delete;
+  LogCapture& operator=(const LogCapture&) = delete;
+  std::string text() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 struct CommandResult {
   int exit_code = -1;

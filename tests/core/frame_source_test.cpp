@@ -69,16 +69,26 @@ TEST(FrameSourceReal, TumFr1Desk9Frames) {
   EXPECT_DOUBLE_EQ(frames.front().timestamp, 1305031453.359684);
 }
 
-TEST(FrameSourceReal, TumListNamingMissingFilesIsAnError) {
+TEST(FrameSourceReal, TumExcerptReadsTheFramesThatAreThere) {
   GS_REQUIRE_SHARED_DATA(data);
-  // rgb.txt of this excerpt lists all 613 frames of fr1/desk; only 9 images are present.
-  try {
-    OpenFrameSource((data / "real/tum-fr1desk-9f").string(), SourceOptions());
-    FAIL() << "opened a list of missing files";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("does not exist"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("rgb.txt"), std::string::npos) << e.what();
+  // rgb.txt and depth.txt of this excerpt list all 613 / 595 frames of fr1/desk; 9 pairs are
+  // present: read with no options, they are the pairs associate_9frames.txt lists.
+  const auto folder = data / "real/tum-fr1desk-9f";
+  const test::LogCapture log;
+  const auto frames = ReadAllFrames(*OpenFrameSource(folder.string(), SourceOptions()));
+  SourceOptions listed;
+  listed.associations = (folder / "associate_9frames.txt").string();
+  const auto expected = ReadAllFrames(*OpenFrameSource(folder.string(), listed));
+  ASSERT_EQ(frames.size(), 9u);
+  ASSERT_EQ(expected.size(), 9u);
+  for (size_t i = 0; i < frames.size(); ++i) {
+    EXPECT_EQ(frames[i].color_path, expected[i].color_path);
+    EXPECT_EQ(frames[i].depth_path, expected[i].depth_path);
+    EXPECT_DOUBLE_EQ(frames[i].timestamp, expected[i].timestamp);
   }
+  EXPECT_NE(log.text().find("an excerpt: rgb.txt and depth.txt list 613 and 595 frames, 9 and 9 of them are here"),
+            std::string::npos)
+      << log.text();
 }
 
 TEST(FrameSourceReal, Open3dRedwoodFolder) {
@@ -257,9 +267,43 @@ TEST_F(SyntheticSequence, EmptyListIsAnError) {
   ExpectOpenOrReadFails((dir_ / "seq").string(), "empty list");
 }
 
-TEST_F(SyntheticSequence, MissingImageIsAnError) {
-  std::filesystem::remove(dir_ / "seq/depth" / (std::filesystem::directory_iterator(dir_ / "seq/depth")->path().filename()));
-  ExpectOpenOrReadFails((dir_ / "seq").string(), "does not exist");
+// The files of the listed frames, in the order of the list.
+std::vector<fs::path> ListedFiles(const fs::path& list) {
+  std::vector<fs::path> out;
+  std::ifstream in(list);
+  for (std::string line; std::getline(in, line);) {
+    if (line.empty() || line[0] == '#') continue;
+    out.push_back(list.parent_path() / line.substr(line.find(' ') + 1));
+  }
+  return out;
+}
+
+TEST_F(SyntheticSequence, MissingImageBetweenPresentOnesIsAnError) {
+  const auto depth = ListedFiles(dir_ / "seq/depth.txt");
+  ASSERT_EQ(depth.size(), 4u);
+  fs::remove(depth[1]);
+  ExpectOpenOrReadFails((dir_ / "seq").string(), "depth.txt: lists " + depth[1].string() + " which does not exist");
+}
+
+TEST_F(SyntheticSequence, ExcerptOfTheListsReadsThePresentStretchWithAWarning) {
+  const auto rgb = ListedFiles(dir_ / "seq/rgb.txt");
+  const auto depth = ListedFiles(dir_ / "seq/depth.txt");
+  ASSERT_EQ(rgb.size(), 4u);
+  fs::remove(rgb[3]);    // the lists run on past the excerpt ...
+  fs::remove(depth[0]);  // ... and begin before it
+  const test::LogCapture log;
+  const auto back = ReadAllFrames(*OpenFrameSource((dir_ / "seq").string(), SourceOptions()));
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_NEAR(back[0].timestamp, frames_[1].timestamp, 1e-6);
+  EXPECT_NEAR(back[1].timestamp, frames_[2].timestamp, 1e-6);
+  EXPECT_NE(log.text().find("an excerpt: rgb.txt and depth.txt list 4 and 4 frames, 3 and 3 of them are here"),
+            std::string::npos)
+      << log.text();
+}
+
+TEST_F(SyntheticSequence, ListWhoseFilesAreAllMissingIsAnError) {
+  for (const fs::path& f : ListedFiles(dir_ / "seq/rgb.txt")) fs::remove(f);
+  ExpectOpenOrReadFails((dir_ / "seq").string(), "rgb.txt: lists 4 files and none exists");
 }
 
 TEST_F(SyntheticSequence, DepthIntrinsicsSizeMismatchIsAnError) {

@@ -213,44 +213,13 @@ TEST(MeshColors, FileRoundTripIsExactAndRefusesAnotherMesh) {
   EXPECT_CONTAINS(test::ErrorOf([&] { ReadMeshColors(dir / "missing.mcol", m); }), "cannot open");
 }
 
-// Barycentric inputs as the tracers and the refinement produce them: uniform points, points on the
-// three edges and vertices (computed as 1 - b in float and in double, so their sums round either
-// way), points a few ulps outside, far outside, NaN and infinite.
-std::vector<std::pair<float, float>> HardBarycentrics(std::mt19937& rng, int uniform, int per_edge) {
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  std::vector<std::pair<float, float>> out;
-  for (int k = 0; k < uniform; ++k) {
-    float a = u(rng), b = u(rng);
-    if (a + b > 1.0f) a = 1.0f - a, b = 1.0f - b;
-    out.emplace_back(a, b);
-  }
-  for (int k = 0; k < per_edge; ++k) {
-    const double t = u(rng);
-    const float tf = static_cast<float>(t);
-    out.emplace_back(tf, 1.0f - tf);                                     // long edge, float
-    out.emplace_back(tf, static_cast<float>(1.0 - t));                   // long edge, double
-    out.emplace_back(std::nextafter(tf, 2.0f), std::nextafter(1.0f - tf, 2.0f));  // just past it
-    out.emplace_back(tf, 0.0f);
-    out.emplace_back(0.0f, tf);
-    out.emplace_back(tf, -1e-7f);
-    out.emplace_back(-1e-7f, tf);
-  }
-  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
-  for (auto p : std::vector<std::pair<float, float>>{{0, 0}, {1, 0}, {0, 1}, {1, 1}, {-1, -1}, {2, 0.5f}, {0.5f, 2},
-                                                     {1e30f, 1e30f}, {inf, 0}, {0, inf}, {inf, inf}, {-inf, 0.5f},
-                                                     {nan, 0.5f}, {0.5f, nan}, {nan, nan}, {0.205793679f, 0.794206858f}}) {
-    out.push_back(p);
-  }
-  return out;
-}
-
 // Every resolution, millions of hard inputs: the cell's lattice points lie in the face, its
 // weights are in [0, 1] and sum to 1, and for points in the triangle the weights reproduce it.
 TEST(MeshColorsProperty, LocateInLatticeStaysInTheFaceForAnyInput) {
   std::mt19937 rng(7);
   size_t checked = 0;
   for (int r = 1; r <= MeshColors::kMaxResolution; r *= 2) {
-    for (const auto& [b1, b2] : HardBarycentrics(rng, 150000, 50000)) {
+    for (const auto& [b1, b2] : test::HardBarycentrics(rng, 150000, 50000)) {
       const LatticeCell c = LocateInLattice(r, b1, b2);
       float sum = 0.0f;
       double x = 0.0, y = 0.0;
@@ -288,7 +257,7 @@ TEST(MeshColorsProperty, LookupsOfEveryResolutionTakeAnyBarycentrics) {
   SetLinearField(mesh, colors);
   std::mt19937 rng(11);
   for (int f = 0; f < static_cast<int>(mesh.faces.size()); ++f) {
-    for (const auto& [b1, b2] : HardBarycentrics(rng, 20000, 20000)) {
+    for (const auto& [b1, b2] : test::HardBarycentrics(rng, 20000, 20000)) {
       Eigen::Vector3f linear, nearest;
       ASSERT_NO_THROW(linear = colors.Linear(f, b1, b2)) << "face " << f << " (" << b1 << ", " << b2 << ")";
       ASSERT_NO_THROW(nearest = colors.Nearest(f, b1, b2)) << "face " << f << " (" << b1 << ", " << b2 << ")";
