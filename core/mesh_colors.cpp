@@ -187,15 +187,20 @@ void MeshColors::SampleFacePoint(size_t sample, int* face, double* b1, double* b
   }
 }
 
-LatticeCell LocateInLattice(int r, float b1, float b2) {
-  // Into the triangle: NaN and negatives to 0, each coordinate at most 1, the sum at most 1.
-  b1 = b1 > 0.0f ? std::min(b1, 1.0f) : 0.0f;
-  b2 = b2 > 0.0f ? std::min(b2, 1.0f) : 0.0f;
-  if (b1 + b2 > 1.0f) {
-    const float s = b1 + b2;
-    b1 /= s;
-    b2 /= s;
+void ClampToFace(float* b1, float* b2) {
+  float x = *b1 > 0.0f ? std::min(*b1, 1.0f) : 0.0f;
+  float y = *b2 > 0.0f ? std::min(*b2, 1.0f) : 0.0f;
+  if (x + y > 1.0f) {
+    const float s = x + y;
+    x /= s;
+    y /= s;
   }
+  *b1 = x;
+  *b2 = y;
+}
+
+LatticeCell LocateInLattice(int r, float b1, float b2) {
+  ClampToFace(&b1, &b2);
   const float x = b1 * static_cast<float>(r);
   const float y = b2 * static_cast<float>(r);
   int i = std::min(static_cast<int>(x), r);  // x, y >= 0: truncation is floor

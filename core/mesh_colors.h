@@ -121,6 +121,12 @@ class MeshColors {
 // rounding). Any input is accepted: NaN and negative coordinates count as 0, coordinates above 1
 // as 1, and a point past the hypotenuse is projected back along the ray from the first vertex, so
 // the lattice points always satisfy 0 <= i, j and i + j <= R. viewer/shaders.h repeats it in GLSL.
+// Barycentrics (b1, b2) moved into the triangle: NaN and negatives to 0, each at most 1, a sum
+// above 1 scaled back onto the long edge (along the ray from the first vertex). Every lookup by
+// barycentrics (Mesh Colors, per-vertex albedo) does this first: a ray hit on an edge, or a few
+// ulps past it, reads the face's own values.
+void ClampToFace(float* b1, float* b2);
+
 struct LatticeCell {
   int i[3], j[3];
   float w[3];

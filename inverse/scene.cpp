@@ -1,9 +1,11 @@
 #include "inverse/scene.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "core/check.h"
 #include "core/color.h"
+#include "core/mesh_colors.h"
 
 namespace genscene::inverse {
 
@@ -33,8 +35,10 @@ Eigen::Vector3f SurfaceAlbedo::Eval(const TriangleMesh& mesh, int face, float b1
     case Kind::kPerFace:
       return values[face];
     case Kind::kPerVertex: {
+      // A hit a few ulps outside the face would extrapolate (and leave [0, 1]).
+      ClampToFace(&b1, &b2);
       const Eigen::Vector3i& f = mesh.faces[face];
-      return (1.0f - b1 - b2) * values[f[0]] + b1 * values[f[1]] + b2 * values[f[2]];
+      return std::max(0.0f, 1.0f - b1 - b2) * values[f[0]] + b1 * values[f[1]] + b2 * values[f[2]];
     }
     case Kind::kField:
       return field->Eval(face, b1, b2);

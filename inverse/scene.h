@@ -21,7 +21,7 @@
 
 namespace genscene::inverse {
 
-// A custom albedo field over a mesh (issue "Texturing" plugs Mesh Colors in here): albedo at
+// A custom albedo field over a mesh (texturing plugs Mesh Colors in here): albedo at
 // barycentric point (b1, b2) of `face` (b0 = 1 - b1 - b2 belongs to the face's first vertex).
 class AlbedoField {
  public:

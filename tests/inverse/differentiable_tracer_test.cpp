@@ -8,8 +8,12 @@
 #include <cmath>
 #include <map>
 
+#include "core/mesh_colors.h"
 #include "core/synthetic.h"
 #include "inverse/differentiable_tracer.h"
+#include "inverse/light_sampler.h"
+#include "inverse/path_tracer.h"
+#include "tests/test_util.h"
 
 namespace genscene::inverse {
 namespace {
@@ -320,6 +324,128 @@ TEST(DifferentiableTracer, PixelsMatchThePathTracersRenderWithTheSameSeed) {
   // path that float round-off sends elsewhere).
   EXPECT_GT(total, 0.0);
   EXPECT_LT(diff / total, 1e-2);
+}
+
+// The albedo lookups both tracers make, for any barycentrics a hit can carry: a per-vertex albedo
+// and a Mesh Colors field stay within the values of the face they were asked for (a convex
+// combination of its samples), finite, for points on edges, a few ulps outside, NaN and infinite.
+struct MeshColorsField : AlbedoField {
+  const MeshColors* colors;
+  explicit MeshColorsField(const MeshColors* c) : colors(c) {}
+  Eigen::Vector3f Eval(int face, float b1, float b2) const override { return colors->Linear(face, b1, b2); }
+};
+
+TEST(AlbedoLookupProperty, StaysWithinTheFaceValuesForAnyBarycentrics) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  TriangleMesh mesh;
+  mesh.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
+  mesh.faces = {{0, 1, 2}, {1, 3, 2}};
+  for (int v = 0; v < 4; ++v) mesh.vertex_colors.push_back({unit(rng), unit(rng), unit(rng)});
+  const SurfaceAlbedo per_vertex = SurfaceAlbedo::FromMesh(mesh, Eigen::Vector3f::Constant(0.5f));
+  ASSERT_EQ(per_vertex.kind, SurfaceAlbedo::Kind::kPerVertex);
+  for (int resolution : {1, 2, 4, 8, 16, 64}) {
+    MeshColors colors(mesh, {resolution, std::max(1, resolution / 2)});
+    for (auto& c : colors.colors()) c = {unit(rng), unit(rng), unit(rng)};
+    SurfaceAlbedo field;
+    field.kind = SurfaceAlbedo::Kind::kField;
+    field.field = std::make_shared<MeshColorsField>(&colors);
+    for (int face = 0; face < 2; ++face) {
+      // The range of the face's own values: its vertices' colours, its Mesh Colors samples.
+      Eigen::Vector3f lo_v = Eigen::Vector3f::Constant(1.0f), hi_v = Eigen::Vector3f::Zero();
+      for (int k = 0; k < 3; ++k) {
+        lo_v = lo_v.cwiseMin(mesh.vertex_colors[mesh.faces[face][k]]);
+        hi_v = hi_v.cwiseMax(mesh.vertex_colors[mesh.faces[face][k]]);
+      }
+      const int r = face == 0 ? resolution : std::max(1, resolution / 2);
+      Eigen::Vector3f lo_f = Eigen::Vector3f::Constant(1.0f), hi_f = Eigen::Vector3f::Zero();
+      for (int i = 0; i <= r; ++i) {
+        for (int j = 0; i + j <= r; ++j) {
+          lo_f = lo_f.cwiseMin(colors.colors()[colors.SampleIndex(face, i, j)]);
+          hi_f = hi_f.cwiseMax(colors.colors()[colors.SampleIndex(face, i, j)]);
+        }
+      }
+      size_t outside = 0, checked = 0;
+      for (const auto& [b1, b2] : test::HardBarycentrics(rng, 2000, 2000)) {
+        const Eigen::Vector3f a = per_vertex.Eval(mesh, face, b1, b2), m = field.Eval(mesh, face, b1, b2);
+        ++checked;
+        const bool in = a.allFinite() && m.allFinite() && (a - lo_v).minCoeff() >= -1e-6f &&
+                        (hi_v - a).minCoeff() >= -1e-6f && (m - lo_f).minCoeff() >= -1e-6f &&
+                        (hi_f - m).minCoeff() >= -1e-6f;
+        if (!in && outside++ < 3) ADD_FAILURE() << "face " << face << " R " << r << " b " << b1 << " " << b2 << ": per-vertex "
+                                                << a.transpose() << ", Mesh Colors " << m.transpose();
+      }
+      EXPECT_EQ(outside, 0u) << "of " << checked;
+    }
+  }
+}
+
+// An area light's sample point, for random numbers anywhere in [0, 1] (0, 1 and the floats next
+// to them included), lies on the light's face.
+TEST(AlbedoLookupProperty, AreaLightSamplesLieOnTheFace) {
+  TriangleMesh mesh;
+  mesh.vertices = {{0.1f, 0.2f, 1.0f}, {0.9f, 0.25f, 1.1f}, {0.3f, 0.8f, 0.9f}};
+  mesh.faces = {{0, 1, 2}};
+  const Eigen::Vector3f e1 = mesh.vertices[1] - mesh.vertices[0], e2 = mesh.vertices[2] - mesh.vertices[0];
+  const Eigen::Vector3f n = e1.cross(e2);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::vector<float> values = {0.0f, 1.0f, std::nextafter(1.0f, 0.0f), std::nextafter(0.0f, 1.0f), 0.5f};
+  for (int k = 0; k < 200; ++k) values.push_back(unit(rng));
+  for (float u1 : values) {
+    for (float u2 : values) {
+      const Eigen::Vector3f p = UniformPointOnTriangle(mesh, 0, u1, u2);
+      ASSERT_TRUE(p.allFinite()) << u1 << " " << u2;
+      // Barycentrics of p (it lies in the plane): each >= 0, summing to 1.
+      const Eigen::Vector3f d = p - mesh.vertices[0];
+      const float b1 = d.cross(e2).dot(n) / n.squaredNorm(), b2 = e1.cross(d).dot(n) / n.squaredNorm();
+      EXPECT_NEAR(d.dot(n) / n.norm(), 0.0f, 1e-6f);
+      EXPECT_GE(b1, -1e-6f) << u1 << " " << u2;
+      EXPECT_GE(b2, -1e-6f) << u1 << " " << u2;
+      EXPECT_LE(b1 + b2, 1.0f + 1e-6f) << u1 << " " << u2;
+    }
+  }
+}
+
+// Both tracers over a Mesh Colors albedo at every resolution, with rays grazing an almost flat
+// fan (hits on and near the shared edges of its eight faces): no error, finite values and
+// derivatives, and the two tracers agree pixel by pixel as they do on plain albedos.
+TEST(AlbedoLookupProperty, BothTracersReadMeshColorsAtGrazingHits) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> unit(0.05f, 0.95f);
+  for (int resolution : {1, 2, 4, 8}) {
+    Scene scene = Fan(8, 0.04, {0.0, 0.3, 0.5});
+    TriangleMesh& fan = scene.meshes[1].mesh;
+    std::vector<int> resolutions;
+    for (size_t f = 0; f < fan.faces.size(); ++f) resolutions.push_back(f % 2 ? resolution : std::max(1, resolution / 2));
+    auto colors = std::make_shared<MeshColors>(fan, resolutions);
+    for (auto& c : colors->colors()) c = {unit(rng), unit(rng), unit(rng)};
+    scene.meshes[1].albedo.kind = SurfaceAlbedo::Kind::kField;
+    scene.meshes[1].albedo.field = std::make_shared<MeshColorsField>(colors.get());
+    const View view{CameraIntrinsics::FromHorizontalFov(24, 18, 12.0), LookAt({0.0, -0.9, 0.045}, {0.0, 0.0, 0.03})};
+    RenderOptions options;
+    options.spp = 2;
+    options.max_depth = 3;
+    const RenderOutput render = PathTracer(scene).Render(view, options, 9);
+    const DifferentiablePathTracer tracer(scene, {false, true});
+    double diff = 0.0, total = 0.0;
+    for (int v = 0; v < view.intrinsics.height; ++v) {
+      for (int u = 0; u < view.intrinsics.width; ++u) {
+        const DualRgb p = tracer.Pixel(view, u, v, options, 9, true);
+        for (int c = 0; c < 3; ++c) {
+          ASSERT_TRUE(std::isfinite(p[c].value())) << u << " " << v;
+          for (const auto& partial : p[c].partials()) {
+            ASSERT_TRUE(partial.d.allFinite()) << u << " " << v;
+          }
+          ASSERT_TRUE(std::isfinite(render.radiance(u, v)[c])) << u << " " << v;
+          diff += std::abs(p[c].value() - render.radiance(u, v)[c]);
+          total += render.radiance(u, v)[c];
+        }
+      }
+    }
+    EXPECT_GT(total, 0.0);
+    EXPECT_LT(diff / total, 1e-2) << "resolution " << resolution;
+  }
 }
 
 }  // namespace
