@@ -13,6 +13,7 @@ namespace genscene::fusion {
 void KeyframeOptions::Validate() const {
   RequireRange("keyframe_translation", translation, 0.0, 100.0);
   RequireRange("keyframe_rotation", rotation, 0.0, 180.0);
+  RequireRange("keyframe_new_surface", new_surface, 0.0, 1.0);
   RequireRange("keyframe_window", window, 1, 1000);
   RequireRange("min_keyframes", min_keyframes, 1, 100);
   RequireRange("max_keyframes", max_keyframes, 1, 100000);
@@ -27,6 +28,41 @@ bool KeyframeSelector::MovedEnough(const Eigen::Isometry3d& from, const Eigen::I
          RotationAngle(motion) * 180.0 / M_PI >= options_.rotation;
 }
 
+double KeyframeSelector::NewSurfaceFraction(const RgbdFrame& frame) const {
+  const CameraIntrinsics& k = frame.intrinsics;
+  if (frame.depth.empty() || k.width <= 0 || !frame.depth.SameSize(k.width, k.height)) return 0.0;
+  // The keyframes with depth, newest first (most points end there), and the frame in each.
+  std::vector<const RgbdFrame*> seen_by;
+  std::vector<Eigen::Isometry3d> keyframe_from_frame;
+  for (auto it = keyframes_.rbegin(); it != keyframes_.rend(); ++it) {
+    if (it->depth.empty() || it->intrinsics.width <= 0) continue;
+    seen_by.push_back(&*it);
+    keyframe_from_frame.push_back(it->world_from_camera->inverse() * *frame.world_from_camera);
+  }
+  const int step = std::max(1, k.width / 40);
+  size_t samples = 0, unseen = 0;
+  for (int v = step / 2; v < k.height; v += step) {
+    for (int u = step / 2; u < k.width; u += step) {
+      const float z = frame.depth(u, v);
+      if (!(z > 0.0f)) continue;
+      ++samples;
+      const Eigen::Vector3d p = k.Unproject(u, v, z);
+      bool seen = false;
+      for (size_t i = 0; i < seen_by.size() && !seen; ++i) {
+        const Eigen::Vector3d q = keyframe_from_frame[i] * p;
+        const auto px = seen_by[i]->intrinsics.Project(q);
+        if (!px) continue;
+        const int ku = static_cast<int>(std::lround(px->x())), kv = static_cast<int>(std::lround(px->y()));
+        if (ku < 0 || kv < 0 || ku >= seen_by[i]->depth.width() || kv >= seen_by[i]->depth.height()) continue;
+        const float kz = seen_by[i]->depth(ku, kv);
+        seen = kz > 0.0f && std::abs(kz - q.z()) < std::max(0.03, 0.05 * q.z());
+      }
+      unseen += !seen;
+    }
+  }
+  return samples == 0 ? 0.0 : static_cast<double>(unseen) / static_cast<double>(samples);
+}
+
 void KeyframeSelector::Offer(const RgbdFrame& frame) {
   if (frame.color.empty() || !frame.world_from_camera) return;
   const size_t index = offered_++;
@@ -38,6 +74,7 @@ void KeyframeSelector::Offer(const RgbdFrame& frame) {
   if (window_left_ == 0) {
     bool due = keyframes_.empty() && !best_;
     if (!due && !keyframes_.empty()) due = MovedEnough(*keyframes_.back().world_from_camera, *frame.world_from_camera);
+    if (!due && !keyframes_.empty() && options_.new_surface > 0.0) due = NewSurfaceFraction(frame) >= options_.new_surface;
     if (!due) return;
     window_left_ = options_.window;
     window_start_ = *frame.world_from_camera;

@@ -220,6 +220,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   RgbdFrame posed = frame;
   posed.depth = depth;
   posed.world_from_camera = pose;
+  posed.intrinsics = intrinsics_;
   keyframe_selector_.Offer(posed);
   return finish(report);
 }

@@ -113,6 +113,8 @@ struct FusionOptions {
     v("feature_min_inliers", features.min_inliers, "", "feature matches consistent with one pose needed to start ICP from it");
     v("keyframe_translation", keyframes.translation, "m", "camera motion that makes a new keyframe due");
     v("keyframe_rotation", keyframes.rotation, "deg", "camera rotation that makes a new keyframe due");
+    v("keyframe_new_surface", keyframes.new_surface, "",
+      "share of a frame's surface no keyframe saw that makes a new keyframe due (0 = off)");
     v("keyframe_window", keyframes.window, "frames", "the sharpest of this many frames becomes the keyframe");
     v("min_keyframes", keyframes.min_keyframes, "", "at least this many keyframes, spread over the recording, when it has the frames");
     v("max_keyframes", keyframes.max_keyframes, "", "keyframe limit");

@@ -131,6 +131,36 @@ TEST(Keyframes, LongRecordingKeyframesFollowTheMotionAndSharpness) {
   }
 }
 
+// A close-range slide (a plane 0.25 m away, 0.8 cm a frame, 13.6 cm in all: never the 15 cm that
+// makes a keyframe due by motion): a second keyframe once about a third of the view is surface the
+// first did not see; without the new-surface rule, the first alone.
+TEST(Keyframes, CloseRangeSlideGetsAKeyframeForTheNewSurface) {
+  for (const double new_surface : {0.3, 0.0}) {
+    KeyframeOptions o;
+    o.new_surface = new_surface;
+    o.window = 1;
+    o.min_keyframes = 1;
+    KeyframeSelector s(o);
+    for (int i = 0; i < 18; ++i) {
+      RgbdFrame f = KeyframeCandidate(i, 0.008 * i);
+      f.intrinsics.width = 16, f.intrinsics.height = 12, f.intrinsics.fx = f.intrinsics.fy = 12.0;
+      f.intrinsics.cx = 7.5, f.intrinsics.cy = 5.5;
+      f.depth = ImageDepth(16, 12, 0.25f);
+      s.Offer(f);
+    }
+    s.Finish();
+    const std::vector<double> t = KeyframeTimes(s);
+    if (new_surface == 0.0) {
+      EXPECT_EQ(t, std::vector<double>{0.0});
+      continue;
+    }
+    // The view is 0.33 m wide there: 30 % new after 10 cm, at frame 13.
+    ASSERT_EQ(t.size(), 2u);
+    EXPECT_EQ(t[0], 0.0);
+    EXPECT_NEAR(t[1], 13.0, 1.0);
+  }
+}
+
 // min_keyframes is validated against max_keyframes.
 TEST(Keyframes, MinAboveMaxIsAClearError) {
   KeyframeOptions o;
