@@ -387,11 +387,20 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
                         judged.string(), ")");
       }
       if (held_out) {
-        const HeldOutEvaluation h = EvaluateHeldOut(ws, options.lights, options.evaluate.model_spp, seed);
+        std::optional<inverse::Scene> truth;
+        if (synthetic) truth = inverse::LoadScene(fs::path(input) / "scene.json").scene;
+        const HeldOutEvaluation h = EvaluateHeldOut(ws, options.lights, options.evaluate.model_spp, seed,
+                                                    truth ? &*truth : nullptr, options.evaluate.truth_spp);
         result += Format(result.empty() ? "" : "; ", h.frames.size(), " held-out frames: model relative RMSE ",
                          h.model.rmse, " (render noise ", h.noise, "), SSIM ", h.model.ssim, "; unlit texture ",
                          h.texture.rmse, ", SSIM ", h.texture.ssim, "; albedo under ambient ", h.ambient.rmse,
-                         ", SSIM ", h.ambient.ssim, " (", holdout.string(), ")");
+                         ", SSIM ", h.ambient.ssim);
+        if (h.truth) {
+          result += Format("; against the true scene at those poses: model ", h.truth->model.rmse, ", unlit texture ",
+                           h.truth->texture.rmse, ", albedo under ambient ", h.truth->ambient.rmse,
+                           ", the frames themselves ", h.truth->frame.rmse);
+        }
+        result += Format(" (", holdout.string(), ")");
         if (h.model.rmse > std::min(h.texture.rmse, h.ambient.rmse)) {
           spdlog::warn("on the held-out frames the model's renders are further from the real images (relative RMSE {:.3f}) "
                        "than the {} ({:.3f})",

@@ -46,14 +46,11 @@ struct FirstHits {
 FirstHits TraceFirstHits(const PathTracer& tracer, const MeshColors& texture, const TrainingView& frame) {
   const CameraIntrinsics& k = frame.view.intrinsics;
   FirstHits out{Image<uint8_t>(k.width, k.height, 0), ImageRgb(k.width, k.height), ImageRgb(k.width, k.height)};
-  const Eigen::Matrix3f rotation = frame.view.world_from_camera.rotation().cast<float>();
-  const Eigen::Vector3f eye = frame.view.world_from_camera.translation().cast<float>();
   const SceneMesh& mesh = tracer.scene().meshes.front();
   for (int v = 0; v < k.height; ++v) {
     for (int u = 0; u < k.width; ++u) {
       if (!frame.image(u, v).allFinite()) continue;
-      const Eigen::Vector3f dir = rotation * k.RayDirection(u, v).cast<float>().normalized();
-      const auto hit = tracer.tracer().Intersect(eye, dir);
+      const auto hit = tracer.PixelCentreHit(frame.view, u, v);
       if (!hit || hit->mesh != 0) continue;
       out.mask(u, v) = 1;
       out.albedo(u, v) = mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2);
@@ -75,6 +72,17 @@ ImageRgb Gained(const ImageRgb& prediction, const Eigen::Vector3d& gain, const I
 
 nlohmann::ordered_json ToJson(const HeldOutScore& s) {
   return {{"gain", {s.gain.x(), s.gain.y(), s.gain.z()}}, {"relative_rmse", s.rmse}, {"ssim", s.ssim}};
+}
+
+nlohmann::ordered_json ToJson(const AgainstTruth& t) {
+  return {{"model", ToJson(t.model)}, {"texture_unlit", ToJson(t.texture)}, {"albedo_ambient", ToJson(t.ambient)},
+          {"frame", ToJson(t.frame)}};
+}
+
+void AddMean(HeldOutScore* mean, const HeldOutScore& score, double n) {
+  mean->rmse += score.rmse / n;
+  mean->ssim += score.ssim / n;
+  mean->gain += score.gain / n;
 }
 
 }  // namespace
@@ -126,7 +134,8 @@ HeldOutScore ScorePrediction(const ImageRgb& prediction, const ImageRgb& referen
   return s;
 }
 
-HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOptions& lights, int spp, uint64_t seed) {
+HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOptions& lights, int spp, uint64_t seed,
+                                  const Scene* truth, int truth_spp) {
   const std::vector<TrainingView> frames = ReadViews(ws.HeldOut());
   if (frames.empty()) throw Error(Format(ws.HeldOut().string(), ": no held-out frames to judge the model on"));
   const fs::path mesh_path = fs::exists(ws.RefinedMesh()) ? ws.RefinedMesh() : ws.Mesh();
@@ -135,6 +144,8 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
   model.voxel_lights = ReadLightsJson(ws.Lights());
   const MeshColors texture = ReadMeshColors(ws.Texture(), model.meshes.front().mesh);
   const PathTracer tracer(model);
+  std::optional<PathTracer> truth_tracer;
+  if (truth) truth_tracer.emplace(*truth);
   const fs::path dir = ws.root() / "evaluation";
   fs::create_directories(dir);
 
@@ -175,26 +186,45 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
     WritePng(dir / (std::string(stem) + "_texture.png"), Gained(hits.texture, r.texture.gain, ImageRgb(a.width(), a.height()), hits.mask));
     WritePng(dir / (std::string(stem) + "_ambient.png"), Gained(hits.albedo, r.ambient.gain, ImageRgb(a.width(), a.height()), hits.mask));
     WritePng(dir / (std::string(stem) + "_error.png"), error);
-    list.push_back({{"timestamp", r.timestamp}, {"pixels", r.pixels}, {"noise", r.noise}, {"model", ToJson(r.model)},
-                    {"texture_unlit", ToJson(r.texture)}, {"albedo_ambient", ToJson(r.ambient)}});
+    if (truth_tracer) {
+      RenderOptions paths = lights.Paths();
+      paths.spp = truth_spp;
+      const ImageRgb true_render = truth_tracer->Render(frame.view, paths, seed + 4000 + f).radiance;
+      r.truth = AgainstTruth{ScorePrediction(render, true_render, hits.mask),
+                             ScorePrediction(hits.texture, true_render, hits.mask),
+                             ScorePrediction(hits.albedo, true_render, hits.mask),
+                             ScorePrediction(frame.image, true_render, hits.mask)};
+      WritePng(dir / (std::string(stem) + "_truth.png"), true_render);
+    }
+    nlohmann::ordered_json entry = {{"timestamp", r.timestamp}, {"pixels", r.pixels}, {"noise", r.noise},
+                                    {"model", ToJson(r.model)}, {"texture_unlit", ToJson(r.texture)},
+                                    {"albedo_ambient", ToJson(r.ambient)}};
+    if (r.truth) entry["against_truth"] = ToJson(*r.truth);
+    list.push_back(entry);
     out.frames.push_back(r);
   }
   if (out.frames.empty()) throw Error(Format(ws.HeldOut().string(), ": the model is in view of no held-out frame"));
   const double n = static_cast<double>(out.frames.size());
+  if (truth) out.truth = AgainstTruth();
   for (const HeldOutFrame& r : out.frames) {
-    for (auto [mean, score] : {std::pair{&out.model, &r.model}, std::pair{&out.texture, &r.texture},
-                               std::pair{&out.ambient, &r.ambient}}) {
-      mean->rmse += score->rmse / n;
-      mean->ssim += score->ssim / n;
-      mean->gain += score->gain / n;
-    }
+    AddMean(&out.model, r.model, n);
+    AddMean(&out.texture, r.texture, n);
+    AddMean(&out.ambient, r.ambient, n);
     out.noise += r.noise / n;
+    if (out.truth) {
+      AddMean(&out.truth->model, r.truth->model, n);
+      AddMean(&out.truth->texture, r.truth->texture, n);
+      AddMean(&out.truth->ambient, r.truth->ambient, n);
+      AddMean(&out.truth->frame, r.truth->frame, n);
+    }
   }
   nlohmann::ordered_json report;
   report["spp"] = spp;
+  if (truth) report["truth_spp"] = truth_spp;
   report["frames"] = list;
   report["mean"] = {{"model", ToJson(out.model)}, {"noise", out.noise}, {"texture_unlit", ToJson(out.texture)},
                     {"albedo_ambient", ToJson(out.ambient)}};
+  if (out.truth) report["mean"]["against_truth"] = ToJson(*out.truth);
   WriteTextFileAtomically(dir / "holdout.json", report.dump(1) + "\n");
   return out;
 }

@@ -295,6 +295,20 @@ void HeldOut(const Workspace& ws, const fs::path& dir, std::ostream& md) {
      << Fixed(mean["texture_unlit"]["ssim"].get<double>()) << " |\n"
      << "| albedo under white ambient light | " << Fixed(mean["albedo_ambient"]["relative_rmse"].get<double>()) << " | "
      << Fixed(mean["albedo_ambient"]["ssim"].get<double>()) << " |\n\n";
+  const bool truth = mean.contains("against_truth");
+  if (truth) {
+    const Json& t = mean["against_truth"];
+    md << "The same scores against the true scene rendered at those poses (" << (*h)["truth_spp"].get<int>()
+       << " spp); the held-out frames themselves are the floor a perfect model reaches against the frames:\n\n"
+       << "| prediction | relative RMSE | SSIM |\n|---|---:|---:|\n";
+    for (const auto& [key, label] : std::vector<std::pair<std::string, std::string>>{
+             {"model", "full model"}, {"texture_unlit", "observed-colour texture, unlit"},
+             {"albedo_ambient", "albedo under white ambient light"}, {"frame", "the held-out frame"}}) {
+      md << "| " << label << " | " << Fixed(t[key]["relative_rmse"].get<double>()) << " | "
+         << Fixed(t[key]["ssim"].get<double>()) << " |\n";
+    }
+    md << "\n";
+  }
   for (size_t k = 0; k < (*h)["frames"].size(); ++k) {
     const Json& f = (*h)["frames"][k];
     std::vector<std::pair<std::string, std::string>> row;
@@ -303,7 +317,8 @@ void HeldOut(const Workspace& ws, const fs::path& dir, std::ostream& md) {
              {"model", Format("model (", Fixed(f["model"]["relative_rmse"].get<double>()), ")")},
              {"texture", Format("unlit texture (", Fixed(f["texture_unlit"]["relative_rmse"].get<double>()), ")")},
              {"ambient", Format("albedo, ambient (", Fixed(f["albedo_ambient"]["relative_rmse"].get<double>()), ")")},
-             {"error", "model error x4"}}) {
+             {"error", "model error x4"}, {"truth", "true scene"}}) {
+      if (suffix == "truth" && !truth) continue;
       char name[48];
       std::snprintf(name, sizeof(name), "holdout_%02zu_%s.png", k, suffix.c_str());
       row.push_back({label, CopyImage(ws.root() / "evaluation" / name, dir, name)});

@@ -159,8 +159,6 @@ VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset
 Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& tv, const LightEstimationOptions& options,
                            PixelMaskCounts* counts) {
   const CameraIntrinsics& k = tv.view.intrinsics;
-  const Eigen::Matrix3f rotation = tv.view.world_from_camera.rotation().cast<float>();
-  const Eigen::Vector3f eye = tv.view.world_from_camera.translation().cast<float>();
   Image<uint8_t> valid(k.width, k.height, 0);
   PixelMaskCounts local;
   std::vector<float> luminance;
@@ -170,8 +168,7 @@ Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& tv, con
       if (!observed.allFinite()) {
         throw Error(Format("pixel (", u, ", ", v, ") holds a non-finite value (", observed.transpose(), ")"));
       }
-      const Eigen::Vector3f dir = rotation * k.RayDirection(u, v).cast<float>().normalized();
-      const auto hit = tracer.tracer().Intersect(eye, dir);
+      const auto hit = tracer.PixelCentreHit(tv.view, u, v);
       bool reflects = false;
       if (hit) {
         const SceneMesh& m = tracer.scene().meshes[hit->mesh];
@@ -1357,13 +1354,10 @@ AmbientBaseline FitAmbientBaseline(const PathTracer& tracer, const std::vector<T
   for (size_t t = 0; t < views.size(); ++t) {
     const TrainingView& tv = views[t];
     const Image<uint8_t> valid = ValidPixels(tracer, tv, options);
-    const Eigen::Matrix3f rotation = tv.view.world_from_camera.rotation().cast<float>();
-    const Eigen::Vector3f eye = tv.view.world_from_camera.translation().cast<float>();
     for (int v = 0; v < valid.height(); ++v) {
       for (int u = 0; u < valid.width(); ++u) {
         if (!valid(u, v)) continue;
-        const Eigen::Vector3f dir = rotation * tv.view.intrinsics.RayDirection(u, v).cast<float>().normalized();
-        const auto hit = tracer.tracer().Intersect(eye, dir);
+        const auto hit = tracer.PixelCentreHit(tv.view, u, v);
         if (!hit) continue;
         const SceneMesh& mesh = tracer.scene().meshes[static_cast<size_t>(hit->mesh)];
         const Eigen::Vector3d a = mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2).cast<double>();

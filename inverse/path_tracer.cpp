@@ -395,6 +395,12 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
   }
 }
 
+std::optional<RayHit> PathTracer::PixelCentreHit(const View& view, int u, int v) const {
+  const Eigen::Matrix3f rotation = view.world_from_camera.rotation().cast<float>();
+  const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
+  return tracer_->Intersect(eye, rotation * view.intrinsics.RayDirection(u, v).cast<float>().normalized());
+}
+
 RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, uint64_t seed) const {
   options.Validate();
   const CameraIntrinsics& k = view.intrinsics;

@@ -128,6 +128,10 @@ class PathTracer {
                          const RenderOptions& options, CounterRng& rng, const VoxelCoefficientSink& sink,
                          RayCounts* counts = nullptr, float first_vertex_weight = 1.0f) const;
 
+  // The first surface the ray through the centre of pixel (u, v) of `view` meets: the ray of the
+  // geometry buffers, of the pixel masks and of every first-hit lookup (albedo, texture).
+  std::optional<RayHit> PixelCentreHit(const View& view, int u, int v) const;
+
   const Scene& scene() const { return scene_; }
   const RayTracer& tracer() const { return *tracer_; }
 

@@ -549,11 +549,7 @@ std::vector<bool> SeenVertices(const DifferentiablePathTracer& tracer, const Pat
   }
   std::vector<bool> seen(tracer.VertexCount(), false);
   for (const PixelRef& p : pixels) {  // one ray per pixel: cheap, serial
-    const View& view = targets[p.target].view;
-    const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
-    const Eigen::Vector3f direction =  // the ray of PathTracer::Render's object buffer
-        view.world_from_camera.rotation().cast<float>() * view.intrinsics.RayDirection(p.u, p.v).cast<float>().normalized();
-    const auto hit = rays.tracer().Intersect(eye, direction);
+    const auto hit = rays.PixelCentreHit(targets[p.target].view, p.u, p.v);
     if (!hit || incident[hit->mesh].empty()) continue;
     const TriangleMesh& mesh = scene.meshes[hit->mesh].mesh;
     const auto mark = [&](int v) { seen[tracer.ParameterVertex(hit->mesh, v)] = true; };
