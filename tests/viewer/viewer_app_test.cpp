@@ -2,6 +2,8 @@
 // (issue 10 acceptance 1, 2), and the messages for missing pieces and a missing display (4).
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include <cmath>
 #include <memory>
 
@@ -254,6 +256,83 @@ TEST(ViewerApp, MeshColorsCheckerboardIsSharpAndMatchesPathTracer) {
               100 * diff_sharp, 100 * diff_baked, n);
   EXPECT_LE(diff_sharp, 0.05);
   EXPECT_GT(diff_baked, 0.05);
+}
+
+// The shader's Mesh Colors lookup (its GLSL copy of LocateInLattice) against the CPU's, with
+// linear interpolation, at every lattice size from one cell to 64 per edge: random sample colours,
+// so a wrong sample or weight anywhere (the faces' long edges, their shared diagonal, the
+// rounding at vertices) shows. The reference is the path tracer's albedo image (radiance under a
+// point light over the radiance with albedo 1, pixel-centre rays) with MeshColors::Linear.
+class LinearField : public inverse::AlbedoField {
+ public:
+  explicit LinearField(std::shared_ptr<const MeshColors> colors) : colors_(std::move(colors)) {}
+  Eigen::Vector3f Eval(int face, float b1, float b2) const override { return colors_->Linear(face, b1, b2); }
+
+ private:
+  std::shared_ptr<const MeshColors> colors_;
+};
+
+TEST(ViewerApp, LinearMeshColorsLookupMatchesTheCpuAtEveryResolution) {
+  TriangleMesh quad;
+  quad.vertices = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  quad.faces = {{0, 1, 2}, {0, 2, 3}};
+  PosedView view;
+  view.intrinsics.width = view.intrinsics.height = 96;
+  view.intrinsics.fx = view.intrinsics.fy = 110.0;
+  view.intrinsics.cx = view.intrinsics.cy = 47.5;
+  view.world_from_camera = LookAt({0.5, 0.45, 1.2}, {0.5, 0.5, 0.0});
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> unit(0.1f, 0.9f);
+  for (const std::vector<int>& resolutions : std::vector<std::vector<int>>{{1, 1}, {4, 2}, {64, 64}}) {
+    test::TempDir ws;
+    WritePly(ws / "mesh.ply", quad);
+    auto colors = std::make_shared<MeshColors>(quad, resolutions);
+    for (auto& c : colors->colors()) c = {unit(rng), unit(rng), unit(rng)};
+    WriteMeshColors(ws / "albedo.mcol", *colors);
+    test::WriteFile(ws / "keyframes" / "intrinsics.txt", view.intrinsics.ToString() + "\n");
+    test::WriteFile(ws / "keyframes" / "groundtruth.txt", "0 " + PoseText(view.world_from_camera) + "\n");
+    const fs::path png = ws / "linear.png";
+    const auto r = RunViewer(ws.path().string() + " --mode albedo --lookup linear --camera keyframe:0 --size 96x96 "
+                             "--no-overlay --screenshot " + png.string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const ImageRgb shot = ReadColorImage(png, CameraResponse());
+
+    inverse::RenderOptions options;
+    options.spp = 1;
+    options.filter = "center";
+    options.max_depth = 2;
+    auto render = [&](inverse::SurfaceAlbedo albedo) {
+      inverse::Scene scene;
+      inverse::SceneMesh m;
+      m.mesh = quad;
+      m.albedo = std::move(albedo);
+      scene.meshes.push_back(m);
+      scene.point_lights.push_back({Eigen::Vector3d(0.5, 0.5, 1.5), Eigen::Vector3f::Constant(5.0f)});
+      return inverse::PathTracer(scene).Render(view, options, 7);
+    };
+    inverse::SurfaceAlbedo field;
+    field.kind = inverse::SurfaceAlbedo::Kind::kField;
+    field.field = std::make_shared<LinearField>(colors);
+    const inverse::RenderOutput white = render(inverse::SurfaceAlbedo::Constant(Eigen::Vector3f::Ones()));
+    const inverse::RenderOutput linear = render(field);
+    double diff = 0.0;
+    int n = 0, far = 0;
+    for (int v = 0; v < 96; ++v) {
+      for (int u = 0; u < 96; ++u) {
+        if (white.object(u, v) < 0) continue;
+        const Eigen::Vector3f reference = linear.radiance(u, v) / white.radiance(u, v).x();
+        const float d = (shot(u, v) - reference).cwiseAbs().maxCoeff();
+        diff += d;
+        far += d > 0.1f;
+        ++n;
+      }
+    }
+    ASSERT_GT(n, 96 * 96 / 2);
+    std::printf("R = %d / %d: mean |viewer - CPU lookup| %.4f, %d of %d pixels off by more than 0.1\n", resolutions[0],
+                resolutions[1], diff / n, far, n);
+    EXPECT_LE(diff / n, 0.02) << "R = " << resolutions[0];
+    EXPECT_LE(far, n / 200) << "R = " << resolutions[0];
+  }
 }
 
 // Acceptance 4: what is missing is said, one line each, and what exists is shown; no folder, or
