@@ -30,15 +30,15 @@
 #include "core/options_json.h"
 #include "core/image_io.h"
 #include "core/light_set.h"
-#include "inverse/path_tracer.h"
-#include "inverse/scene_io.h"
+#include "render/path_tracer.h"
+#include "render/formats/scene_io.h"
 #include "core/file_util.h"
 #include "core/mesh_colors.h"
 #include "core/ply_io.h"
 #include "core/trajectory.h"
 #include "core/tsdf_volume.h"
-#include "inverse/mitsuba_xml.h"
-#include "inverse/scene.h"
+#include "render/formats/mitsuba_xml.h"
+#include "render/scene.h"
 
 namespace genscene::apps {
 
@@ -255,8 +255,8 @@ void Warn(const std::vector<std::string>& warnings) {
 }
 
 // The workspace's model as a scene: `mesh` with the Mesh Colors albedo and the voxel lights.
-inverse::Scene LoadModel(const Workspace& ws, const fs::path& mesh, std::vector<std::string>* warnings) {
-  inverse::Scene scene = LoadGeometry({{}, mesh, ws.Albedo()}, ws, warnings);
+render::Scene LoadModel(const Workspace& ws, const fs::path& mesh, std::vector<std::string>* warnings) {
+  render::Scene scene = LoadGeometry({{}, mesh, ws.Albedo()}, ws, warnings);
   scene.meshes.front().name = "model";
   scene.voxel_lights = ReadLightsJson(ws.Lights());
   return scene;
@@ -273,14 +273,14 @@ std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings)
   WritePly(dir / "model.ply", colored);
   WriteTumTrajectory(dir / "trajectory.txt", ReadTumTrajectory(ws.Trajectory()));
 
-  const inverse::Scene scene = LoadModel(ws, mesh_path, warnings);
-  std::vector<inverse::View> views;  // the keyframe cameras as sensors
-  for (const inverse::TrainingView& v : ReadViews(ws.Keyframes())) views.push_back(v.view);
+  const render::Scene scene = LoadModel(ws, mesh_path, warnings);
+  std::vector<render::View> views;  // the keyframe cameras as sensors
+  for (const render::TrainingView& v : ReadViews(ws.Keyframes())) views.push_back(v.view);
   try {
-    for (std::string& w : inverse::ExportMitsubaXml(dir / "model.xml", scene, views)) warnings->push_back(std::move(w));
+    for (std::string& w : render::ExportMitsubaXml(dir / "model.xml", scene, views)) warnings->push_back(std::move(w));
   } catch (const Error& e) {  // cameras Mitsuba cannot express (fx != fy, distortion): none
     warnings->push_back(Format("keyframe cameras left out of model.xml: ", e.what()));
-    for (std::string& w : inverse::ExportMitsubaXml(dir / "model.xml", scene, {})) warnings->push_back(std::move(w));
+    for (std::string& w : render::ExportMitsubaXml(dir / "model.xml", scene, {})) warnings->push_back(std::move(w));
   }
   return Format(colored.vertices.size(), " coloured vertices (", (dir / "model.ply").string(), "), ",
                 scene.voxel_lights->ActiveVoxels().size(), " active voxel lights (",
@@ -387,8 +387,8 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
                         judged.string(), ")");
       }
       if (held_out) {
-        std::optional<inverse::Scene> truth;
-        if (synthetic) truth = inverse::LoadScene(fs::path(input) / "scene.json").scene;
+        std::optional<render::Scene> truth;
+        if (synthetic) truth = render::LoadScene(fs::path(input) / "scene.json").scene;
         const HeldOutEvaluation h = EvaluateHeldOut(ws, options.lights, options.evaluate.model_spp, seed,
                                                     truth ? &*truth : nullptr, options.evaluate.truth_spp);
         result += Format(result.empty() ? "" : "; ", h.frames.size(), " held-out frames: model relative RMSE ",
@@ -425,6 +425,7 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
                                     uint64_t seed) {
   const int views = eval.views, truth_spp = eval.truth_spp, model_spp = eval.model_spp;
   using namespace inverse;
+  using namespace render;
   const fs::path dir = ws.root() / "evaluation";
   fs::create_directories(dir);
   const Scene truth = LoadScene(input / "scene.json").scene;

@@ -13,14 +13,14 @@
 #include "core/se3.h"
 #include "core/trajectory.h"
 #include "core/view_set.h"
-#include "inverse/path_tracer.h"
-#include "inverse/mitsuba_xml.h"
-#include "inverse/scene_io.h"
+#include "render/path_tracer.h"
+#include "render/formats/mitsuba_xml.h"
+#include "render/formats/scene_io.h"
 
 namespace {
 
 using namespace genscene;
-using namespace genscene::inverse;
+using namespace genscene::render;
 
 std::string StampName(double timestamp) {
   char buffer[64];

@@ -15,12 +15,13 @@
 #include "core/light_set.h"
 #include "core/mesh_colors.h"
 #include "core/ply_io.h"
-#include "inverse/path_tracer.h"
+#include "render/path_tracer.h"
 
 namespace genscene::apps {
 
 namespace fs = std::filesystem;
 using namespace genscene::inverse;
+using namespace genscene::render;
 
 namespace {
 

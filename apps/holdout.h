@@ -24,7 +24,7 @@
 
 #include "core/image.h"
 #include "core/workspace.h"
-#include "inverse/light_estimation.h"
+#include "inverse/lights/light_estimation.h"
 
 namespace genscene::apps {
 
@@ -61,7 +61,7 @@ struct HeldOutEvaluation {
 // the model, 4x); with `truth`, rendered at `truth_spp`, also holdout_NN_truth.png and the scores
 // against it ("against_truth"). Throws Error when WS/holdout/ holds no frames.
 HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const inverse::LightEstimationOptions& lights, int spp,
-                                  uint64_t seed, const inverse::Scene* truth = nullptr, int truth_spp = 128);
+                                  uint64_t seed, const render::Scene* truth = nullptr, int truth_spp = 128);
 
 // The gain-fitted score of a prediction against a reference over the pixels of `mask`.
 HeldOutScore ScorePrediction(const ImageRgb& prediction, const ImageRgb& reference, const Image<uint8_t>& mask);

@@ -12,8 +12,8 @@
 #include "core/mesh_colors.h"
 #include "core/options_json.h"
 #include "core/ply_io.h"
-#include "inverse/mitsuba_xml.h"
-#include "inverse/scene_io.h"
+#include "render/formats/mitsuba_xml.h"
+#include "render/formats/scene_io.h"
 
 namespace genscene::apps {
 
@@ -21,6 +21,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using namespace genscene::inverse;
+using namespace genscene::render;
 
 std::string Stamp(const char* prefix, size_t index) {
   char buffer[64];

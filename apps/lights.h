@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "core/workspace.h"
-#include "inverse/light_estimation.h"
+#include "inverse/lights/light_estimation.h"
 
 namespace genscene::apps {
 

@@ -19,6 +19,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using namespace genscene::inverse;
+using namespace genscene::render;
 
 std::vector<bool> ChooseMeshes(const Scene& scene, const std::vector<std::string>& names,
                                std::vector<std::string>* chosen) {

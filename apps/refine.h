@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "apps/scene_inputs.h"
-#include "inverse/vertex_refinement.h"
+#include "inverse/refine/vertex_refinement.h"
 
 namespace genscene::apps {
 

@@ -18,8 +18,8 @@
 #include "meshing/marching_cubes.h"
 #include "core/trajectory.h"
 #include "core/trajectory_metrics.h"
-#include "inverse/light_estimation.h"
-#include "inverse/path_tracer.h"
+#include "inverse/lights/light_estimation.h"
+#include "render/path_tracer.h"
 
 namespace genscene::apps {
 
@@ -225,8 +225,8 @@ void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& optio
   if (!options.sweep) return;
   // Fig. 3: light error against the penalty weight, and the time it takes.
   std::vector<std::string> warnings;
-  const inverse::Scene scene = LoadGeometry({{}, ws.Mesh(), ws.Albedo()}, ws, &warnings);
-  const std::vector<inverse::TrainingView> views = ReadViews(ws.Keyframes());
+  const render::Scene scene = LoadGeometry({{}, ws.Mesh(), ws.Albedo()}, ws, &warnings);
+  const std::vector<render::TrainingView> views = ReadViews(ws.Keyframes());
   inverse::LightEstimationOptions base;
   // The estimate's own grid and refinement (lights.json's dims are the refined grid's).
   const Json used = e.contains("options") ? e["options"] : Json::object();
@@ -240,9 +240,9 @@ void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& optio
     o.penalty_weight = weight;
     std::fprintf(stderr, "report: sweep: penalty weight %g\n", weight);
     const inverse::LightEstimate estimate = inverse::EstimateLights(scene, views, o, seed);
-    inverse::Scene lit = inverse::WithoutLights(scene);
+    render::Scene lit = inverse::WithoutLights(scene);
     lit.voxel_lights = estimate.lights;
-    const inverse::PathTracer tracer(lit);
+    const render::PathTracer tracer(lit);
     double rmse = 0.0;
     for (size_t i = 0; i < views.size(); ++i) {
       rmse += inverse::CompareRender(tracer, views[i], o, options.sweep_spp, seed + i).rmse_bias / views.size();

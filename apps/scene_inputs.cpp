@@ -4,12 +4,13 @@
 #include "core/frame_source.h"
 #include "core/mesh_colors.h"
 #include "core/ply_io.h"
-#include "inverse/scene_io.h"
+#include "render/formats/scene_io.h"
 
 namespace genscene::apps {
 
 namespace fs = std::filesystem;
 using namespace genscene::inverse;
+using namespace genscene::render;
 
 namespace {
 

@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "core/workspace.h"
-#include "inverse/light_estimation.h"
-#include "inverse/scene.h"
+#include "inverse/lights/light_estimation.h"
+#include "render/scene.h"
 
 namespace genscene::apps {
 
@@ -21,10 +21,10 @@ struct GeometryInputs {
 
 // The scene file's scene (lights included), or one mesh with its albedo. Throws Error naming the
 // file that is missing or bad; adds notes (e.g. "assuming grey") to `warnings`.
-inverse::Scene LoadGeometry(const GeometryInputs& inputs, const Workspace& ws, std::vector<std::string>* warnings);
+render::Scene LoadGeometry(const GeometryInputs& inputs, const Workspace& ws, std::vector<std::string>* warnings);
 
 // The posed images of a view set or keyframes folder (intrinsics.txt, groundtruth.txt, rgb.txt):
 // EXR as linear, PNG as sRGB. Throws Error when the folder is missing, empty or a pose is missing.
-std::vector<inverse::TrainingView> ReadViews(const std::filesystem::path& folder);
+std::vector<render::TrainingView> ReadViews(const std::filesystem::path& folder);
 
 }  // namespace genscene::apps

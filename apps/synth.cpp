@@ -10,9 +10,9 @@
 #include "core/ply_io.h"
 #include "core/sequence_writer.h"
 #include "core/synthetic.h"
-#include "inverse/path_tracer.h"
-#include "inverse/procedural.h"
-#include "inverse/scene_io.h"
+#include "render/path_tracer.h"
+#include "render/procedural.h"
+#include "render/formats/scene_io.h"
 
 namespace genscene::apps {
 
@@ -30,9 +30,9 @@ bool IsSceneFile(const std::string& scene) {
 }
 
 // All non-emitting meshes as one mesh with per-face albedo: the ground truth for fusion and meshing.
-TriangleMesh GroundTruthMesh(const inverse::Scene& scene) {
+TriangleMesh GroundTruthMesh(const render::Scene& scene) {
   TriangleMesh out;
-  for (const inverse::SceneMesh& m : scene.meshes) {
+  for (const render::SceneMesh& m : scene.meshes) {
     if (m.IsEmitter()) continue;
     const int base = static_cast<int>(out.vertices.size());
     out.vertices.insert(out.vertices.end(), m.mesh.vertices.begin(), m.mesh.vertices.end());
@@ -48,20 +48,20 @@ TriangleMesh GroundTruthMesh(const inverse::Scene& scene) {
 // The scene and the trajectory through it: inside the built-in rooms, swaying around the scene
 // file's first camera, or orbiting the scene's centre when the file has none.
 struct Setup {
-  inverse::Scene scene;
+  render::Scene scene;
   Trajectory trajectory;
 };
 
 Setup MakeSetup(const SynthOptions& o, uint64_t seed) {
   Setup s;
   if (o.scene == "cornell") {
-    s.scene = inverse::MakeCornellBoxScene();
+    s.scene = render::MakeCornellBoxScene();
     s.trajectory = MakeHandheldTrajectory({0.0, 0.0, 0.6}, 0.9, 1.0, o.arc, o.frames, seed);
   } else if (o.scene == "room") {
-    s.scene = inverse::MakeRoomScene();
+    s.scene = render::MakeRoomScene();
     s.trajectory = MakeHandheldTrajectory({0.0, 0.4, 0.7}, 1.6, 1.5, o.arc, o.frames, seed);
   } else {
-    const inverse::LoadedScene loaded = inverse::LoadScene(o.scene);
+    const render::LoadedScene loaded = render::LoadScene(o.scene);
     s.scene = loaded.scene;
     const Eigen::AlignedBox3d box = s.scene.Bounds();
     if (!loaded.views.empty()) {
@@ -106,8 +106,8 @@ SynthSummary Synthesize(const SynthOptions& options, uint64_t seed, const std::f
   const Setup setup = MakeSetup(options, seed);
   const CameraIntrinsics k = CameraIntrinsics::FromHorizontalFov(options.Width(), options.Height(), options.fov);
 
-  const inverse::PathTracer tracer(setup.scene);
-  inverse::RenderOptions render;
+  const render::PathTracer tracer(setup.scene);
+  render::RenderOptions render;
   render.spp = options.spp;
   render.max_depth = options.max_depth;
   std::vector<RgbdFrame> frames;
@@ -116,8 +116,8 @@ SynthSummary Synthesize(const SynthOptions& options, uint64_t seed, const std::f
   const auto start = std::chrono::steady_clock::now();
   for (size_t i = 0; i < setup.trajectory.size(); ++i) {
     const StampedPose& p = setup.trajectory.poses()[i];
-    const inverse::View view{k, p.world_from_camera, p.timestamp};
-    inverse::RenderOutput image = tracer.Render(view, render, seed * 1000003 + i);
+    const render::View view{k, p.world_from_camera, p.timestamp};
+    render::RenderOutput image = tracer.Render(view, render, seed * 1000003 + i);
     RgbdFrame frame;
     frame.timestamp = p.timestamp;
     frame.intrinsics = k;
@@ -141,7 +141,7 @@ SynthSummary Synthesize(const SynthOptions& options, uint64_t seed, const std::f
   write.linear_exr = true;
   write.extra_files = [&](const std::filesystem::path& tmp) {
     WritePly(tmp / "mesh_gt.ply", mesh);
-    inverse::SaveSceneJson(tmp / "scene.json", setup.scene);
+    render::SaveSceneJson(tmp / "scene.json", setup.scene);
   };
   WriteTumSequence(out_dir, frames, write);
   summary.frames = static_cast<int>(frames.size());

@@ -11,12 +11,12 @@
 #include "core/file_util.h"
 #include "core/frame_source.h"
 #include "core/image_io.h"
-#include "inverse/path_tracer.h"
-#include "inverse/render_compare.h"
-#include "inverse/scene_io.h"
+#include "render/path_tracer.h"
+#include "render/render_compare.h"
+#include "render/formats/scene_io.h"
 
 using namespace genscene;
-using namespace genscene::inverse;
+using namespace genscene::render;
 namespace fs = std::filesystem;
 
 int main(int argc, char** argv) {

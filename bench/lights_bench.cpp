@@ -32,10 +32,10 @@
 #include "core/color.h"
 #include "core/frame_source.h"
 #include "core/image_io.h"
-#include "inverse/scene_io.h"
+#include "render/formats/scene_io.h"
 #include "core/parallel.h"
-#include "inverse/light_estimation.h"
-#include "inverse/procedural.h"
+#include "inverse/lights/light_estimation.h"
+#include "render/procedural.h"
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -43,6 +43,7 @@
 
 using namespace genscene;
 using namespace genscene::inverse;
+using namespace genscene::render;
 namespace fs = std::filesystem;
 
 namespace {

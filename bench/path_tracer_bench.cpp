@@ -11,10 +11,10 @@
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "core/synthetic.h"
-#include "inverse/path_tracer.h"
+#include "render/path_tracer.h"
 
 using namespace genscene;
-using namespace genscene::inverse;
+using namespace genscene::render;
 
 namespace {
 

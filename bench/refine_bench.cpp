@@ -32,12 +32,13 @@
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "core/synthetic.h"
-#include "inverse/procedural.h"
-#include "inverse/scene_io.h"
-#include "inverse/vertex_refinement.h"
+#include "render/procedural.h"
+#include "render/formats/scene_io.h"
+#include "inverse/refine/vertex_refinement.h"
 
 using namespace genscene;
 using namespace genscene::inverse;
+using namespace genscene::render;
 namespace fs = std::filesystem;
 
 namespace {

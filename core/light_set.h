@@ -37,7 +37,7 @@ namespace genscene {
 // is tiny next to the distances to the surfaces it lights), which makes the predicted pixel a
 // linear function of the products L * lambda_k (what light estimation caches). The model is
 // physically exact and exports to any renderer as six emissive quads of side `cube_size` with
-// radiance L * lambda_k / cube_size^2 (inverse::VoxelCubeFaces).
+// radiance L * lambda_k / cube_size^2 (render::VoxelCubeFaces).
 struct VoxelLightGrid {
   Eigen::AlignedBox3d bounds;
   Eigen::Vector3i dims = Eigen::Vector3i::Constant(7);

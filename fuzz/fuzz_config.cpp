@@ -6,9 +6,9 @@
 #include "core/frame_source.h"
 #include "core/options.h"
 #include "fuzz/fuzz_util.h"
-#include "inverse/light_estimation.h"
-#include "inverse/path_tracer.h"
-#include "inverse/vertex_refinement.h"
+#include "inverse/lights/light_estimation.h"
+#include "render/path_tracer.h"
+#include "inverse/refine/vertex_refinement.h"
 
 using namespace genscene;
 
@@ -30,7 +30,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     SourceOptions source;
     inverse::LightEstimationOptions lights;
     inverse::RefineOptions refine;
-    inverse::RenderOptions render;
+    render::RenderOptions render;
     config.Apply(source);
     config.Apply(lights);
     config.Apply(refine);

@@ -1,7 +1,7 @@
-// Wavefront OBJ through inverse/scene_io (ReadObj).
+// Wavefront OBJ through render/formats/mesh_sources (ReadObj).
 #include "core/file_util.h"
 #include "fuzz/fuzz_util.h"
-#include "inverse/scene_io.h"
+#include "render/formats/mesh_sources.h"
 
 using namespace genscene;
 
@@ -17,6 +17,6 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto path = fuzz::Scratch("input.obj", data, size);
-  GENSCENE_FUZZ_EXPECT_ERROR_OK(inverse::ReadObj(path));
+  GENSCENE_FUZZ_EXPECT_ERROR_OK(render::ReadObj(path));
   return 0;
 }

@@ -1,13 +1,13 @@
-// Scene files through inverse/scene_io (LoadScene): our JSON format (GENSCENE_FUZZ_SCENE_XML
+// Scene files through render/formats/scene_io (LoadScene): our JSON format (GENSCENE_FUZZ_SCENE_XML
 // undefined) or Mitsuba 3 XML (defined). The meshes a seed scene refers to are written once next
 // to the scratch file, so that fuzzed variants of the seed reach past the mesh references.
 #include "fuzz/fuzz_util.h"
-#include "inverse/mitsuba_xml.h"
-#include "inverse/procedural.h"
-#include "inverse/scene_io.h"
+#include "render/formats/mitsuba_xml.h"
+#include "render/procedural.h"
+#include "render/formats/scene_io.h"
 
 using namespace genscene;
-using namespace genscene::inverse;
+using namespace genscene::render;
 
 namespace {
 

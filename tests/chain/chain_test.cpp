@@ -24,8 +24,8 @@
 #include "core/ply_io.h"
 #include "core/trajectory.h"
 #include "core/trajectory_metrics.h"
-#include "inverse/path_tracer.h"
-#include "inverse/scene_io.h"
+#include "render/path_tracer.h"
+#include "render/formats/scene_io.h"
 
 namespace genscene {
 namespace {
@@ -108,7 +108,7 @@ void ExpectOutputsReadable(const Workspace& ws, const std::string& when) {
       }
     });
   }
-  readable(ws.root() / "export" / "model.xml", [&] { inverse::LoadScene(ws.root() / "export" / "model.xml"); });
+  readable(ws.root() / "export" / "model.xml", [&] { render::LoadScene(ws.root() / "export" / "model.xml"); });
 }
 
 // One uninterrupted small demo, shared by the tests (its run is the costly part).
@@ -317,25 +317,25 @@ TEST_F(GensceneChain, OneThreadGivesTheSameModelAsAllCores) {
 // refined mesh with its albedo per face and the voxel lights as emissive cube faces).
 TEST_F(GensceneChain, ExportedMitsubaXmlRendersTheSameImage) {
   const Workspace ws = Reference();
-  const inverse::LoadedScene loaded = inverse::LoadScene(ws.root() / "export" / "model.xml");
+  const render::LoadedScene loaded = render::LoadScene(ws.root() / "export" / "model.xml");
   ASSERT_FALSE(loaded.views.empty()) << "the keyframe cameras are exported as sensors";
 
   std::vector<std::string> warnings;
-  inverse::Scene model = apps::LoadGeometry({{}, ws.RefinedMesh(), ws.Albedo()}, ws, &warnings);
-  inverse::SceneMesh& mesh = model.meshes.front();
-  inverse::SurfaceAlbedo per_face;  // what the export holds: the albedo at each face's centroid
-  per_face.kind = inverse::SurfaceAlbedo::Kind::kPerFace;
+  render::Scene model = apps::LoadGeometry({{}, ws.RefinedMesh(), ws.Albedo()}, ws, &warnings);
+  render::SceneMesh& mesh = model.meshes.front();
+  render::SurfaceAlbedo per_face;  // what the export holds: the albedo at each face's centroid
+  per_face.kind = render::SurfaceAlbedo::Kind::kPerFace;
   for (int f = 0; f < static_cast<int>(mesh.mesh.faces.size()); ++f) {
     per_face.values.push_back(mesh.albedo.Eval(mesh.mesh, f, 1.0f / 3.0f, 1.0f / 3.0f));
   }
   mesh.albedo = per_face;
-  for (inverse::SceneMesh& cube : inverse::VoxelCubeFaces(ReadLightsJson(ws.Lights()))) model.meshes.push_back(std::move(cube));
+  for (render::SceneMesh& cube : render::VoxelCubeFaces(ReadLightsJson(ws.Lights()))) model.meshes.push_back(std::move(cube));
 
-  inverse::RenderOptions render;
+  render::RenderOptions render;
   render.spp = 16;
-  const inverse::View& view = loaded.views.front();
-  const ImageRgb expected = inverse::PathTracer(model).Render(view, render, 5).radiance;
-  const ImageRgb actual = inverse::PathTracer(loaded.scene).Render(view, render, 5).radiance;
+  const render::View& view = loaded.views.front();
+  const ImageRgb expected = render::PathTracer(model).Render(view, render, 5).radiance;
+  const ImageRgb actual = render::PathTracer(loaded.scene).Render(view, render, 5).radiance;
   double diff = 0.0, norm = 0.0;
   for (size_t i = 0; i < expected.size(); ++i) {
     diff += (expected.data()[i] - actual.data()[i]).cast<double>().squaredNorm();

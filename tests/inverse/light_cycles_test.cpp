@@ -7,12 +7,13 @@
 #include <vector>
 
 #include "core/frame_source.h"
-#include "inverse/light_estimation.h"
-#include "inverse/path_tracer.h"
-#include "inverse/scene_io.h"
+#include "inverse/lights/light_estimation.h"
+#include "render/path_tracer.h"
+#include "render/formats/scene_io.h"
 #include "tests/test_util.h"
 
 namespace genscene::inverse {
+using namespace genscene::render;  // the renderer the inverse stages are built on
 namespace {
 
 std::vector<TrainingView> ReadViews(const std::filesystem::path& folder) {

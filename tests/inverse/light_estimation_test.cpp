@@ -8,10 +8,11 @@
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "core/synthetic.h"
-#include "inverse/light_estimation.h"
-#include "inverse/procedural.h"
+#include "inverse/lights/light_estimation.h"
+#include "render/procedural.h"
 
 namespace genscene::inverse {
+using namespace genscene::render;  // the renderer the inverse stages are built on
 namespace {
 
 // The Cornell box without its light, and a voxel grid over it with a few lit voxels. The grid's

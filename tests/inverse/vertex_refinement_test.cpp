@@ -10,10 +10,11 @@
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "core/synthetic.h"
-#include "inverse/procedural.h"
-#include "inverse/vertex_refinement.h"
+#include "render/procedural.h"
+#include "inverse/refine/vertex_refinement.h"
 
 namespace genscene::inverse {
+using namespace genscene::render;  // the renderer the inverse stages are built on
 namespace {
 
 struct Replica {

@@ -15,7 +15,7 @@
 #include "core/se3.h"
 #include "core/synthetic.h"
 #include "core/trajectory.h"
-#include "inverse/path_tracer.h"
+#include "render/path_tracer.h"
 #include "tests/test_util.h"
 
 namespace genscene {
@@ -162,7 +162,7 @@ TEST(ViewerApp, LightGlyphsAppearWhereTheLightsAre) {
 
 // Albedo at the lattice point (i, j) of a face: a checkerboard of the samples on the 9 x 9 grid of
 // the unit square (R = 8 on both triangles of the quad), 0.1 / 0.9.
-class LookupField : public inverse::AlbedoField {
+class LookupField : public render::AlbedoField {
  public:
   LookupField(std::shared_ptr<const MeshColors> colors, bool baked) : colors_(std::move(colors)), baked_(baked) {}
   // Nearest = what the viewer must show; baked = the three vertex samples interpolated, i.e. what
@@ -215,25 +215,25 @@ TEST(ViewerApp, MeshColorsCheckerboardIsSharpAndMatchesPathTracer) {
   const ImageRgb shot = ReadColorImage(png, CameraResponse());
 
   // Path-traced albedo images: field / constant 1, same view, pixel-centre rays.
-  inverse::RenderOptions options;
+  render::RenderOptions options;
   options.spp = 1;
   options.filter = "center";
   options.max_depth = 2;
-  auto render = [&](inverse::SurfaceAlbedo albedo) {
-    inverse::Scene scene;
-    inverse::SceneMesh m;
+  auto render = [&](render::SurfaceAlbedo albedo) {
+    render::Scene scene;
+    render::SceneMesh m;
     m.mesh = quad;
     m.albedo = std::move(albedo);
     scene.meshes.push_back(m);
     scene.point_lights.push_back({Eigen::Vector3d(0.5, 0.5, 1.5), Eigen::Vector3f::Constant(5.0f)});
-    return inverse::PathTracer(scene).Render(view, options, 7);
+    return render::PathTracer(scene).Render(view, options, 7);
   };
-  inverse::SurfaceAlbedo field, baked;
-  field.kind = baked.kind = inverse::SurfaceAlbedo::Kind::kField;
+  render::SurfaceAlbedo field, baked;
+  field.kind = baked.kind = render::SurfaceAlbedo::Kind::kField;
   field.field = std::make_shared<LookupField>(colors, false);
   baked.field = std::make_shared<LookupField>(colors, true);
-  const inverse::RenderOutput white = render(inverse::SurfaceAlbedo::Constant(Eigen::Vector3f::Ones()));
-  const inverse::RenderOutput sharp = render(field), smeared = render(baked);
+  const render::RenderOutput white = render(render::SurfaceAlbedo::Constant(Eigen::Vector3f::Ones()));
+  const render::RenderOutput sharp = render(field), smeared = render(baked);
 
   // Mean |difference| over the pattern's pixels, as a fraction of the pattern's contrast (0.8).
   double diff_sharp = 0.0, diff_baked = 0.0;
@@ -263,7 +263,7 @@ TEST(ViewerApp, MeshColorsCheckerboardIsSharpAndMatchesPathTracer) {
 // so a wrong sample or weight anywhere (the faces' long edges, their shared diagonal, the
 // rounding at vertices) shows. The reference is the path tracer's albedo image (radiance under a
 // point light over the radiance with albedo 1, pixel-centre rays) with MeshColors::Linear.
-class LinearField : public inverse::AlbedoField {
+class LinearField : public render::AlbedoField {
  public:
   explicit LinearField(std::shared_ptr<const MeshColors> colors) : colors_(std::move(colors)) {}
   Eigen::Vector3f Eval(int face, float b1, float b2) const override { return colors_->Linear(face, b1, b2); }
@@ -297,24 +297,24 @@ TEST(ViewerApp, LinearMeshColorsLookupMatchesTheCpuAtEveryResolution) {
     ASSERT_EQ(r.exit_code, 0) << r.output;
     const ImageRgb shot = ReadColorImage(png, CameraResponse());
 
-    inverse::RenderOptions options;
+    render::RenderOptions options;
     options.spp = 1;
     options.filter = "center";
     options.max_depth = 2;
-    auto render = [&](inverse::SurfaceAlbedo albedo) {
-      inverse::Scene scene;
-      inverse::SceneMesh m;
+    auto render = [&](render::SurfaceAlbedo albedo) {
+      render::Scene scene;
+      render::SceneMesh m;
       m.mesh = quad;
       m.albedo = std::move(albedo);
       scene.meshes.push_back(m);
       scene.point_lights.push_back({Eigen::Vector3d(0.5, 0.5, 1.5), Eigen::Vector3f::Constant(5.0f)});
-      return inverse::PathTracer(scene).Render(view, options, 7);
+      return render::PathTracer(scene).Render(view, options, 7);
     };
-    inverse::SurfaceAlbedo field;
-    field.kind = inverse::SurfaceAlbedo::Kind::kField;
+    render::SurfaceAlbedo field;
+    field.kind = render::SurfaceAlbedo::Kind::kField;
     field.field = std::make_shared<LinearField>(colors);
-    const inverse::RenderOutput white = render(inverse::SurfaceAlbedo::Constant(Eigen::Vector3f::Ones()));
-    const inverse::RenderOutput linear = render(field);
+    const render::RenderOutput white = render(render::SurfaceAlbedo::Constant(Eigen::Vector3f::Ones()));
+    const render::RenderOutput linear = render(field);
     double diff = 0.0;
     int n = 0, far = 0;
     for (int v = 0; v < 96; ++v) {

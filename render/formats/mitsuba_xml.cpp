@@ -1,0 +1,830 @@
+// Mitsuba 3 XML import (the subset in mitsuba_xml.h; the export is in mitsuba_xml_export.cpp).
+// Import runs in two passes, as Mitsuba's parser does: (1) load the documents in order,
+// substituting $parameters element by element and splicing in <include>d files, and register
+// every `id`; (2) interpret the top-level objects in document order, resolving <ref>s by id (so
+// forward references work).
+#include "render/formats/mitsuba_xml.h"
+
+#include <tinyxml2.h>
+
+#include <Eigen/SVD>
+#include <charconv>
+#include <cmath>
+#include <functional>
+#include <map>
+#include <memory>
+#include <set>
+
+#include "core/check.h"
+#include "core/file_util.h"
+#include "core/ply_io.h"
+#include "render/formats/mesh_sources.h"
+#include "render/formats/mitsuba_xml_internal.h"
+
+namespace genscene::render {
+
+namespace {
+
+namespace fs = std::filesystem;
+using Eigen::Matrix3d;
+using Eigen::Matrix4d;
+using Eigen::Vector3d;
+using Eigen::Vector3f;
+using mitsuba_detail::Affine;
+using mitsuba_detail::Degrees;
+using mitsuba_detail::Radians;
+using tinyxml2::XMLDocument;
+using tinyxml2::XMLElement;
+
+// ------------------------------------------------------------------------------------------------
+// Element helpers: where an element is, attribute checks, numbers.
+
+// "file:line: <shape type="ply" id="floor">" (each document carries its path as user data).
+std::string Where(const XMLElement* el) {
+  const auto* file = static_cast<const fs::path*>(el->GetDocument()->GetUserData());
+  std::string text = Format(file ? file->string() : "?", ":", el->GetLineNum(), ": <", el->Name());
+  for (const char* a : {"type", "name", "id"}) {
+    if (const char* v = el->Attribute(a)) text += Format(" ", a, "=\"", v, "\"");
+  }
+  return text + ">";
+}
+
+[[noreturn]] void Fail(const XMLElement* el, const std::string& what) {
+  throw Error(Where(el) + ": " + what);
+}
+
+void CheckAttributes(const XMLElement* el, std::initializer_list<const char*> allowed) {
+  for (const tinyxml2::XMLAttribute* a = el->FirstAttribute(); a; a = a->Next()) {
+    bool ok = false;
+    for (const char* name : allowed) ok = ok || std::string(name) == a->Name();
+    if (!ok) Fail(el, Format("unexpected attribute '", a->Name(), "'"));
+  }
+}
+
+std::string RequiredAttribute(const XMLElement* el, const char* name) {
+  const char* v = el->Attribute(name);
+  if (!v) Fail(el, Format("missing attribute '", name, "'"));
+  return v;
+}
+
+// Lists split on commas and spaces only (§1); empty tokens are dropped.
+std::vector<std::string> Tokens(const std::string& text) {
+  std::vector<std::string> out;
+  std::string token;
+  for (char c : text + " ") {
+    if (c == ',' || c == ' ') {
+      if (!token.empty()) out.push_back(token);
+      token.clear();
+    } else {
+      token += c;
+    }
+  }
+  return out;
+}
+
+double Number(const std::string& token, const XMLElement* el) {
+  double value = 0.0;
+  const char* end = token.data() + token.size();
+  const auto [ptr, ec] = std::from_chars(token.data(), end, value);
+  if (ec != std::errc() || ptr != end) Fail(el, Format("'", token, "' is not a number"));
+  if (!std::isfinite(value)) Fail(el, Format("'", token, "' is not a finite number"));
+  return value;
+}
+
+std::vector<double> Numbers(const std::string& text, const XMLElement* el) {
+  std::vector<double> out;
+  for (const std::string& t : Tokens(text)) out.push_back(Number(t, el));
+  return out;
+}
+
+// x/y/z attributes, or `value` with one (replicated) or three numbers (§1).
+Vector3d Xyz(const XMLElement* el, std::optional<double> fallback) {
+  if (const char* value = el->Attribute("value")) {
+    if (el->Attribute("x") || el->Attribute("y") || el->Attribute("z")) {
+      Fail(el, "'value' cannot be combined with x/y/z");
+    }
+    const std::vector<double> v = Numbers(value, el);
+    if (v.size() == 1) return Vector3d::Constant(v[0]);
+    if (v.size() == 3) return Vector3d(v[0], v[1], v[2]);
+    Fail(el, Format("'value' needs 1 or 3 numbers, got ", v.size()));
+  }
+  Vector3d out;
+  for (int i = 0; i < 3; ++i) {
+    const char* name = i == 0 ? "x" : i == 1 ? "y" : "z";
+    const char* v = el->Attribute(name);
+    if (!v && !fallback) Fail(el, Format("missing attribute '", name, "'"));
+    out[i] = v ? Number(v, el) : *fallback;
+  }
+  return out;
+}
+
+Vector3d VectorAttribute(const XMLElement* el, const char* name) {
+  const std::vector<double> v = Numbers(RequiredAttribute(el, name), el);
+  if (v.size() != 3) Fail(el, Format("'", name, "' needs 3 numbers, got ", v.size()));
+  return Vector3d(v[0], v[1], v[2]);
+}
+
+bool IsObjectTag(const std::string& tag) {
+  static const std::set<std::string> tags = {"shape",   "bsdf",    "emitter", "sensor",
+                                             "film",    "rfilter", "sampler", "integrator",
+                                             "texture", "medium",  "phase",   "volume"};
+  return tags.count(tag) > 0;
+}
+bool IsPropertyTag(const std::string& tag) {
+  static const std::set<std::string> tags = {"float",  "integer", "boolean",  "string",   "point",
+                                             "vector", "rgb",     "spectrum", "transform"};
+  return tags.count(tag) > 0;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Transforms (§4): each element left-multiplies the transform built so far.
+
+// Mitsuba's lookat: columns [left, new_up, dir, origin] (§4). A missing or zero `up` becomes the
+// first vector of the orthonormal basis of Duff et al. (2017) around the viewing direction.
+Matrix4d LookAt(const XMLElement* el) {
+  CheckAttributes(el, {"origin", "target", "up"});
+  const Vector3d origin = VectorAttribute(el, "origin"), target = VectorAttribute(el, "target");
+  Vector3d up = el->Attribute("up") ? VectorAttribute(el, "up") : Vector3d::Zero();
+  const Vector3d dir = (target - origin).normalized();
+  if (up.isZero(0.0)) {
+    const double sign = std::copysign(1.0, dir.z()), a = -1.0 / (sign + dir.z());
+    up =
+        Vector3d(1.0 + sign * dir.x() * dir.x() * a, sign * dir.x() * dir.y() * a, -sign * dir.x());
+  }
+  const Vector3d left = up.cross(dir).normalized();
+  Matrix3d r;
+  r << left, dir.cross(left), dir;
+  if (!r.allFinite() || !origin.allFinite() || (target - origin).norm() == 0.0 ||
+      up.cross(dir).norm() == 0.0) {
+    Fail(el,
+         "invalid lookat transformation (origin == target, or up parallel to the view direction)");
+  }
+  return Affine(r, origin);
+}
+
+Matrix4d ParseTransform(const XMLElement* el) {
+  CheckAttributes(el, {"name"});
+  Matrix4d m = Matrix4d::Identity();
+  for (const XMLElement* c = el->FirstChildElement(); c; c = c->NextSiblingElement()) {
+    const std::string tag = c->Name();
+    if (tag == "translate") {
+      CheckAttributes(c, {"value", "x", "y", "z"});
+      m = Affine(Matrix3d::Identity(), Xyz(c, 0.0)) * m;
+    } else if (tag == "scale") {
+      CheckAttributes(c, {"value", "x", "y", "z"});
+      m = Affine(Xyz(c, 1.0).asDiagonal(), Vector3d::Zero()) * m;
+    } else if (tag == "rotate") {
+      CheckAttributes(c, {"value", "x", "y", "z", "angle"});
+      const Vector3d axis = Xyz(c, 0.0);
+      const double angle = Radians(Number(RequiredAttribute(c, "angle"), c));
+      if (axis.isZero(0.0)) Fail(c, "rotation axis cannot be zero");
+      // Mitsuba applies Rodrigues' formula to the axis as given (§4): only a unit axis rotates.
+      if (std::abs(axis.norm() - 1.0) > 1e-6) {
+        Fail(c, Format("rotation axis (", axis.transpose(), ") has length ", axis.norm(),
+                       "; Mitsuba does not normalise it, so give a unit axis"));
+      }
+      m = Affine(Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix(), Vector3d::Zero()) *
+          m;
+    } else if (tag == "matrix") {
+      CheckAttributes(c, {"value"});
+      const std::vector<double> v = Numbers(RequiredAttribute(c, "value"), c);
+      if (v.size() != 16 && v.size() != 9)
+        Fail(c, Format("matrix needs 9 or 16 values, got ", v.size()));
+      const int n = v.size() == 16 ? 4 : 3;
+      Matrix4d t = Matrix4d::Identity();
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) t(i, j) = v[static_cast<size_t>(i * n + j)];  // row-major
+      if (t.row(3) != Eigen::RowVector4d(0, 0, 0, 1))
+        Fail(c, "projective matrices are not supported");
+      m = t * m;
+    } else if (tag == "lookat") {
+      m = LookAt(c) * m;
+    } else {
+      Fail(c, "unexpected element inside <transform>");
+    }
+  }
+  return m;
+}
+
+// ------------------------------------------------------------------------------------------------
+// The properties of one object element. Every getter marks its property as used; Finish() fails
+// on properties nobody read, as Mitsuba HEAD does (§1).
+
+class Props {
+ public:
+  Props(XMLElement* object, const std::function<XMLElement*(XMLElement*)>& resolve_ref)
+      : object_(object) {
+    for (XMLElement* c = object->FirstChildElement(); c; c = c->NextSiblingElement()) {
+      const std::string tag = c->Name();
+      if (tag == "ref") {
+        CheckAttributes(c, {"id", "name"});
+        children_.push_back(resolve_ref(c));
+      } else if (IsObjectTag(tag)) {
+        children_.push_back(c);
+      } else if (IsPropertyTag(tag)) {
+        const std::string name = RequiredAttribute(c, "name");
+        if (!props_.emplace(name, Entry{c, false}).second) Fail(c, "duplicate property");
+      } else {
+        Fail(c, Format("unexpected element inside <", object->Name(), ">"));
+      }
+    }
+  }
+
+  std::optional<double> Float(const std::string& name) {
+    const XMLElement* el = Take(name, {"float", "integer"});
+    if (!el) return std::nullopt;
+    CheckAttributes(el, {"name", "value"});
+    const std::vector<double> v = Numbers(RequiredAttribute(el, "value"), el);
+    if (v.size() != 1) Fail(el, "needs one number");
+    return v[0];
+  }
+  std::optional<long long> Integer(const std::string& name) {
+    const XMLElement* el = Take(name, {"integer"});
+    if (!el) return std::nullopt;
+    CheckAttributes(el, {"name", "value"});
+    const std::vector<std::string> t = Tokens(RequiredAttribute(el, "value"));
+    long long value = 0;
+    const char* end = t.size() == 1 ? t[0].data() + t[0].size() : nullptr;
+    if (t.size() != 1 || std::from_chars(t[0].data(), end, value).ptr != end) {
+      Fail(el, "value is not an integer");
+    }
+    return value;
+  }
+  std::optional<bool> Boolean(const std::string& name) {
+    const XMLElement* el = Take(name, {"boolean"});
+    if (!el) return std::nullopt;
+    CheckAttributes(el, {"name", "value"});
+    std::string v = RequiredAttribute(el, "value");
+    for (char& ch : v) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (v != "true" && v != "false") Fail(el, "value must be \"true\" or \"false\"");
+    return v == "true";
+  }
+  std::optional<std::string> String(const std::string& name) {
+    const XMLElement* el = Take(name, {"string"});
+    if (!el) return std::nullopt;
+    CheckAttributes(el, {"name", "value"});
+    return RequiredAttribute(el, "value");
+  }
+  std::optional<Vector3d> Point(const std::string& name) {
+    const XMLElement* el = Take(name, {"point", "vector"});
+    if (!el) return std::nullopt;
+    CheckAttributes(el, {"name", "value", "x", "y", "z"});
+    return Xyz(el, std::nullopt);
+  }
+  // rgb (1 or 3 values), a float, or a spectrum with a single value (a constant).
+  std::optional<Vector3d> Color(const std::string& name) {
+    const XMLElement* el = Take(name, {"rgb", "spectrum", "float"});
+    if (!el) return std::nullopt;
+    CheckAttributes(el, {"name", "value"});
+    const std::string value = RequiredAttribute(el, "value");
+    if (std::string(el->Name()) == "spectrum" && value.find(':') != std::string::npos) {
+      Fail(el, "spectra with wavelength:value pairs are not in the subset (use <rgb>)");
+    }
+    const std::vector<double> v = Numbers(value, el);
+    if (v.size() == 1) return Vector3d::Constant(v[0]);
+    if (v.size() == 3 && std::string(el->Name()) == "rgb") return Vector3d(v[0], v[1], v[2]);
+    Fail(el, Format("needs ", std::string(el->Name()) == "rgb" ? "1 or 3 values" : "1 value",
+                    ", got ", v.size()));
+  }
+  std::optional<Matrix4d> Transform(const std::string& name) {
+    const XMLElement* el = Take(name, {"transform"});
+    if (!el) return std::nullopt;
+    return ParseTransform(el);
+  }
+  const std::vector<XMLElement*>& children() const { return children_; }
+
+  void Finish() const {
+    for (const auto& [name, entry] : props_) {
+      if (!entry.used) {
+        Fail(entry.el, Format("property '", name, "' is not supported by <", object_->Name(),
+                              " type=\"", object_->Attribute("type"), "\"> in the subset"));
+      }
+    }
+  }
+
+ private:
+  struct Entry {
+    XMLElement* el;
+    bool used;
+  };
+  const XMLElement* Take(const std::string& name, std::initializer_list<const char*> tags) {
+    auto it = props_.find(name);
+    if (it == props_.end()) return nullptr;
+    it->second.used = true;
+    for (const char* t : tags) {
+      if (std::string(t) == it->second.el->Name()) return it->second.el;
+    }
+    Fail(it->second.el, Format("property '", name, "' has the wrong type"));
+  }
+
+  XMLElement* object_;
+  std::map<std::string, Entry> props_;
+  std::vector<XMLElement*> children_;
+};
+
+std::string Type(const XMLElement* el) {
+  return el->Attribute("type") ? el->Attribute("type") : "";
+}
+
+// A perspective sensor's horizontal field of view in degrees from fov / fov_axis, or from
+// focal_length (default 50 mm, a diagonal fov of the 36 x 24 mm frame), as Mitsuba does (§5).
+double HorizontalFov(const XMLElement* el, Props* p, double aspect) {
+  const std::optional<double> fov = p->Float("fov");
+  const std::optional<std::string> focal = p->String("focal_length");
+  const std::optional<std::string> fov_axis = p->String("fov_axis");
+  if (fov && focal) Fail(el, "give only one of 'fov' and 'focal_length'");
+  if (!fov && fov_axis) Fail(el, "'fov_axis' needs 'fov'");
+  double given = 0.0;
+  std::string axis = "diagonal";
+  if (fov) {
+    given = *fov;
+    axis = fov_axis.value_or("x");
+    for (char& ch : axis) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (axis == "smaller") axis = aspect > 1 ? "y" : "x";
+    if (axis == "larger") axis = aspect > 1 ? "x" : "y";
+  } else {
+    std::string f = focal.value_or("50mm");
+    if (f.size() > 2 && f.substr(f.size() - 2) == "mm") f.resize(f.size() - 2);
+    given = Degrees(2.0 * std::atan(std::sqrt(36.0 * 36.0 + 24.0 * 24.0) / (2.0 * Number(f, el))));
+  }
+  double x_fov = 0.0;
+  if (axis == "x") {
+    x_fov = given;
+  } else if (axis == "y") {
+    x_fov = Degrees(2.0 * std::atan(std::tan(0.5 * Radians(given)) * aspect));
+  } else if (axis == "diagonal") {
+    const double width =
+        2.0 * std::tan(0.5 * Radians(given)) / std::sqrt(1.0 + 1.0 / (aspect * aspect));
+    x_fov = Degrees(2.0 * std::atan(0.5 * width));
+  } else {
+    Fail(el, Format("fov_axis '", axis, "' is not one of x, y, diagonal, smaller, larger"));
+  }
+  if (!(x_fov > 0.0 && x_fov < 180.0))
+    Fail(el, Format("horizontal fov ", x_fov, " is not in (0, 180) degrees"));
+  return x_fov;
+}
+
+// Mitsuba refuses scale in a camera's to_world; we also refuse shear and mirrors, and snap the
+// rotation to the nearest orthonormal matrix (files print matrices with a few digits).
+Matrix4d RigidCameraToWorld(const XMLElement* el, Matrix4d to_world) {
+  const Matrix3d r = to_world.topLeftCorner<3, 3>();
+  if (!(r.transpose() * r).isIdentity(1e-3) || r.determinant() < 0.0) {
+    Fail(el,
+         "the camera's to_world must be a rotation and translation (no scale, shear or mirror)");
+  }
+  const Eigen::JacobiSVD<Matrix3d> svd(r, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  to_world.topLeftCorner<3, 3>() = svd.matrixU() * svd.matrixV().transpose();
+  return to_world;
+}
+
+// ------------------------------------------------------------------------------------------------
+// The importer.
+
+class Importer {
+ public:
+  Importer(const fs::path& path, const MitsubaImportOptions& options)
+      : main_file_(path), options_(options) {
+    for (const auto& [name, value] : options.parameters) params_[name] = value;
+    if (options.sphere_subdivision_level < 0 || options.sphere_subdivision_level > 8) {
+      throw Error(Format("sphere_subdivision_level ", options.sphere_subdivision_level,
+                         " is not in [0, 8]"));
+    }
+  }
+
+  LoadedScene Run() {
+    search_.push_back(main_file_.parent_path());
+    LoadFile(main_file_, nullptr, 0);
+    for (XMLElement* el : top_) Interpret(el);
+    for (XMLElement* el : top_) {
+      if (std::string(el->Name()) == "emitter" && Type(el) == "area" && !referenced_.count(el)) {
+        out_.warnings.push_back(Where(el) +
+                                ": area emitter not attached to any shape; ignored, as "
+                                "Mitsuba ignores it");
+      }
+    }
+    if (!out_.settings.integrator) {  // Mitsuba's default integrator
+      out_.settings.integrator = "path";
+      out_.settings.max_depth = -1;
+    }
+    out_.scene.Validate();
+    return std::move(out_);
+  }
+
+ private:
+  // Pass 1 --------------------------------------------------------------------------------------
+
+  void LoadFile(const fs::path& file, const XMLElement* include, int depth) {
+    if (depth > 16) Fail(include, "includes nested more than 16 deep (a cycle?)");
+    auto doc = std::make_unique<XMLDocument>();
+    files_.push_back(std::make_unique<fs::path>(file));
+    doc->SetUserData(files_.back().get());
+    if (!fs::is_regular_file(file)) {
+      const std::string what = Format(file.string(), ": file not found");
+      if (include) Fail(include, what);
+      throw Error(what);
+    }
+    const std::string text = ReadTextFile(file);
+    if (doc->Parse(text.data(), text.size()) != tinyxml2::XML_SUCCESS) {
+      throw Error(Format(file.string(), ":", doc->ErrorLineNum(), ": malformed XML (",
+                         doc->ErrorName(), ")"));
+    }
+    XMLElement* root = doc->RootElement();
+    if (!root) throw Error(Format(file.string(), ": no root element"));
+    if (std::string(root->Name()) != "scene") Fail(root, "the root element must be <scene>");
+    CheckAttributes(root, {"version"});
+    const std::vector<std::string> version = Tokens(RequiredAttribute(root, "version"));
+    if (version.size() != 1 || Number(version[0].substr(0, version[0].find('.')), root) < 2.0) {
+      Fail(root, "version must be 2.x or 3.x (older files use names outside the subset)");
+    }
+    XMLDocument* raw = doc.get();
+    docs_.push_back(std::move(doc));
+    Walk(raw->RootElement(), file, depth);
+  }
+
+  void Walk(XMLElement* scene, const fs::path& file, int depth) {
+    for (XMLElement* el = scene->FirstChildElement(); el; el = el->NextSiblingElement()) {
+      SubstituteTree(el);
+      const std::string tag = el->Name();
+      if (tag == "default") {
+        CheckAttributes(el, {"name", "value"});
+        params_.emplace(RequiredAttribute(el, "name"),
+                        RequiredAttribute(el, "value"));  // first wins
+      } else if (tag == "include") {
+        CheckAttributes(el, {"filename"});
+        const std::string name = RequiredAttribute(el, "filename");
+        LoadFile(Resolve(name, file.parent_path()), el, depth + 1);
+      } else if (tag == "path") {
+        CheckAttributes(el, {"value"});
+        const fs::path p(RequiredAttribute(el, "value"));
+        search_.push_back(p.is_absolute() ? p : file.parent_path() / p);
+      } else if (IsObjectTag(tag)) {
+        RegisterIds(el);
+        top_.push_back(el);
+      } else {
+        Fail(el, "unexpected element at the top level of <scene>");
+      }
+    }
+  }
+
+  // $name substitution in every attribute (§2): longest defined name first, "\$" escapes.
+  void SubstituteTree(XMLElement* el) {
+    for (const tinyxml2::XMLAttribute* a = el->FirstAttribute(); a; a = a->Next()) {
+      const std::string value = a->Value();
+      if (value.find('$') == std::string::npos) continue;
+      std::string out;
+      for (size_t i = 0; i < value.size(); ++i) {
+        if (value[i] == '\\' && i + 1 < value.size() && value[i + 1] == '$') {
+          out += '$';
+          ++i;
+        } else if (value[i] == '$') {
+          const std::string* best = nullptr;
+          for (const auto& [name, v] : params_) {
+            if (value.compare(i + 1, name.size(), name) == 0 &&
+                (!best || name.size() > best->size()))
+              best = &name;
+          }
+          if (!best) {
+            size_t j = i + 1;
+            while (j < value.size() &&
+                   (std::isalnum(static_cast<unsigned char>(value[j])) || value[j] == '_'))
+              ++j;
+            Fail(el, Format("undefined parameter: $", value.substr(i + 1, j - i - 1)));
+          }
+          out += params_.at(*best);
+          i += best->size();
+        } else {
+          out += value[i];
+        }
+      }
+      el->SetAttribute(a->Name(), out.c_str());
+    }
+    for (XMLElement* c = el->FirstChildElement(); c; c = c->NextSiblingElement()) SubstituteTree(c);
+  }
+
+  void RegisterIds(XMLElement* el) {
+    if (IsObjectTag(el->Name()) && el->Attribute("id")) {
+      if (!ids_.emplace(el->Attribute("id"), el).second) Fail(el, "duplicate id");
+    }
+    for (XMLElement* c = el->FirstChildElement(); c; c = c->NextSiblingElement()) RegisterIds(c);
+  }
+
+  // A relative file name: first against `first` (when given), then the search folders.
+  fs::path Resolve(const std::string& name, const fs::path& first) const {
+    const fs::path p(name);
+    if (p.is_absolute()) return p;
+    if (!first.empty() && fs::exists(first / p)) return first / p;
+    for (const fs::path& folder : search_) {
+      if (fs::exists(folder / p)) return folder / p;
+    }
+    return (first.empty() ? search_.front() : first) / p;  // not found: the reader says so
+  }
+
+  XMLElement* ResolveRef(XMLElement* ref) {
+    const std::string id = RequiredAttribute(ref, "id");
+    auto it = ids_.find(id);
+    if (it == ids_.end()) Fail(ref, Format("unresolved reference to '", id, "'"));
+    referenced_.insert(it->second);
+    return it->second;
+  }
+
+  Props PropsOf(XMLElement* el) {
+    CheckAttributes(el, {"type", "id", "name"});
+    return Props(el, [this](XMLElement* ref) { return ResolveRef(ref); });
+  }
+
+  // Pass 2 --------------------------------------------------------------------------------------
+
+  void Interpret(XMLElement* el) {
+    const std::string tag = el->Name(), type = Type(el);
+    if (tag == "shape") {
+      ParseShape(el);
+    } else if (tag == "emitter" && type == "point") {
+      ParsePointEmitter(el);
+    } else if (tag == "emitter" && type == "area") {
+      ParseAreaEmitter(el);  // validated here; it enters the scene only through a shape (§3)
+    } else if (tag == "bsdf") {
+      ParseBsdf(el);
+    } else if (tag == "sensor") {
+      ParseSensor(el);
+    } else if (tag == "integrator") {
+      ParseIntegrator(el);
+    } else if (tag == "emitter") {
+      Fail(el, Format("emitter type '", type, "' is not in the subset (area, point)"));
+    } else {
+      Fail(el, "this object is not in the subset at the top level");
+    }
+  }
+
+  Vector3f ParseBsdf(XMLElement* el) {
+    if (auto it = bsdfs_.find(el); it != bsdfs_.end()) return it->second;
+    if (Type(el) != "diffuse")
+      Fail(el, Format("bsdf type '", Type(el), "' is not in the subset (diffuse)"));
+    Props p = PropsOf(el);
+    const Vector3d albedo = p.Color("reflectance").value_or(Vector3d::Constant(0.5));
+    if (!p.children().empty()) Fail(p.children()[0], "textures are not in the subset");
+    p.Finish();
+    if (albedo.minCoeff() < 0.0 || albedo.maxCoeff() > 1.0) {
+      Fail(el, Format("reflectance (", albedo.transpose(), ") is not in [0, 1]"));
+    }
+    return bsdfs_[el] = albedo.cast<float>();
+  }
+
+  Vector3f ParseAreaEmitter(XMLElement* el) {
+    Props p = PropsOf(el);
+    const Vector3d radiance = p.Color("radiance").value_or(Vector3d::Ones());
+    if (!p.children().empty()) Fail(p.children()[0], "textures are not in the subset");
+    p.Finish();
+    if (radiance.minCoeff() < 0.0)
+      Fail(el, Format("radiance (", radiance.transpose(), ") is negative"));
+    return radiance.cast<float>();
+  }
+
+  void ParsePointEmitter(XMLElement* el) {
+    Props p = PropsOf(el);
+    const std::optional<Vector3d> position = p.Point("position");
+    const std::optional<Matrix4d> to_world = p.Transform("to_world");
+    const Vector3d intensity = p.Color("intensity").value_or(Vector3d::Ones());
+    if (!p.children().empty()) Fail(p.children()[0], "textures are not in the subset");
+    p.Finish();
+    if (position && to_world) Fail(el, "give only one of 'position' and 'to_world'");
+    if (intensity.minCoeff() < 0.0)
+      Fail(el, Format("intensity (", intensity.transpose(), ") is negative"));
+    PointLight light;
+    light.position = position   ? *position
+                     : to_world ? Vector3d(to_world->topRightCorner<3, 1>())
+                                : Vector3d::Zero();
+    light.intensity = intensity.cast<float>();
+    out_.scene.point_lights.push_back(light);
+  }
+
+  void ParseShape(XMLElement* el) {
+    Props p = PropsOf(el);
+    SceneMesh m = ShapeGeometry(el, &p);
+    // At most one BSDF and one emitter, nested or by reference (§3); default BSDF otherwise.
+    const XMLElement* bsdf = nullptr;
+    const XMLElement* emitter = nullptr;
+    for (XMLElement* c : p.children()) {
+      const std::string tag = c->Name();
+      if (tag != "bsdf" && tag != "emitter") Fail(c, "not allowed inside a shape in the subset");
+      const XMLElement*& slot = tag == "bsdf" ? bsdf : emitter;
+      if (slot) Fail(c, Format("a shape takes only one ", tag));
+      slot = c;
+      if (tag == "bsdf") m.albedo = SurfaceAlbedo::Constant(ParseBsdf(c));
+      if (tag == "emitter" && Type(c) != "area")
+        Fail(c, "only area emitters can be attached to shapes");
+      if (tag == "emitter") m.emission = ParseAreaEmitter(c);
+      referenced_.insert(c);
+    }
+    if (!bsdf) m.albedo = SurfaceAlbedo::Constant(Vector3f::Constant(emitter ? 0.0f : 0.5f));
+    p.Finish();
+    CheckMesh(el, m.mesh);
+    out_.scene.meshes.push_back(std::move(m));
+  }
+
+  // The shape's triangles in the world frame, with Mitsuba's shading normals (§7).
+  SceneMesh ShapeGeometry(XMLElement* el, Props* p) {
+    const std::string type = Type(el);
+    const Matrix4d to_world = p->Transform("to_world").value_or(Matrix4d::Identity());
+    SceneMesh m;
+    m.name = el->Attribute("id") ? el->Attribute("id") : type;
+    try {
+      if (type == "obj" || type == "ply") {
+        const std::optional<std::string> filename = p->String("filename");
+        if (!filename) Fail(el, "missing property 'filename'");
+        const bool face_normals = p->Boolean("face_normals").value_or(false);
+        if (type == "obj") p->Boolean("flip_tex_coords");  // texture coordinates: no effect here
+        const fs::path file = Resolve(*filename, fs::path());
+        if (!el->Attribute("id")) m.name = file.stem().string();
+        m.mesh = type == "obj" ? ReadObj(file) : ReadPly(file);
+        m.mesh.vertex_colors.clear();  // Mitsuba's diffuse uses its reflectance, not mesh colours
+        m.mesh.face_colors.clear();
+        TransformMesh(to_world, &m.mesh);
+        if (face_normals) m.mesh.normals.clear();
+        if (!face_normals && m.mesh.normals.empty()) m.mesh.normals = AngleWeightedNormals(m.mesh);
+        m.smooth_shading = !face_normals;
+      } else if (type == "rectangle" || type == "cube") {
+        p->Boolean("face_normals");  // flat either way
+        m.mesh = type == "rectangle" ? RectangleMesh() : CubeMesh();
+        TransformMesh(to_world, &m.mesh);
+      } else if (type == "sphere") {
+        const Vector3d center = p->Point("center").value_or(Vector3d::Zero());
+        const double radius = p->Float("radius").value_or(1.0);
+        m.mesh = SphereMesh(to_world * Affine(radius * Matrix3d::Identity(), center),
+                            options_.sphere_subdivision_level);
+        m.smooth_shading = true;
+      } else {
+        Fail(el, Format("shape type '", type,
+                        "' is not in the subset (obj, ply, rectangle, cube, sphere)"));
+      }
+      m.mesh.Validate(m.name);
+    } catch (const Error& e) {
+      const std::string what = e.what();
+      if (what.rfind(Where(el), 0) == 0) throw;  // already names the element
+      Fail(el, what);
+    }
+    return m;
+  }
+
+  // Warnings for what renders differently from what the file seems to say (never fatal).
+  void CheckMesh(const XMLElement* el, const TriangleMesh& mesh) {
+    // Mitsuba's front side follows the shading normal (§8), ours the winding: they must agree.
+    int against = 0;
+    for (size_t f = 0; f < mesh.faces.size() && !mesh.normals.empty(); ++f) {
+      int below = 0;
+      for (int k = 0; k < 3; ++k)
+        below += mesh.normals[mesh.faces[f][k]].dot(mesh.FaceNormalScaled(f)) < 0.0f;
+      against += below == 3 ? 1 : 0;
+    }
+    if (against > 0) {
+      out_.warnings.push_back(
+          Format(Where(el), ": ", against,
+                 " triangles have vertex normals opposite "
+                 "their winding; Mitsuba's front follows the normals, ours the winding"));
+    }
+    const int degenerate = CountDegenerateFaces(mesh);
+    if (degenerate > 0) {
+      out_.warnings.push_back(Format(Where(el), ": ", degenerate, " of ", mesh.faces.size(),
+                                     " triangles have zero area (kept; they are never hit)"));
+    }
+  }
+
+  void ParseSensor(XMLElement* el) {
+    if (Type(el) != "perspective")
+      Fail(el, Format("sensor type '", Type(el), "' is not in the subset (perspective)"));
+    Props p = PropsOf(el);
+    int width = 768, height = 576;  // Mitsuba's defaults: hdrfilm, Gaussian filter, 4 spp (§6)
+    RenderSettings s;
+    s.samples_per_pixel = 4;
+    s.pixel_filter = PixelFilter{PixelFilter::Kind::kGaussian, 0.5};
+    for (XMLElement* c : p.children()) {
+      const std::string tag = c->Name();
+      if (tag != "film" && tag != "sampler") Fail(c, "not allowed inside a sensor in the subset");
+      if (tag == "film") ParseFilm(c, &width, &height, &s);
+      if (tag == "sampler") s.samples_per_pixel = ParseSampler(c);
+    }
+    const double x_fov = HorizontalFov(el, &p, static_cast<double>(width) / height);
+    const double ppo_x = p.Float("principal_point_offset_x").value_or(0.0);
+    const double ppo_y = p.Float("principal_point_offset_y").value_or(0.0);
+    s.near_clip = p.Float("near_clip").value_or(0.01);
+    s.far_clip = p.Float("far_clip").value_or(10000.0);
+    p.Float("focus_distance");  // read by Mitsuba's projective base; no effect on a pinhole
+    const Matrix4d to_world =
+        RigidCameraToWorld(el, p.Transform("to_world").value_or(Matrix4d::Identity()));
+    p.Finish();
+    // Mitsuba camera (x left, y up, pixel i covers [i, i+1)) -> OpenCV camera (x right, y down,
+    // pixel centres at integers): the formulas in mitsuba_xml.h.
+    View view;
+    const double t = std::tan(0.5 * Radians(x_fov));
+    view.intrinsics.width = width;
+    view.intrinsics.height = height;
+    view.intrinsics.fx = view.intrinsics.fy = width / (2.0 * t);
+    view.intrinsics.cx = 0.5 * (width - 1) - ppo_x * width;
+    view.intrinsics.cy = 0.5 * (height - 1) - ppo_y * height;
+    view.world_from_camera.matrix() = to_world * Eigen::Vector4d(-1, -1, 1, 1).asDiagonal();
+    view.timestamp = static_cast<double>(out_.views.size());
+    view.intrinsics.Validate(Where(el));
+    out_.views.push_back(view);
+    RecordSensorSettings(el, s);
+  }
+
+  int ParseSampler(XMLElement* el) {
+    // The unbiased samplers differ in noise only, not in the image they converge to.
+    static const std::set<std::string> unbiased = {"independent", "stratified", "multijitter",
+                                                   "orthogonal", "ldsampler"};
+    if (!unbiased.count(Type(el)))
+      Fail(el, Format("sampler type '", Type(el), "' is not in the subset"));
+    Props p = PropsOf(el);
+    const long long spp = p.Integer("sample_count").value_or(4);
+    p.Integer("seed");
+    p.Finish();
+    if (spp < 1 || spp > (1 << 20)) Fail(el, Format("sample_count ", spp, " is not in [1, 1048576]"));
+    return static_cast<int>(spp);
+  }
+
+  void ParseFilm(XMLElement* el, int* width, int* height, RenderSettings* s) {
+    if (Type(el) != "hdrfilm") Fail(el, "film type not in the subset (hdrfilm)");
+    Props p = PropsOf(el);
+    const long long w = p.Integer("width").value_or(768), h = p.Integer("height").value_or(576);
+    if (w < 1 || h < 1 || w > 16384 || h > 16384) Fail(el, Format("film size ", w, "x", h, " is not in [1, 16384]"));
+    *width = static_cast<int>(w);
+    *height = static_cast<int>(h);
+    const std::string format = p.String("pixel_format").value_or("rgb");
+    if (format != "rgb" && format != "rgba")
+      Fail(el, Format("pixel_format '", format, "' is not in the subset (rgb, rgba)"));
+    p.String("component_format");  // storage precision only
+    p.String("file_format");
+    p.Boolean("sample_border");
+    for (XMLElement* c : p.children()) {
+      if (std::string(c->Name()) != "rfilter") Fail(c, "not allowed inside a film");
+      Props fp = PropsOf(c);
+      if (Type(c) == "box") {
+        s->pixel_filter = PixelFilter{PixelFilter::Kind::kBox, 0.5};
+      } else if (Type(c) == "gaussian") {
+        s->pixel_filter =
+            PixelFilter{PixelFilter::Kind::kGaussian, fp.Float("stddev").value_or(0.5)};
+      } else {
+        Fail(c, Format("rfilter type '", Type(c), "' is not in the subset (box, gaussian)"));
+      }
+      fp.Finish();
+    }
+    p.Finish();
+    if (*width < 1 || *height < 1)
+      Fail(el, Format("film size ", *width, "x", *height, " is not positive"));
+  }
+
+  void RecordSensorSettings(const XMLElement* el, const RenderSettings& s) {
+    RenderSettings& o = out_.settings;
+    if (out_.views.size() == 1) {
+      o.samples_per_pixel = s.samples_per_pixel;
+      o.pixel_filter = s.pixel_filter;
+      o.near_clip = s.near_clip;
+      o.far_clip = s.far_clip;
+    } else if (o.samples_per_pixel != s.samples_per_pixel || o.near_clip != s.near_clip ||
+               o.far_clip != s.far_clip || o.pixel_filter->kind != s.pixel_filter->kind ||
+               o.pixel_filter->stddev != s.pixel_filter->stddev) {
+      out_.warnings.push_back(Where(el) +
+                              ": sampler, filter or clipping differ from the first "
+                              "sensor's; the render settings keep the first sensor's");
+    }
+  }
+
+  void ParseIntegrator(XMLElement* el) {
+    if (out_.settings.integrator) Fail(el, "more than one integrator");
+    const std::string type = Type(el);
+    Props p = PropsOf(el);
+    if (type == "path") {
+      const long long depth = p.Integer("max_depth").value_or(-1);
+      if (depth < -1) Fail(el, Format("max_depth ", depth, " must be >= -1"));
+      out_.settings.max_depth = static_cast<int>(depth);
+      p.Integer("rr_depth");  // Russian roulette: noise only
+    } else if (type == "direct") {
+      out_.settings.max_depth = 2;  // emitters seen directly + one bounce (§9)
+      for (const char* n : {"shading_samples", "emitter_samples", "bsdf_samples"}) p.Integer(n);
+    } else {
+      Fail(el, Format("integrator type '", type, "' is not in the subset (path, direct)"));
+    }
+    if (!p.children().empty()) Fail(p.children()[0], "nested integrators are not in the subset");
+    p.Finish();
+    out_.settings.integrator = type;
+  }
+
+  fs::path main_file_;
+  const MitsubaImportOptions& options_;
+  std::map<std::string, std::string> params_;
+  std::vector<fs::path> search_;
+  std::vector<std::unique_ptr<XMLDocument>> docs_;
+  std::vector<std::unique_ptr<fs::path>> files_;
+  std::map<std::string, XMLElement*> ids_;
+  std::vector<XMLElement*> top_;
+  std::set<const XMLElement*> referenced_;
+  std::map<const XMLElement*, Vector3f> bsdfs_;
+  LoadedScene out_;
+};
+
+}  // namespace
+
+LoadedScene ImportMitsubaXml(const fs::path& path, const MitsubaImportOptions& options) {
+  return Importer(path, options).Run();
+}
+
+}  // namespace genscene::render

@@ -1,0 +1,457 @@
+#include "render/path_tracer.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/check.h"
+#include "core/color.h"
+#include "core/options.h"
+#include "core/parallel.h"
+#include "render/light_sampler.h"
+
+namespace genscene::render {
+
+namespace {
+
+// Offset of a ray origin along the geometric normal, scaled with the magnitude of the position
+// so that it stays above float round-off in large scenes (Mitsuba scenes in centimetres).
+float OffsetScale(const Eigen::Vector3f& p) { return 2e-5f * (1.0f + p.cwiseAbs().maxCoeff()); }
+
+// Power heuristic (beta = 2) of Veach's multiple importance sampling.
+float PowerHeuristic(float pdf_a, float pdf_b) {
+  const float a = pdf_a * pdf_a, b = pdf_b * pdf_b;
+  return a + b > 0.0f ? a / (a + b) : 0.0f;
+}
+
+// Cosine-weighted direction around unit n (pdf = cos / pi).
+Eigen::Vector3f SampleCosine(const Eigen::Vector3f& n, float u1, float u2) {
+  const float r = std::sqrt(u1), phi = 2.0f * static_cast<float>(M_PI) * u2;
+  const float x = r * std::cos(phi), y = r * std::sin(phi), z = std::sqrt(std::max(0.0f, 1.0f - u1));
+  // Orthonormal basis (Duff et al. 2017).
+  const float sign = std::copysign(1.0f, n.z());
+  const float a = -1.0f / (sign + n.z()), b = n.x() * n.y() * a;
+  const Eigen::Vector3f t(1.0f + sign * n.x() * n.x() * a, sign * b, -sign * n.x());
+  const Eigen::Vector3f s(b, sign + n.y() * n.y() * a, -n.y());
+  return (x * t + y * s + z * n).normalized();
+}
+
+// Offset from the pixel centre drawn with density proportional to Mitsuba's Gaussian filter
+// w(x) = max(0, exp(-x^2 / (2 s^2)) - exp(-r^2 / (2 s^2))), r = 4 s: a normal sample truncated to
+// [-r, r], accepted with probability w(x) / exp(-x^2 / (2 s^2)). Drawing sample positions from the
+// filter gives each pixel the expected value of Mitsuba's weighted average sum w L / sum w.
+double SampleGaussianFilter(double stddev, CounterRng& rng) {
+  const double radius = 4.0 * stddev;
+  for (;;) {
+    const double x = stddev * rng.Normal();
+    if (std::abs(x) > radius) continue;
+    const double keep = 1.0 - std::exp((x * x - radius * radius) / (2.0 * stddev * stddev));
+    if (rng.UniformDouble() < keep) return x;
+  }
+}
+
+}  // namespace
+
+void RenderOptions::Validate() const {
+  RequireRange("spp", spp, 1, 1 << 20);
+  if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
+  RequireRange("rr_depth", rr_depth, 1, 1 << 20);
+  RequireOneOf("filter", filter, {"box", "center", "gaussian"});
+  RequireRange("filter_stddev", filter_stddev, 0.05, 10.0);
+}
+
+// A surface point as the path tracer uses it.
+struct PathTracer::SurfacePoint {
+  Eigen::Vector3f p;       // position
+  Eigen::Vector3f ng;      // unit geometric normal of the counter-clockwise face (not flipped)
+  Eigen::Vector3f ns;      // unit shading normal, on the same side as ng
+  float t = 0.0f;          // ray distance to it
+  int mesh = -1, face = -1;
+  float b1 = 0.0f, b2 = 0.0f;
+  float area = 0.0f;       // area of the face
+};
+
+// One light sample as seen from a surface point.
+struct PathTracer::LightSample {
+  Eigen::Vector3f wi;      // unit direction from the surface point to the light
+  float distance = 0.0f;   // to the sampled light point
+  Eigen::Vector3f value;   // area lights: emitted radiance; point/voxel lights: intensity / r^2
+  float pdf = 0.0f;        // area lights: solid angle pdf; point/voxel lights: selection probability
+  bool is_delta = false;   // point and voxel lights cannot be hit by BSDF sampling
+};
+
+PathTracer::PathTracer(const Scene& scene) : scene_(scene), tracer_(std::make_unique<RayTracer>()) {
+  scene_.Validate();
+  for (const SceneMesh& m : scene_.meshes) tracer_->AddMesh(m.mesh);
+  tracer_->Commit();
+  lights_ = std::make_unique<LightSampler>(scene_);
+}
+
+PathTracer::~PathTracer() = default;
+
+std::optional<PathTracer::SurfacePoint> PathTracer::Hit(const Eigen::Vector3f& origin,
+                                                        const Eigen::Vector3f& direction) const {
+  const auto hit = tracer_->Intersect(origin, direction);
+  if (!hit) return std::nullopt;
+  const SceneMesh& m = scene_.meshes[hit->mesh];
+  const Eigen::Vector3i& f = m.mesh.faces[hit->face];
+  SurfacePoint s;
+  s.t = hit->t;
+  s.mesh = hit->mesh;
+  s.face = hit->face;
+  s.b1 = hit->b1;
+  s.b2 = hit->b2;
+  const float b0 = 1.0f - hit->b1 - hit->b2;
+  const auto& v = m.mesh.vertices;
+  s.p = b0 * v[f[0]] + hit->b1 * v[f[1]] + hit->b2 * v[f[2]];
+  const Eigen::Vector3f n = m.mesh.FaceNormalScaled(hit->face);
+  s.area = 0.5f * n.norm();
+  // Zero-area triangles have no interior for Embree to hit and no power to sample; should round-off
+  // still report one, it faces the ray.
+  s.ng = s.area > 0.0f ? Eigen::Vector3f(n / (2.0f * s.area)) : Eigen::Vector3f(-direction.normalized());
+  s.ns = s.ng;
+  if (m.smooth_shading) {
+    const auto& vn = m.mesh.normals;
+    const Eigen::Vector3f interpolated = b0 * vn[f[0]] + hit->b1 * vn[f[1]] + hit->b2 * vn[f[2]];
+    if (interpolated.squaredNorm() > 0.0f) s.ns = interpolated.normalized();
+    if (s.ns.dot(s.ng) < 0.0f) s.ns = -s.ns;
+  }
+  return s;
+}
+
+std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoint& at, CounterRng& rng) const {
+  if (lights_->empty()) return std::nullopt;
+  const size_t i = lights_->Choose(rng.UniformDouble());
+  const float pmf = lights_->pmf(i);
+  const LightSampler::Entry& e = lights_->entry(i);
+  const float u1 = rng.Uniform(), u2 = rng.Uniform();
+  LightSample s;
+  switch (e.kind) {
+    case LightSampler::Kind::kTriangle: {
+      const SceneMesh& m = scene_.meshes[e.mesh];
+      const Eigen::Vector3f q = UniformPointOnTriangle(m.mesh, e.index, u1, u2);
+      const Eigen::Vector3f to_light = q - at.p;
+      const float d2 = to_light.squaredNorm();
+      if (d2 <= 0.0f) return std::nullopt;
+      s.distance = std::sqrt(d2);
+      s.wi = to_light / s.distance;
+      // One-sided: the light emits only towards the side its counter-clockwise normal points to.
+      const float cos_light = -m.mesh.FaceNormalScaled(e.index).normalized().dot(s.wi);
+      if (cos_light <= 0.0f) return std::nullopt;
+      s.value = m.emission;
+      s.pdf = pmf * d2 / (e.area * cos_light);
+      return s;
+    }
+    case LightSampler::Kind::kPoint: {
+      const PointLight& light = scene_.point_lights[e.index];
+      const Eigen::Vector3f to_light = light.position.cast<float>() - at.p;
+      const float d2 = to_light.squaredNorm();
+      if (d2 <= 0.0f) return std::nullopt;
+      s.distance = std::sqrt(d2);
+      s.wi = to_light / s.distance;
+      s.value = light.intensity / d2;
+      s.pdf = pmf;
+      s.is_delta = true;
+      return s;
+    }
+    case LightSampler::Kind::kVoxel: {
+      const VoxelLightGrid& grid = *scene_.voxel_lights;
+      const Eigen::Vector3f to_light = grid.VoxelCenter(e.index).cast<float>() - at.p;
+      const float d2 = to_light.squaredNorm();
+      if (d2 <= 0.0f) return std::nullopt;
+      s.distance = std::sqrt(d2);
+      s.wi = to_light / s.distance;
+      s.value = grid.Intensity(e.index, (-s.wi).cast<double>()) / d2;
+      s.pdf = pmf;
+      s.is_delta = true;
+      return s;
+    }
+  }
+  return std::nullopt;
+}
+
+float PathTracer::AreaLightPdf(const SurfacePoint& from, const SurfacePoint& on_light) const {
+  const float pmf = lights_->TrianglePmf(on_light.mesh, on_light.face);
+  if (pmf <= 0.0f) return 0.0f;
+  const Eigen::Vector3f d = on_light.p - from.p;
+  const float d2 = d.squaredNorm();
+  const float cos_light = std::abs(on_light.ng.dot(d)) / std::sqrt(d2);
+  return cos_light > 0.0f ? pmf * d2 / (on_light.area * cos_light) : 0.0f;
+}
+
+Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                                     const RenderOptions& options, CounterRng& rng, RayCounts* counts) const {
+  RayCounts local;
+  Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
+  Eigen::Vector3f beta = Eigen::Vector3f::Ones();  // path throughput
+  Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
+  float bsdf_pdf = 0.0f;                            // solid-angle pdf of the last BSDF sample
+  std::optional<SurfacePoint> previous;
+  const auto allowed = [&](int segments) { return options.max_depth < 0 || segments <= options.max_depth; };
+
+  for (int depth = 1;; ++depth) {  // depth = segments of the path so far, ending at `hit`
+    ++local.intersect;
+    const auto hit = Hit(ray_o, ray_d);
+    if (!hit) break;
+    const SceneMesh& mesh = scene_.meshes[hit->mesh];
+
+    // Emission seen along the ray: emitters are one-sided (front = counter-clockwise side).
+    if (mesh.IsEmitter() && hit->ng.dot(ray_d) < 0.0f) {
+      if (depth == 1) {
+        if (!options.hide_emitters) radiance += mesh.emission;
+      } else {
+        const float weight = PowerHeuristic(bsdf_pdf, AreaLightPdf(*previous, *hit));
+        radiance += beta.cwiseProduct(mesh.emission) * weight;
+      }
+    }
+    if (!allowed(depth + 1)) break;
+    const Eigen::Vector3f albedo = mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2);
+    if (albedo.maxCoeff() <= 0.0f) break;
+
+    // Lambertian surfaces reflect on both sides: orient the normals towards the incoming ray.
+    SurfacePoint at = *hit;
+    if (at.ng.dot(ray_d) > 0.0f) at.ng = -at.ng, at.ns = -at.ns;
+    const Eigen::Vector3f origin_offset = at.p + OffsetScale(at.p) * at.ng;
+
+    // Sample direct illumination from the light sources (next-event estimation).
+    const auto light = SampleLight(at, rng);
+    const float cos_s = light ? at.ns.dot(light->wi) : 0.0f;
+    if (light && cos_s > 0.0f && at.ng.dot(light->wi) > 0.0f) {
+      ++local.occluded;
+      if (!tracer_->Occluded(origin_offset, light->wi, 0.0f, light->distance * (1.0f - 1e-4f))) {
+        const float pdf_bsdf = cos_s / static_cast<float>(M_PI);
+        const float weight = light->is_delta ? 1.0f : PowerHeuristic(light->pdf, pdf_bsdf);
+        const Eigen::Vector3f f = albedo * (cos_s / static_cast<float>(M_PI));
+        radiance += beta.cwiseProduct(f).cwiseProduct(light->value) * (weight / light->pdf);
+      }
+    }
+
+    // Sample the BSDF for the next segment: f cos / pdf = albedo for cosine sampling.
+    const Eigen::Vector3f wi = SampleCosine(at.ns, rng.Uniform(), rng.Uniform());
+    if (at.ng.dot(wi) <= 0.0f) break;  // below the geometric surface (smooth shading): no light
+    bsdf_pdf = at.ns.dot(wi) / static_cast<float>(M_PI);
+    beta = beta.cwiseProduct(albedo);
+
+    // Russian roulette on the throughput.
+    if (depth >= options.rr_depth) {
+      const float q = std::min(0.95f, beta.maxCoeff());
+      if (rng.Uniform() >= q) break;
+      beta /= q;
+    }
+    previous = at;
+    ray_o = origin_offset;
+    ray_d = wi;
+  }
+  if (counts) {
+    counts->intersect += local.intersect;
+    counts->occluded += local.occluded;
+  }
+  return radiance;
+}
+
+void VoxelSplitting::SetPmf(std::vector<double> probabilities, int samples_per_vertex) {
+  GS_CHECK_GT(samples_per_vertex, 0);
+  double total = 0.0;
+  for (double p : probabilities) total += p;
+  GS_CHECK_GT(total, 0.0);
+  pmf = std::move(probabilities);
+  cdf.resize(pmf.size());
+  double running = 0.0;
+  for (size_t i = 0; i < pmf.size(); ++i) {
+    pmf[i] /= total;
+    running += pmf[i];
+    cdf[i] = running;
+  }
+  // From the last voxel that can be drawn on, the running sum is 1: rounding cannot send a draw
+  // past it to a voxel of probability 0.
+  size_t last = pmf.size() - 1;
+  while (last > 0 && pmf[last] <= 0.0) --last;
+  std::fill(cdf.begin() + static_cast<std::ptrdiff_t>(last), cdf.end(), 1.0);
+  samples = samples_per_vertex;
+}
+
+void VoxelSplitting::Prepare(const VoxelLightGrid& grid) {
+  const int voxels = grid.VoxelCount();
+  GS_CHECK(enabled.empty() || static_cast<int>(enabled.size()) == voxels);
+  centres.resize(static_cast<size_t>(voxels));
+  connected.clear();
+  for (int j = 0; j < voxels; ++j) {
+    centres[j] = grid.VoxelCenter(j).cast<float>();
+    if (enabled.empty() || enabled[j]) connected.push_back(j);
+  }
+}
+
+int VoxelSplitting::Choose(double u) const {
+  const auto it = std::upper_bound(cdf.begin(), cdf.end(), u);
+  size_t i = std::min(static_cast<size_t>(it - cdf.begin()), pmf.size() - 1);
+  while (pmf[i] <= 0.0 && i + 1 < pmf.size()) ++i;
+  return static_cast<int>(i);
+}
+
+void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                                   const VoxelLightGrid& grid, const VoxelSplitting& splitting,
+                                   const RenderOptions& options, CounterRng& rng, const VoxelCoefficientSink& sink,
+                                   RayCounts* counts, float first_vertex_weight) const {
+  RayCounts local;
+  Eigen::Vector3f beta = Eigen::Vector3f::Ones();
+  Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
+  const auto allowed = [&](int segments) { return options.max_depth < 0 || segments <= options.max_depth; };
+  const VoxelSplitting* prepared = &splitting;
+  VoxelSplitting local_splitting;
+  if (static_cast<int>(splitting.centres.size()) != grid.VoxelCount()) {
+    local_splitting.enabled = splitting.enabled;
+    local_splitting.Prepare(grid);
+    prepared = &local_splitting;
+  }
+  const std::vector<Eigen::Vector3f>& centres = prepared->centres;
+  // The shadow rays of one vertex (voxel, weight and cos / d^2 per ray beside the arrays that
+  // OccludedFrom reads: directions to the voxels, segment lengths), then the unblocked ones as
+  // the sink reads them. Per thread, so that a path allocates nothing.
+  struct Scratch {
+    std::vector<int> voxel, out_voxel;
+    std::vector<float> weight, cos_over_d2, t_max;
+    std::vector<Eigen::Vector3f> directions, out_w, out_base;
+    std::vector<uint8_t> blocked;
+  };
+  thread_local Scratch scratch;
+  const size_t most = std::max(prepared->connected.size(), static_cast<size_t>(std::max(splitting.samples, 0)));
+  if (scratch.voxel.size() < most) {
+    for (auto* v : {&scratch.voxel, &scratch.out_voxel}) v->resize(most);
+    for (auto* v : {&scratch.weight, &scratch.cos_over_d2, &scratch.t_max}) v->resize(most);
+    for (auto* v : {&scratch.directions, &scratch.out_w, &scratch.out_base}) v->resize(most);
+    scratch.blocked.resize(most);
+  }
+
+  for (int depth = 1;; ++depth) {
+    ++local.intersect;
+    const auto hit = Hit(ray_o, ray_d);
+    if (!hit || !allowed(depth + 1)) break;
+    const SceneMesh& mesh = scene_.meshes[hit->mesh];
+    const Eigen::Vector3f albedo = mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2);
+    if (albedo.maxCoeff() <= 0.0f) break;
+    SurfacePoint at = *hit;
+    if (at.ng.dot(ray_d) > 0.0f) at.ng = -at.ng, at.ns = -at.ns;
+    const Eigen::Vector3f origin_offset = at.p + OffsetScale(at.p) * at.ng;
+    const Eigen::Vector3f f_beta = beta.cwiseProduct(albedo) / static_cast<float>(M_PI);
+
+    // Shadow rays to the chosen voxels (as SampleLight + next-event estimation in Radiance()):
+    // gathered first, traced together in packets from this vertex, then emitted in the gathered order.
+    int n = 0;
+    const auto consider = [&](int j, float weight) {
+      const Eigen::Vector3f to_light = centres[j] - at.p;
+      const float d2 = to_light.squaredNorm();
+      if (d2 <= 0.0f) return;
+      const float distance = std::sqrt(d2);
+      const Eigen::Vector3f wi = to_light / distance;
+      const float cos_s = at.ns.dot(wi);
+      if (cos_s <= 0.0f || at.ng.dot(wi) <= 0.0f) return;
+      scratch.voxel[n] = j;
+      scratch.weight[n] = weight;
+      scratch.cos_over_d2[n] = cos_s / d2;
+      scratch.directions[n] = wi;
+      scratch.t_max[n] = distance * (1.0f - 1e-4f);
+      ++n;
+    };
+    if (depth == 1 && first_vertex_weight <= 0.0f) {
+      // direct light estimated by other paths
+    } else if (depth <= splitting.all_until_depth || splitting.samples <= 0) {
+      const float weight = depth == 1 ? first_vertex_weight : 1.0f;
+      for (int j : prepared->connected) consider(j, weight);
+    } else {
+      for (int s = 0; s < splitting.samples; ++s) {
+        const int j = splitting.Choose(rng.UniformDouble());
+        consider(j, static_cast<float>(1.0 / (splitting.samples * splitting.pmf[j])));
+      }
+    }
+    if (n > 0) {
+      local.occluded += n;
+      tracer_->OccludedFrom(origin_offset, scratch.directions.data(), scratch.t_max.data(), n, 0.0f,
+                            scratch.blocked.data());
+      int m = 0;
+      for (int i = 0; i < n; ++i) {
+        if (scratch.blocked[i]) continue;
+        // I(w) = L sum_k lambda_k max(0, w . d_k) with w = -wi, from the voxel to the surface.
+        scratch.out_voxel[m] = scratch.voxel[i];
+        scratch.out_w[m] = -scratch.directions[i];
+        scratch.out_base[m] = f_beta * (scratch.cos_over_d2[i] * scratch.weight[i]);
+        ++m;
+      }
+      if (m > 0) sink({m, scratch.out_voxel.data(), scratch.out_w.data(), scratch.out_base.data()});
+    }
+
+    const Eigen::Vector3f wi = SampleCosine(at.ns, rng.Uniform(), rng.Uniform());
+    if (at.ng.dot(wi) <= 0.0f) break;
+    beta = beta.cwiseProduct(albedo);
+    if (depth >= options.rr_depth) {
+      const float q = std::min(0.95f, beta.maxCoeff());
+      if (rng.Uniform() >= q) break;
+      beta /= q;
+    }
+    ray_o = origin_offset;
+    ray_d = wi;
+  }
+  if (counts) {
+    counts->intersect += local.intersect;
+    counts->occluded += local.occluded;
+  }
+}
+
+std::optional<RayHit> PathTracer::PixelCentreHit(const View& view, int u, int v) const {
+  const Eigen::Matrix3f rotation = view.world_from_camera.rotation().cast<float>();
+  const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
+  return tracer_->Intersect(eye, rotation * view.intrinsics.RayDirection(u, v).cast<float>().normalized());
+}
+
+RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, uint64_t seed) const {
+  options.Validate();
+  const CameraIntrinsics& k = view.intrinsics;
+  k.Validate("render view");
+  RenderOutput out;
+  out.radiance = ImageRgb(k.width, k.height);
+  out.depth = ImageDepth(k.width, k.height);
+  out.normal = ImageRgb(k.width, k.height);
+  out.object = Image<int>(k.width, k.height, -1);
+  const Eigen::Matrix3f rotation = view.world_from_camera.rotation().cast<float>();
+  const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
+  const bool box = options.filter == "box", gaussian = options.filter == "gaussian";
+  std::vector<RayCounts> pixel_rays(static_cast<size_t>(k.width) * k.height);
+
+  ParallelFor(0, static_cast<size_t>(k.width) * k.height, [&](size_t pixel) {
+    const int u = static_cast<int>(pixel % k.width), v = static_cast<int>(pixel / k.width);
+    // Geometry buffers from the pixel-centre ray.
+    const Eigen::Vector3f centre_dir = k.RayDirection(u, v).cast<float>().normalized();
+    if (const auto hit = Hit(eye, rotation * centre_dir)) {
+      out.depth(u, v) = hit->t * centre_dir.z();
+      out.normal(u, v) = hit->ns.dot(rotation * centre_dir) > 0.0f ? -hit->ns : hit->ns;
+      out.object(u, v) = hit->mesh;
+    }
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int s = 0; s < options.spp; ++s) {
+      CounterRng rng(seed, pixel, static_cast<uint64_t>(s));
+      // Pixel (u, v) covers [u - 0.5, u + 0.5) x [v - 0.5, v + 0.5) (DESIGN.md §1).
+      double x = box ? u - 0.5 + rng.UniformDouble() : u;
+      double y = box ? v - 0.5 + rng.UniformDouble() : v;
+      if (gaussian) {
+        // Like Mitsuba without sample_border, only positions inside the image contribute.
+        do {
+          x = u + SampleGaussianFilter(options.filter_stddev, rng);
+          y = v + SampleGaussianFilter(options.filter_stddev, rng);
+        } while (x < -0.5 || y < -0.5 || x >= k.width - 0.5 || y >= k.height - 0.5);
+      }
+      const Eigen::Vector3f dir = rotation * k.RayDirection(x, y).cast<float>().normalized();
+      const Eigen::Vector3f l = Radiance(eye, dir, options, rng, &pixel_rays[pixel]);
+      if (!l.allFinite()) {
+        throw Error(Format("rendering failed at pixel (", u, ", ", v, ") sample ", s, ": radiance (",
+                           l.transpose(), ") is not finite (seed ", seed, ")"));
+      }
+      sum += l.cast<double>();
+    }
+    out.radiance(u, v) = (sum / options.spp).cast<float>();
+  }, 16);
+  for (const RayCounts& r : pixel_rays) {
+    out.rays.intersect += r.intersect;
+    out.rays.occluded += r.occluded;
+  }
+  return out;
+}
+
+}  // namespace genscene::render

@@ -1,0 +1,316 @@
+// The path tracer against closed forms (DESIGN.md §4): a point light and a voxel light over a
+// Lambertian plane (exact, no noise), a small area light (form factor), a white furnace, the
+// 1/sqrt(spp) convergence, the voxel-light cube export, and determinism across thread counts.
+#include "render/path_tracer.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "core/parallel.h"
+#include "core/rng.h"
+#include "core/synthetic.h"
+#include "render/ray_tracer.h"
+
+namespace genscene::render {
+namespace {
+
+// A square in the plane z = height, side `side`, centred on the z axis, facing +z or -z.
+SceneMesh Square(double side, double height, bool facing_up, const Eigen::Vector3f& albedo,
+                 const Eigen::Vector3f& emission = Eigen::Vector3f::Zero()) {
+  SceneMesh m;
+  const float h = static_cast<float>(side / 2), z = static_cast<float>(height);
+  m.mesh.vertices = {{-h, -h, z}, {h, -h, z}, {h, h, z}, {-h, h, z}};
+  if (facing_up) {
+    m.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
+  } else {
+    m.mesh.faces = {{0, 2, 1}, {0, 3, 2}};
+  }
+  m.albedo = SurfaceAlbedo::Constant(albedo);
+  m.emission = emission;
+  return m;
+}
+
+View LookingDownAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int width, int height, double f) {
+  View view;
+  view.intrinsics.width = width;
+  view.intrinsics.height = height;
+  view.intrinsics.fx = view.intrinsics.fy = f;
+  view.intrinsics.cx = 0.5 * (width - 1);
+  view.intrinsics.cy = 0.5 * (height - 1);
+  view.world_from_camera = LookAt(eye, target);
+  return view;
+}
+
+// World point seen at pixel (u, v) of a render, from its depth buffer.
+Eigen::Vector3d PointAt(const View& view, const RenderOutput& out, int u, int v) {
+  return view.world_from_camera * view.intrinsics.Unproject(u, v, out.depth(u, v));
+}
+
+TEST(PathTracer, PointLightOverPlaneIsExact) {
+  const Eigen::Vector3f albedo(0.5f, 0.7f, 0.2f), intensity(2.0f, 3.0f, 4.0f);
+  Scene scene;
+  scene.meshes.push_back(Square(40.0, 0.0, true, albedo));
+  scene.point_lights.push_back({Eigen::Vector3d(0.2, 0.1, 1.0), intensity});
+  const PathTracer tracer(scene);
+  const View view = LookingDownAt({0.5, -0.8, 2.0}, {0.0, 0.0, 0.0}, 24, 18, 20.0);
+  RenderOptions options;
+  options.filter = "center";
+  options.spp = 1;
+  options.max_depth = 2;  // direct illumination only
+  const RenderOutput out = tracer.Render(view, options, 1);
+  for (int v = 0; v < 18; ++v) {
+    for (int u = 0; u < 24; ++u) {
+      ASSERT_GT(out.depth(u, v), 0.0f);
+      const Eigen::Vector3d p = PointAt(view, out, u, v);
+      const Eigen::Vector3d to_light = scene.point_lights[0].position - p;
+      const double r2 = to_light.squaredNorm(), cos_theta = to_light.z() / std::sqrt(r2);
+      // L = rho / pi * I cos(theta) / r^2
+      const Eigen::Vector3d expected = albedo.cast<double>() / M_PI * cos_theta / r2;
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(out.radiance(u, v)[c], expected[c] * intensity[c], 1e-4 * expected[c] * intensity[c]) << u << "," << v;
+      }
+    }
+  }
+}
+
+TEST(PathTracer, VoxelLightOverPlaneFollowsEmissionModel) {
+  const Eigen::Vector3f albedo(0.6f, 0.6f, 0.6f);
+  Scene scene;
+  scene.meshes.push_back(Square(40.0, 0.0, true, albedo));
+  VoxelLightGrid grid;
+  grid.dims = Eigen::Vector3i(1, 1, 1);
+  grid.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.1, -0.1, 0.9), Eigen::Vector3d(0.1, 0.1, 1.1));
+  grid.intensity = {Eigen::Vector3f(1.0f, 2.0f, 3.0f)};
+  grid.weights = {{0.1f, 0.9f, 0.3f, 0.0f, 0.2f, 1.0f}};
+  scene.voxel_lights = grid;
+  const PathTracer tracer(scene);
+  const View view = LookingDownAt({0.3, -1.0, 2.5}, {0.0, 0.0, 0.0}, 20, 16, 12.0);
+  RenderOptions options;
+  options.filter = "center";
+  options.spp = 1;
+  options.max_depth = 2;
+  const RenderOutput out = tracer.Render(view, options, 3);
+  const Eigen::Vector3d c(0.0, 0.0, 1.0);
+  for (int v = 0; v < 16; ++v) {
+    for (int u = 0; u < 20; ++u) {
+      const Eigen::Vector3d p = PointAt(view, out, u, v);
+      const Eigen::Vector3d w = (p - c).normalized();  // from the voxel to the receiver
+      const auto& l = grid.weights[0];
+      // I(w) = L sum_k lambda_k max(0, w . d_k); E = I cos / r^2; L_o = rho / pi E.
+      const double sum = l[0] * std::max(0.0, w.x()) + l[1] * std::max(0.0, -w.x()) + l[2] * std::max(0.0, w.y()) +
+                         l[3] * std::max(0.0, -w.y()) + l[4] * std::max(0.0, w.z()) + l[5] * std::max(0.0, -w.z());
+      const double r2 = (c - p).squaredNorm(), cos_theta = (c - p).z() / std::sqrt(r2);
+      for (int ch = 0; ch < 3; ++ch) {
+        const double expected = albedo[ch] / M_PI * grid.intensity[0][ch] * sum * cos_theta / r2;
+        EXPECT_NEAR(out.radiance(u, v)[ch], expected, 1e-4 * expected + 1e-7) << u << "," << v;
+      }
+    }
+  }
+}
+
+// Form factor from a differential area to a parallel rectangle a x b at distance h, with the
+// normal through one corner: F = 1/(2 pi) [X/sqrt(1+X^2) atan(Y/sqrt(1+X^2)) + (X <-> Y)].
+double CornerFormFactor(double a, double b, double h) {
+  const double x = a / h, y = b / h;
+  return (x / std::sqrt(1 + x * x) * std::atan(y / std::sqrt(1 + x * x)) +
+          y / std::sqrt(1 + y * y) * std::atan(x / std::sqrt(1 + y * y))) /
+         (2.0 * M_PI);
+}
+
+// A plane lit by a small square area light: every pixel looks at the point below its centre
+// (a very long focal length), where L = rho * Le * F exactly.
+struct AreaLightSetup {
+  Scene scene;
+  View view;
+  double expected = 0.0;
+  AreaLightSetup() {
+    const double side = 0.3, height = 0.8, rho = 0.8, le = 5.0;
+    scene.meshes.push_back(Square(10.0, 0.0, true, Eigen::Vector3f::Constant(rho)));
+    scene.meshes.push_back(Square(side, height, false, Eigen::Vector3f::Zero(), Eigen::Vector3f::Constant(le)));
+    view = LookingDownAt({0.0, -0.5, 1.2}, {0.0, 0.0, 0.0}, 16, 16, 1e5);
+    expected = rho * le * 4.0 * CornerFormFactor(side / 2, side / 2, height);
+  }
+};
+
+double RmsErrorOverPixels(const RenderOutput& out, double expected, double* mean) {
+  double sum2 = 0.0, sum = 0.0;
+  for (const auto& p : out.radiance.pixels()) {
+    sum += p.x();
+    sum2 += (p.x() - expected) * (p.x() - expected);
+  }
+  *mean = sum / out.radiance.size();
+  return std::sqrt(sum2 / out.radiance.size());
+}
+
+TEST(PathTracer, SmallAreaLightMatchesFormFactor) {
+  const AreaLightSetup setup;
+  const PathTracer tracer(setup.scene);
+  RenderOptions options;
+  options.filter = "center";
+  options.spp = 256;
+  options.max_depth = 2;
+  double mean = 0.0;
+  RmsErrorOverPixels(tracer.Render(setup.view, options, 5), setup.expected, &mean);
+  std::printf("[ closed   ] area light: mean %.6f vs form factor %.6f (%.3f%%)\n", mean, setup.expected,
+              100.0 * (mean / setup.expected - 1.0));
+  EXPECT_NEAR(mean, setup.expected, 0.01 * setup.expected);
+}
+
+TEST(PathTracer, ErrorFallsAsOneOverSqrtSpp) {
+  const AreaLightSetup setup;
+  const PathTracer tracer(setup.scene);
+  RenderOptions options;
+  options.filter = "center";
+  options.max_depth = 2;
+  double mean = 0.0;
+  options.spp = 4;
+  const double error_4 = RmsErrorOverPixels(tracer.Render(setup.view, options, 7), setup.expected, &mean);
+  options.spp = 64;
+  const double error_64 = RmsErrorOverPixels(tracer.Render(setup.view, options, 8), setup.expected, &mean);
+  // 16x the samples: the error should fall 4x, within a factor of 1.5.
+  const double ratio = error_4 / error_64;
+  std::printf("[ closed   ] RMS error 4 spp %.5f, 64 spp %.5f: ratio %.3f (1/sqrt(spp): 4)\n", error_4, error_64, ratio);
+  EXPECT_GT(ratio, 4.0 / 1.5) << error_4 << " " << error_64;
+  EXPECT_LT(ratio, 4.0 * 1.5) << error_4 << " " << error_64;
+}
+
+TEST(PathTracer, WhiteFurnace) {
+  // Inside a closed box whose walls all have albedo a and emit Le: L = Le / (1 - a).
+  SyntheticScene room;
+  room.room = SyntheticScene::Room{};
+  room.room->bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, 0), Eigen::Vector3d(1, 1, 2));
+  const float a = 0.6f;
+  room.room->albedo.fill(Eigen::Vector3f::Constant(a));
+  SceneMesh walls;
+  walls.mesh = room.ToMesh();
+  walls.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(a));
+  walls.emission = Eigen::Vector3f(1.0f, 0.5f, 0.25f);
+  walls.mesh.face_colors.clear();
+  Scene scene;
+  scene.meshes.push_back(walls);
+  const PathTracer tracer(scene);
+  const View view = LookingDownAt({0.2, -0.5, 1.0}, {0.0, 0.5, 0.8}, 12, 10, 8.0);
+  RenderOptions options;
+  options.spp = 256;
+  const RenderOutput out = tracer.Render(view, options, 11);
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : out.radiance.pixels()) mean += p.cast<double>();
+  mean /= out.radiance.size();
+  const Eigen::Vector3d expected = walls.emission.cast<double>() / (1.0 - a);
+  std::printf("[ closed   ] furnace: mean %.5f %.5f %.5f vs Le/(1-a) %.5f %.5f %.5f\n", mean[0], mean[1], mean[2],
+              expected[0], expected[1], expected[2]);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c], expected[c], 0.01 * expected[c]);
+}
+
+TEST(PathTracer, VoxelLightMatchesItsSixQuadExport) {
+  Scene voxel;
+  voxel.meshes.push_back(Square(6.0, 0.0, true, Eigen::Vector3f::Constant(0.7f)));
+  VoxelLightGrid grid;
+  grid.dims = Eigen::Vector3i(2, 1, 1);
+  grid.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.4, -0.2, 0.8), Eigen::Vector3d(0.4, 0.2, 1.2));
+  grid.intensity = {Eigen::Vector3f(1.0f, 1.5f, 2.0f), Eigen::Vector3f(0.5f, 0.2f, 0.1f)};
+  grid.weights = {{0.2f, 0.5f, 0.1f, 0.3f, 0.0f, 1.0f}, {1.0f, 0.0f, 0.4f, 0.4f, 0.6f, 0.8f}};
+  grid.cube_size = 0.01;
+  voxel.voxel_lights = grid;
+  Scene quads;
+  quads.meshes = voxel.meshes;
+  for (const SceneMesh& m : VoxelCubeFaces(grid)) quads.meshes.push_back(m);
+  EXPECT_EQ(quads.meshes.size(), 1u + 5u + 5u);  // zero weights export no quad
+
+  const View view = LookingDownAt({0.1, -1.5, 2.0}, {0.0, 0.0, 0.0}, 16, 12, 10.0);
+  RenderOptions options;
+  options.spp = 1024;
+  options.max_depth = 2;
+  options.hide_emitters = true;
+  const RenderOutput a = PathTracer(voxel).Render(view, options, 21);  // exact: a delta light
+  const PathTracer quad_tracer(quads);
+  const RenderOutput b1 = quad_tracer.Render(view, options, 22);
+  const RenderOutput b2 = quad_tracer.Render(view, options, 23);
+  // Means over the image; the standard error of the quad render's mean from its two seeds.
+  const double n = static_cast<double>(a.radiance.size());
+  Eigen::Vector3d mean_a = Eigen::Vector3d::Zero(), mean_b = Eigen::Vector3d::Zero(), var = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < a.radiance.size(); ++i) {
+    const Eigen::Vector3d x1 = b1.radiance.pixels()[i].cast<double>(), x2 = b2.radiance.pixels()[i].cast<double>();
+    mean_a += a.radiance.pixels()[i].cast<double>() / n;
+    mean_b += (x1 + x2) / (2.0 * n);
+    var += (x1 - x2).cwiseAbs2() / 4.0;  // variance of (x1 + x2) / 2 per pixel
+  }
+  for (int c = 0; c < 3; ++c) {
+    const double standard_error = std::sqrt(var[c]) / n;
+    // Noise (4 standard errors) plus 0.5 % for the cube's finite size (faces 5 mm off centre).
+    std::printf("[ closed   ] voxel light vs six quads, channel %d: %.6f vs %.6f (se %.6f)\n", c, mean_a[c], mean_b[c],
+                standard_error);
+    EXPECT_LT(standard_error, 0.005 * mean_a[c]) << "too noisy to tell";
+    EXPECT_NEAR(mean_b[c], mean_a[c], 4.0 * standard_error + 0.005 * mean_a[c]) << c << " se " << standard_error;
+  }
+}
+
+TEST(PathTracer, SameSeedSameImageWithOneAndTwoThreads) {
+  const AreaLightSetup setup;
+  Scene scene = setup.scene;
+  scene.meshes[0].albedo = SurfaceAlbedo::Constant(Eigen::Vector3f(0.9f, 0.5f, 0.3f));
+  const PathTracer tracer(scene);
+  View view = LookingDownAt({0.0, -1.0, 1.0}, {0.0, 0.0, 0.3}, 20, 15, 15.0);
+  RenderOptions options;
+  options.spp = 8;
+  SetThreadCount(1);
+  const RenderOutput one = tracer.Render(view, options, 99);
+  SetThreadCount(2);
+  const RenderOutput two = tracer.Render(view, options, 99);
+  SetThreadCount(0);
+  const RenderOutput other_seed = tracer.Render(view, options, 100);
+  EXPECT_EQ(one.radiance.pixels(), two.radiance.pixels());
+  EXPECT_EQ(one.depth.pixels(), two.depth.pixels());
+  EXPECT_NE(one.radiance.pixels(), other_seed.radiance.pixels());
+}
+
+// The stream of shadow rays from one vertex (the voxel-light splitting) gives each ray's single-ray
+// answer: 64 origins inside the Cornell room (box and sphere occlude), 343 segments each towards
+// points all over the room, with empty segments (t_max <= t_min) and streams longer than one chunk.
+TEST(RayTracer, StreamOcclusionMatchesSingleRays) {
+  RayTracer tracer;
+  tracer.AddMesh(MakeCornellScene().ToMesh());
+  tracer.Commit();
+  CounterRng rng(7, 1);
+  int blocked = 0, open = 0;
+  for (int o = 0; o < 64; ++o) {
+    const Eigen::Vector3f origin(1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() + 0.05f);
+    std::vector<Eigen::Vector3f> directions(343);
+    std::vector<float> t_max(343);
+    for (size_t i = 0; i < directions.size(); ++i) {
+      const Eigen::Vector3f target(1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() + 0.05f);
+      directions[i] = (target - origin).normalized();
+      t_max[i] = i % 50 == 0 ? 0.0f : (target - origin).norm();
+    }
+    std::vector<uint8_t> occluded(directions.size(), 7);
+    tracer.OccludedFrom(origin, directions.data(), t_max.data(), static_cast<int>(directions.size()), 0.0f,
+                        occluded.data());
+    for (size_t i = 0; i < directions.size(); ++i) {
+      const bool single = tracer.Occluded(origin, directions[i], 0.0f, t_max[i]);
+      ASSERT_EQ(occluded[i], single ? 1 : 0) << "origin " << o << " ray " << i;
+      (single ? blocked : open) += 1;
+    }
+  }
+  // Both answers occur often, so the comparison tests something.
+  EXPECT_GT(blocked, 1000);
+  EXPECT_GT(open, 1000);
+}
+
+TEST(PathTracer, BadScenesAreRejected) {
+  Scene scene;
+  scene.meshes.push_back(Square(1.0, 0.0, true, Eigen::Vector3f::Constant(0.5f), Eigen::Vector3f(-1, 1, 1)));
+  EXPECT_THROW(PathTracer{scene}, Error);
+  scene.meshes[0].emission = Eigen::Vector3f::Zero();
+  scene.meshes[0].mesh.vertices[2].x() = NAN;
+  EXPECT_THROW(PathTracer{scene}, Error);
+  scene.meshes[0] = Square(1.0, 0.0, true, Eigen::Vector3f(1.5f, 0.5f, 0.5f));
+  EXPECT_THROW(PathTracer{scene}, Error);
+  RenderOptions options;
+  options.max_depth = 0;
+  EXPECT_THROW(options.Validate(), Error);
+}
+
+}  // namespace
+}  // namespace genscene::render
