@@ -264,7 +264,7 @@ render::Scene LoadModel(const Workspace& ws, const fs::path& mesh, std::vector<s
 
 // WS/export/: model.ply, model.xml (+ model_meshes/), trajectory.txt. model.xml is written last.
 std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings) {
-  const fs::path dir = ws.root() / "export";
+  const fs::path dir = ws.ExportDir();
   fs::create_directories(dir);
   const fs::path mesh_path = fs::exists(ws.RefinedMesh()) ? ws.RefinedMesh() : ws.Mesh();
   const TriangleMesh mesh = ReadPly(mesh_path);
@@ -275,7 +275,7 @@ std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings)
 
   const render::Scene scene = LoadModel(ws, mesh_path, warnings);
   std::vector<render::View> views;  // the keyframe cameras as sensors
-  for (const render::TrainingView& v : ReadViews(ws.Keyframes())) views.push_back(v.view);
+  for (const render::TrainingView& v : render::ReadViews(ws.Keyframes())) views.push_back(v.view);
   try {
     for (std::string& w : render::ExportMitsubaXml(dir / "model.xml", scene, views)) warnings->push_back(std::move(w));
   } catch (const Error& e) {  // cameras Mitsuba cannot express (fx != fy, distortion): none
@@ -311,11 +311,11 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
     std::error_code ec;
     if (!file.empty() && fs::is_regular_file(file, ec)) source_settings += Hash(ContentFingerprint(file));
   }
-  const fs::path summary_path = ws.root() / "sequence.json";
+  const fs::path summary_path = ws.SequenceJson();
   stage.Run("ingest", {summary_path}, {input}, source_settings,
             [&] { return Describe(IngestSequence(input, source, summary_path)); });
 
-  stage.Run("fusion", {ws.Trajectory(), ws.Tsdf(), ws.root() / "fusion.json"}, {input},
+  stage.Run("fusion", {ws.Trajectory(), ws.Tsdf(), ws.FusionJson()}, {input},
             source_settings + OptionsText(options.fusion), [&] {
     const FuseSummary s = FuseSequence(input, source, options.fusion, ws);
     std::string result = Format(s.fused, "/", s.frames, " frames fused (", s.lost, " lost, ", s.degenerate,
@@ -360,7 +360,7 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
     return ToString(s);
   });
 
-  const fs::path exported = ws.root() / "export";
+  const fs::path exported = ws.ExportDir();
   stage.Run("export", {exported / "model.xml", exported / "model.ply", exported / "trajectory.txt"},
             {ws.RefinedMesh(), ws.Albedo(), ws.Lights(), ws.Trajectory(), ws.Keyframes()}, "", [&] {
               std::vector<std::string> warnings;
@@ -374,7 +374,7 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
   const bool synthetic = fs::exists(fs::path(input) / "scene.json");
   const bool held_out = fs::exists(ws.HeldOut() / "rgb.txt");
   if (synthetic || held_out) {
-    const fs::path judged = ws.root() / "evaluation" / "evaluation.json", holdout = ws.root() / "evaluation" / "holdout.json";
+    const fs::path judged = ws.EvaluationJson(), holdout = ws.HeldOutJson();
     std::vector<fs::path> outputs, inputs = {ws.RefinedMesh(), ws.Albedo(), ws.Lights()};
     if (synthetic) outputs.push_back(judged), inputs.push_back(input);
     if (held_out) outputs.push_back(holdout), inputs.push_back(ws.HeldOut()), inputs.push_back(ws.Texture());
@@ -426,7 +426,7 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
   const int views = eval.views, truth_spp = eval.truth_spp, model_spp = eval.model_spp;
   using namespace inverse;
   using namespace render;
-  const fs::path dir = ws.root() / "evaluation";
+  const fs::path dir = ws.EvaluationDir();
   fs::create_directories(dir);
   const Scene truth = LoadScene(input / "scene.json").scene;
   const std::vector<TrainingView> all = ReadViews(input);
@@ -442,17 +442,12 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
     // Frames between the keyframes (every 5th frame from the first is a keyframe in the demo).
     const size_t index = std::min(all.size() - 1, (2 * k + 1) * all.size() / (2 * views));
     TrainingView reference{all[index].view, {}};
-    RenderOptions half;
-    half.spp = std::max(1, truth_spp / 2);
-    const ImageRgb a = truth_tracer.Render(reference.view, half, seed + 1000 + k).radiance;
-    const ImageRgb b = truth_tracer.Render(reference.view, half, (seed + 1000 + k) ^ 0x9E3779B97F4A7C15ull).radiance;
-    reference.image = ImageRgb(a.width(), a.height());
-    double noise = 0.0;
-    for (size_t i = 0; i < a.size(); ++i) {
-      reference.image.data()[i] = 0.5f * (a.data()[i] + b.data()[i]);
-      noise += 0.25 * (a.data()[i] - b.data()[i]).cast<double>().squaredNorm();
-    }
-    const double noise_rms = std::sqrt(noise / (3.0 * a.size()));
+    RenderOptions paths;
+    paths.spp = truth_spp;
+    const RenderHalves truth_render = RenderInHalves(truth_tracer, reference.view, paths, seed + 1000 + k,
+                                                     (seed + 1000 + k) ^ 0x9E3779B97F4A7C15ull);
+    reference.image = truth_render.mean;
+    const double noise_rms = truth_render.NoiseRms();
     ImageRgb render;
     const ViewError e =
         CompareRender(model_tracer, reference, lights, model_spp, seed + 2000 + k, noise_rms, &render, eval.block);
@@ -476,7 +471,7 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
 }
 
 void WriteSummaryJson(const Workspace& ws, const std::string& input, uint64_t seed, const std::vector<StageRow>& rows) {
-  const fs::path path = ws.root() / "summary.json";
+  const fs::path path = ws.SummaryJson();
   nlohmann::ordered_json previous;
   if (fs::exists(path)) {
     try {

@@ -1,4 +1,4 @@
-// genscene-lights: voxel light estimation (issue 7) from geometry, albedo and posed images:
+// genscene-lights: voxel light estimation from geometry, albedo and posed images:
 // a workspace (WS/mesh.ply + WS/albedo.mcol + WS/keyframes/), or --scene / --mesh with --views.
 // Writes WS/lights.json, renders of the views with the estimate in WS/lights/, and a Mitsuba 3
 // scene WS/lights/scene.xml.
@@ -35,7 +35,7 @@ int main(int argc, char** argv) {
     const apps::LightsSummary summary = apps::LightsWorkspace(in, options, cli.seed(), ws);
     for (const std::string& w : summary.warnings) std::cerr << "genscene-lights: warning: " << w << "\n";
     std::printf("genscene-lights: %s\ngenscene-lights: -> %s, %s\n", apps::ToString(summary).c_str(),
-                ws.Lights().string().c_str(), (ws.root() / "lights").string().c_str());
+                ws.Lights().string().c_str(), (ws.LightsDir()).string().c_str());
     return 0;
   });
 }

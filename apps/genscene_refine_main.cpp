@@ -1,4 +1,4 @@
-// genscene-refine: vertex refinement (issue 8) through the sparse forward-mode differentiated path
+// genscene-refine: vertex refinement through the sparse forward-mode differentiated path
 // tracer: a workspace's mesh.ply (albedo.mcol, lights.json, keyframes/), or chosen meshes of a
 // scene file (--scene, --refine NAME) against a view set (--views). Writes WS/mesh_refined.ply and
 // WS/refine/ (per-iteration renders, report.json).
@@ -38,7 +38,7 @@ int main(int argc, char** argv) {
     const apps::RefineSummary summary = apps::RefineWorkspace(in, options, cli.seed(), ws);
     for (const std::string& w : summary.warnings) std::cerr << "genscene-refine: warning: " << w << "\n";
     std::printf("genscene-refine: %s\ngenscene-refine: -> %s, %s\n", apps::ToString(summary).c_str(),
-                ws.RefinedMesh().string().c_str(), (ws.root() / "refine").string().c_str());
+                ws.RefinedMesh().string().c_str(), (ws.RefineDir()).string().c_str());
     return 0;
   });
 }

@@ -147,7 +147,7 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
   const PathTracer tracer(model);
   std::optional<PathTracer> truth_tracer;
   if (truth) truth_tracer.emplace(*truth);
-  const fs::path dir = ws.root() / "evaluation";
+  const fs::path dir = ws.EvaluationDir();
   fs::create_directories(dir);
 
   HeldOutEvaluation out;
@@ -155,12 +155,10 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
   for (size_t f = 0; f < frames.size(); ++f) {
     const TrainingView& frame = frames[f];
     const FirstHits hits = TraceFirstHits(tracer, texture, frame);
-    RenderOptions half = lights.Paths();
-    half.spp = std::max(1, spp / 2);
-    const ImageRgb a = tracer.Render(frame.view, half, seed + 3000 + f).radiance;
-    const ImageRgb b = tracer.Render(frame.view, half, (seed + 3000 + f) ^ 0xD1B54A32D192ED03ull).radiance;
-    ImageRgb render(a.width(), a.height());
-    for (size_t i = 0; i < render.size(); ++i) render.data()[i] = 0.5f * (a.data()[i] + b.data()[i]);
+    RenderOptions paths = lights.Paths();
+    paths.spp = spp;
+    const RenderHalves halves = RenderInHalves(tracer, frame.view, paths, seed + 3000 + f, (seed + 3000 + f) ^ 0xD1B54A32D192ED03ull);
+    const ImageRgb &a = halves.a, &b = halves.b, &render = halves.mean;
 
     HeldOutFrame r;
     r.timestamp = frame.view.timestamp;

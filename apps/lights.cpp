@@ -44,7 +44,7 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
   Scene lit = WithoutLights(scene);
   lit.voxel_lights = out.estimate.lights;
   const PathTracer tracer(lit);
-  const fs::path dir = ws.root() / "lights";
+  const fs::path dir = ws.LightsDir();
   fs::create_directories(dir);
   for (const auto& [views, prefix, errors] : {std::tuple{&train, "train", &out.train}, std::tuple{&novel, "novel", &out.novel}}) {
     for (size_t i = 0; i < views->size(); ++i) {

@@ -1,4 +1,4 @@
-// genscene-lights as a function, shared with `genscene run`: light estimation (issue 7) on a
+// genscene-lights as a function, shared with `genscene run`: light estimation on a
 // workspace or on given geometry, albedo and posed images.
 //   inputs:  a scene file (Mitsuba XML or genscene JSON; its emitters and lights are ignored), or
 //            a mesh PLY (albedo per face / vertex colour, or a Mesh Colors albedo .mcol), and a

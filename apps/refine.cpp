@@ -95,7 +95,7 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
     for (size_t v = 0; v < t.vertices.size(); ++v) truth->segment<3>(3 * v) = t.vertices[v].cast<double>();
   }
   const TriangleMesh start = RefinedMesh(scene, refined);
-  const fs::path dir = ws.root() / "refine";
+  const fs::path dir = ws.RefineDir();
   fs::create_directories(dir);
   RenderOptions render = options.Render();
   render.spp = std::max(1, in.render_spp);

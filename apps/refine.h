@@ -1,4 +1,4 @@
-// genscene-refine as a function: vertex refinement (issue 8) of a workspace's mesh or of chosen
+// genscene-refine as a function: vertex refinement of a workspace's mesh or of chosen
 // meshes of a scene file, against posed images, with the scene's lights (a scene file's emitters
 // and point lights, and/or the voxel lights of a lights.json).
 //   outputs: WS/mesh_refined.ply (the refined meshes, area-weighted normals), WS/refine/:

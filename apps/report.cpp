@@ -64,7 +64,7 @@ std::string ImageRow(const std::vector<std::pair<std::string, std::string>>& ima
 }
 
 void Summary(const Workspace& ws, std::ostream& md) {
-  const auto summary = ReadJson(ws.root() / "summary.json");
+  const auto summary = ReadJson(ws.SummaryJson());
   if (!summary) return;
   md << "## Summary\n\nInput: `" << (*summary)["input"].get<std::string>() << "`, seed "
      << (*summary)["seed"].get<uint64_t>() << ".\n\n| stage | seconds | peak MB | result |\n|---|---:|---:|---|\n";
@@ -77,7 +77,7 @@ void Summary(const Workspace& ws, std::ostream& md) {
 
 // The input folder of the run (for its ground truth), from summary.json or the demo's input/.
 std::optional<fs::path> InputFolder(const Workspace& ws) {
-  if (const auto summary = ReadJson(ws.root() / "summary.json")) {
+  if (const auto summary = ReadJson(ws.SummaryJson())) {
     const fs::path input = (*summary)["input"].get<std::string>();
     if (fs::is_directory(input)) return input;
   }
@@ -86,7 +86,7 @@ std::optional<fs::path> InputFolder(const Workspace& ws) {
 }
 
 void Tracking(const Workspace& ws, const fs::path& dir, std::ostream& md) {
-  const auto fusion = ReadJson(ws.root() / "fusion.json");
+  const auto fusion = ReadJson(ws.FusionJson());
   if (!fusion) return;
   md << "## Tracking and fusion\n\n";
   PlotSeries total{"track + integrate + raycast", {}, {}}, track{"track (ICP)", {}, {}};
@@ -143,7 +143,7 @@ void Surface(const Workspace& ws, const fs::path& dir, const ReportOptions& opti
   }
   md << "\n";
   if (!options.sweep) return;
-  const auto summary = ReadJson(ws.root() / "summary.json");
+  const auto summary = ReadJson(ws.SummaryJson());
   if (!summary) return;
   const std::string source = (*summary)["input"].get<std::string>();
   PlotSeries error{"RMS surface error (mm)", {}, {}}, seconds{"fusion + meshing (s)", {}, {}};
@@ -175,8 +175,8 @@ void Surface(const Workspace& ws, const fs::path& dir, const ReportOptions& opti
 }
 
 void Texturing(const Workspace& ws, std::ostream& md) {
-  const auto texture = ReadJson(ws.root() / "texture.json");
-  const auto albedo = ReadJson(ws.root() / "albedo.json");
+  const auto texture = ReadJson(ws.TextureJson());
+  const auto albedo = ReadJson(ws.AlbedoJson());
   if (!texture && !albedo) return;
   md << "## Texturing and albedo\n\n";
   if (texture && texture->contains("summary")) md << "Texturing: " << (*texture)["summary"].dump() << "\n\n";
@@ -209,7 +209,7 @@ void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& optio
   for (size_t i = 0; i < e["train_views"].size() && i < 4; ++i) {
     char name[32];
     std::snprintf(name, sizeof(name), "train_%02zu.png", i);
-    const fs::path render = ws.root() / "lights" / name;
+    const fs::path render = ws.LightsDir() / name;
     if (!fs::exists(render)) continue;
     if (i < keyframes.size()) {
       const auto fields = SplitWhitespace(keyframes[i].text);
@@ -226,7 +226,7 @@ void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& optio
   // Fig. 3: light error against the penalty weight, and the time it takes.
   std::vector<std::string> warnings;
   const render::Scene scene = LoadGeometry({{}, ws.Mesh(), ws.Albedo()}, ws, &warnings);
-  const std::vector<render::TrainingView> views = ReadViews(ws.Keyframes());
+  const std::vector<render::TrainingView> views = render::ReadViews(ws.Keyframes());
   inverse::LightEstimationOptions base;
   // The estimate's own grid and refinement (lights.json's dims are the refined grid's).
   const Json used = e.contains("options") ? e["options"] : Json::object();
@@ -259,7 +259,7 @@ void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& optio
 }
 
 void Refinement(const Workspace& ws, const fs::path& dir, std::ostream& md) {
-  const auto report = ReadJson(ws.root() / "refine" / "report.json");
+  const auto report = ReadJson(ws.RefineReport());
   if (!report) return;
   md << "## Vertex refinement\n\n" << (*report)["vertices"].get<int>() << " vertices, " << (*report)["pixels"].get<int>()
      << " pixels, " << (*report)["flipped_faces"].get<int>() << " flipped faces.\n\n";
@@ -273,7 +273,7 @@ void Refinement(const Workspace& ws, const fs::path& dir, std::ostream& md) {
     seconds += it["seconds"].get<double>();
     char name[32];
     std::snprintf(name, sizeof(name), "iter_%02d_shading.png", i);
-    if (fs::exists(ws.root() / "refine" / name)) row.push_back({Format("iteration ", i), CopyImage(ws.root() / "refine" / name, dir, name)});
+    if (fs::exists(ws.RefineDir() / name)) row.push_back({Format("iteration ", i), CopyImage(ws.RefineDir() / name, dir, name)});
   }
   WritePlot(dir / "refine_error.png", {"Image error per iteration", "iteration", "relative RMSE"}, {image});
   md << Fixed(seconds, 1) << " s in all.\n\n![image error per iteration](refine_error.png)\n\nShading after each iteration (every albedo grey, the paper's Fig. 4):\n\n" << ImageRow(row);
@@ -281,7 +281,7 @@ void Refinement(const Workspace& ws, const fs::path& dir, std::ostream& md) {
 
 // The judge on real frames (apps/holdout.h): the model and both baselines on the held-out frames.
 void HeldOut(const Workspace& ws, const fs::path& dir, std::ostream& md) {
-  const auto h = ReadJson(ws.root() / "evaluation" / "holdout.json");
+  const auto h = ReadJson(ws.HeldOutJson());
   if (!h) return;
   const Json& mean = (*h)["mean"];
   md << "## Held-out frames\n\nThe model rendered at the poses of " << (*h)["frames"].size()
@@ -321,7 +321,7 @@ void HeldOut(const Workspace& ws, const fs::path& dir, std::ostream& md) {
       if (suffix == "truth" && !truth) continue;
       char name[48];
       std::snprintf(name, sizeof(name), "holdout_%02zu_%s.png", k, suffix.c_str());
-      row.push_back({label, CopyImage(ws.root() / "evaluation" / name, dir, name)});
+      row.push_back({label, CopyImage(ws.EvaluationDir() / name, dir, name)});
     }
     md << ImageRow(row);
   }
@@ -329,7 +329,7 @@ void HeldOut(const Workspace& ws, const fs::path& dir, std::ostream& md) {
 
 void Evaluation(const Workspace& ws, const fs::path& dir, std::ostream& md) {
   HeldOut(ws, dir, md);
-  const auto eval = ReadJson(ws.root() / "evaluation" / "evaluation.json");
+  const auto eval = ReadJson(ws.EvaluationJson());
   if (!eval) return;
   const int block = eval->contains("block") ? (*eval)["block"].get<int>() : 1;
   md << "## Novel views against the ground truth\n\nMean relative RMSE (noise of both renders taken out, over "
@@ -340,8 +340,8 @@ void Evaluation(const Workspace& ws, const fs::path& dir, std::ostream& md) {
     char truth[48], model[48];
     std::snprintf(truth, sizeof(truth), "novel_%02zu_truth.png", k);
     std::snprintf(model, sizeof(model), "novel_%02zu_model.png", k);
-    row.push_back({Format("truth, frame ", v["frame"].get<int>()), CopyImage(ws.root() / "evaluation" / truth, dir, truth)});
-    row.push_back({Format("model (", Fixed(v["relative_rmse_bias"].get<double>()), ")"), CopyImage(ws.root() / "evaluation" / model, dir, model)});
+    row.push_back({Format("truth, frame ", v["frame"].get<int>()), CopyImage(ws.EvaluationDir() / truth, dir, truth)});
+    row.push_back({Format("model (", Fixed(v["relative_rmse_bias"].get<double>()), ")"), CopyImage(ws.EvaluationDir() / model, dir, model)});
   }
   md << ImageRow(row);
 }
@@ -349,7 +349,7 @@ void Evaluation(const Workspace& ws, const fs::path& dir, std::ostream& md) {
 }  // namespace
 
 fs::path WriteReport(const Workspace& ws, const ReportOptions& options, uint64_t seed) {
-  if (!fs::exists(ws.root() / "summary.json") && !fs::exists(ws.root() / "fusion.json") && !fs::exists(ws.Lights())) {
+  if (!fs::exists(ws.SummaryJson()) && !fs::exists(ws.FusionJson()) && !fs::exists(ws.Lights())) {
     throw Error(Format(ws.root().string(), ": no stage outputs to report on (run genscene run or genscene demo first)"));
   }
   const fs::path dir = ws.Report();

@@ -54,19 +54,4 @@ Scene LoadGeometry(const GeometryInputs& in, const Workspace& ws, std::vector<st
   return scene;
 }
 
-std::vector<TrainingView> ReadViews(const fs::path& folder) {
-  if (!fs::is_directory(folder)) throw Error(Format(folder.string(), ": no such view set folder"));
-  std::vector<TrainingView> views;
-  auto source = OpenFrameSource(folder.string(), SourceOptions());
-  while (auto frame = source->Next()) {
-    if (!frame->world_from_camera) {
-      throw Error(Format(frame->color_path.empty() ? folder.string() : frame->color_path, ": the image has no pose"));
-    }
-    if (frame->color.empty()) throw Error(Format(folder.string(), ": a frame has no colour image"));
-    views.push_back({View{frame->intrinsics, *frame->world_from_camera, frame->timestamp}, frame->color});
-  }
-  if (views.empty()) throw Error(Format(folder.string(), ": no images"));
-  return views;
-}
-
 }  // namespace genscene::apps

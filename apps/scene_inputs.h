@@ -23,8 +23,4 @@ struct GeometryInputs {
 // file that is missing or bad; adds notes (e.g. "assuming grey") to `warnings`.
 render::Scene LoadGeometry(const GeometryInputs& inputs, const Workspace& ws, std::vector<std::string>* warnings);
 
-// The posed images of a view set or keyframes folder (intrinsics.txt, groundtruth.txt, rgb.txt):
-// EXR as linear, PNG as sRGB. Throws Error when the folder is missing, empty or a pose is missing.
-std::vector<render::TrainingView> ReadViews(const std::filesystem::path& folder);
-
 }  // namespace genscene::apps

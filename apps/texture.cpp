@@ -55,7 +55,7 @@ TextureSummary TextureWorkspace(const TextureInputs& inputs, const SourceOptions
                                      : 0.0;
   const auto& s = result.stats;
   WriteTextFileAtomically(
-      ws.root() / "texture.json",
+      ws.TextureJson(),
       json({{"summary",
              {{"mesh", mesh_path.string()}, {"keyframes", views.string()}, {"faces", mesh.faces.size()},
               {"texels", s.texels}, {"observed", s.observed}, {"filled", s.filled}, {"unreached", s.unreached},
@@ -110,7 +110,7 @@ AlbedoSummary AlbedoWorkspace(const std::filesystem::path& mesh_path_in, const t
       "\n";
   WriteMeshColors(ws.Albedo(), result.albedo);
   WritePly(ws.AlbedoPly(), result.albedo.ToSubdividedMesh(mesh));
-  WriteTextFileAtomically(ws.root() / "albedo.json", report);
+  WriteTextFileAtomically(ws.AlbedoJson(), report);
   return {result.stats, result.clusters};
 }
 

@@ -1,4 +1,4 @@
-// Light estimation speed against error (issue 7, acceptance 1 and 5).
+// Light estimation speed against error.
 //  1. The paper's replica (Fig. 3) with our own renderer: the Cornell box of MakeCornellBoxScene
 //     lit by its 0.5 m ceiling light, 3 training views + 2 novel views; the light removed, voxel
 //     lights estimated on a 7^3 grid from 3000 pixels per view. For each penalty weight: active
@@ -8,23 +8,24 @@
 //  2. Time to error against plain first-order gradient descent on the per-pixel cost without the
 //     cache (each step re-traces the paths of the sampled pixels and descends along the gradient
 //     of their squared residual); written as a table and OUT/lights_time_to_error.png.
-//  3. With CYCLES=../shared/data: the Cycles Cornell box, novel-view RMSE and the power-weighted
+//  3. With --cycles ../shared/data: the Cycles Cornell box, novel-view RMSE and the power-weighted
 //     centroid of the voxels against the light.
 // Run by hand:  build/bench/bench_lights [--out DIR] [--size WxH] [--ref-spp N] [--spp N]
 //               [--eval-spp N] [--gamma G] [--weights w1,w2,..] [--threads N]
 //               [--gd-seconds S] [--gd-spp N]
 // --gd-seconds: section 2's time budget for gradient descent (default: 10x the time the cached
 // method took to its last error, so "not reached" means over 10x slower; 0 skips section 2).
-// Diagnostics (environment): VOXEL_TRUTH=1 (the truth is one voxel light the grid can hold),
-// MAXDEPTH=N (references and estimation with that path length), ROUNDS=N, DIRECT=N, MVOX=N,
-// SPLIT=N; adaptive refinement REFINE=levels, RSCALE, RFRAC, RREACH, RGROW, RSPP, RCOARSE (its options);
-// DUMP=1 prints the estimate's active voxels; ORACLE=1 renders the replica's light as one voxel
-// and as grids of points; FINE_CHECK=1 solves a 14^3 grid around the replica's light.
+// Overrides of the estimate's options (--help lists them: --max-depth, --rounds, --refine-*, ...)
+// and diagnostics: --voxel-truth (the truth is one voxel light the grid can hold), --dump (the
+// estimate's active voxels), --oracle (the replica's light as one voxel and as grids of points),
+// --fine-check (a 14^3 grid solved around the replica's light), --solver-check (the solver's cost
+// against the truth's).
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -58,19 +59,22 @@ struct Replica {
   std::vector<double> noise;  // RMS noise per channel of each reference (train, then novel)
 };
 
-// `*value` from the environment variable `name` when it is set.
-void FromEnvironment(const char* name, int* value) {
-  if (const char* text = std::getenv(name)) *value = std::atoi(text);
-}
-void FromEnvironment(const char* name, double* value) {
-  if (const char* text = std::getenv(name)) *value = std::atof(text);
-}
+// The bench's flags beyond its own: overrides of the estimate's options (unset: the defaults) and
+// the diagnostics.
+struct Overrides {
+  std::optional<int> max_depth, rounds, refine_levels, refine_coarse_pixels, refine_spp, refine_grow, direct_paths,
+      resample_voxels, split_depth;
+  std::optional<double> refine_penalty_scale, refine_fraction, refine_reach;
+  bool voxel_truth = false, dump = false, oracle = false, fine_check = false, solver_check = false;
+  std::string cycles;  // ../shared/data: section 3 instead
+};
+Overrides g_flags;
 
 // The references are slow to render: kept in `cache` (EXR + noise.txt) and reused when present.
 Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
   Replica r;
   const fs::path dir = cache / ("replica_" + std::to_string(width) + "x" + std::to_string(height) + "_" + std::to_string(spp) +
-                          (std::getenv("VOXEL_TRUTH") ? "_voxel" : "") + (std::getenv("MAXDEPTH") ? "_d" : ""));
+                          (g_flags.voxel_truth ? "_voxel" : "") + (g_flags.max_depth ? "_d" : ""));
   if (fs::exists(dir / "noise.txt")) {
     r.scene = MakeCornellBoxScene();
     const std::vector<View> views = CornellLightViews(width, height);
@@ -88,7 +92,7 @@ Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
     return r;
   }
   r.scene = MakeCornellBoxScene();
-  if (std::getenv("VOXEL_TRUTH")) {  // diagnostic: the truth is a voxel light the grid can represent
+  if (g_flags.voxel_truth) {  // diagnostic: the truth is a voxel light the grid can represent
     Scene s = WithoutLights(r.scene);
     VoxelLightGrid g = MakeVoxelGrid(s, 7);  // the estimate's grid (default inset)
     g.intensity[3 + 7 * 3 + 49 * 6] = Eigen::Vector3f(3.0f, 2.5f, 1.8f);
@@ -99,19 +103,12 @@ Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
   const PathTracer tracer(r.scene);
   RenderOptions ro;
   ro.spp = spp;
-  FromEnvironment("MAXDEPTH", &ro.max_depth);
+  if (g_flags.max_depth) ro.max_depth = *g_flags.max_depth;
   const std::vector<View> views = CornellLightViews(width, height);
-  ro.spp = spp / 2;
   for (size_t i = 0; i < views.size(); ++i) {
-    const ImageRgb a = tracer.Render(views[i], ro, 1000 + i).radiance, b = tracer.Render(views[i], ro, 2000 + i).radiance;
-    TrainingView tv{views[i], ImageRgb(a.width(), a.height())};
-    double variance = 0.0;
-    for (size_t p = 0; p < a.size(); ++p) {
-      tv.image.data()[p] = 0.5f * (a.data()[p] + b.data()[p]);
-      variance += 0.25 * (a.data()[p] - b.data()[p]).cast<double>().squaredNorm() / 3.0;
-    }
-    r.noise.push_back(std::sqrt(variance / a.size()));
-    (i < 3 ? r.train : r.novel).push_back(std::move(tv));
+    const RenderHalves halves = RenderInHalves(tracer, views[i], ro, 1000 + i, 2000 + i);
+    r.noise.push_back(halves.NoiseRms());
+    (i < 3 ? r.train : r.novel).push_back(TrainingView{views[i], halves.mean});
   }
   fs::create_directories(dir);
   FILE* f = std::fopen((dir / "noise.txt").c_str(), "w");
@@ -141,29 +138,24 @@ std::vector<ViewError> ReplicaErrors(const Replica& replica, const VoxelLightGri
   return errors;
 }
 
-// The diagnostics' option overrides (see the header).
-void ApplyEnvironment(LightEstimationOptions* o) {
-  FromEnvironment("MAXDEPTH", &o->max_depth);
-  FromEnvironment("ROUNDS", &o->rounds);
-  FromEnvironment("REFINE", &o->refine_levels);
-  FromEnvironment("RSCALE", &o->refine_penalty_scale);
-  FromEnvironment("RFRAC", &o->refine_fraction);
-  FromEnvironment("RGROW", &o->refine_grow);
-  FromEnvironment("RCOARSE", &o->refine_coarse_pixels);
-  FromEnvironment("RSPP", &o->refine_spp);
-  FromEnvironment("RREACH", &o->refine_reach);
-  FromEnvironment("DIRECT", &o->direct_paths);
-  FromEnvironment("MVOX", &o->resample_voxels);
-  FromEnvironment("SPLIT", &o->split_depth);
-}
-
-std::vector<TrainingView> ReadViews(const fs::path& folder) {
-  std::vector<TrainingView> out;
-  auto source = OpenFrameSource(folder.string(), SourceOptions());
-  while (auto frame = source->Next()) {
-    out.push_back({View{frame->intrinsics, *frame->world_from_camera, frame->timestamp}, frame->color});
-  }
-  return out;
+// The estimate's options as the flags override them.
+void ApplyOverrides(LightEstimationOptions* o) {
+  const auto set = [](const auto& flag, auto* value) {
+    if (flag) *value = *flag;
+  };
+  set(g_flags.max_depth, &o->max_depth);
+  set(g_flags.rounds, &o->rounds);
+  set(g_flags.refine_levels, &o->refine_levels);
+  set(g_flags.refine_penalty_scale, &o->refine_penalty_scale);
+  set(g_flags.refine_fraction, &o->refine_fraction);
+  set(g_flags.refine_grow, &o->refine_grow);
+  set(g_flags.refine_coarse_pixels, &o->refine_coarse_pixels);
+  set(g_flags.refine_spp, &o->refine_spp);
+  set(g_flags.refine_reach, &o->refine_reach);
+  set(g_flags.direct_paths, &o->direct_paths);
+  set(g_flags.resample_voxels, &o->resample_voxels);
+  set(g_flags.split_depth, &o->split_depth);
+  o->Validate();
 }
 
 // ---- Figures (OpenCV: 8-bit BGR canvases, text labels) ----------------------------------------
@@ -392,10 +384,7 @@ void TimeToError(const Replica& replica, const LightEstimationOptions& options, 
   // The cached method.
   std::vector<CurvePoint> cached;
   double t = Now();
-  LightEstimationOptions half = options;
-  half.spp = options.spp / 2;
-  const LightCache a = TraceLightCache(tracer, dark, splitting, replica.train, pixels, half, 1);
-  const LightCache b = TraceLightCache(tracer, dark, splitting, replica.train, pixels, half, 2);
+  const auto [a, b] = TraceLightCacheHalves(tracer, dark, splitting, replica.train, pixels, options, 1, 2);
   const NormalEquations eq = NormalEquations::FromCaches(a, b, options.noise_correction);
   const double setup = Now() - t;
   std::printf("   cached: trace + normal equations %.2f s\n   %-10s %9s %9s\n", setup, "iterations", "seconds", "error");
@@ -527,7 +516,7 @@ void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, i
     LightEstimationOptions o;
     o.penalty_weight = weight;
     o.spp = spp;
-    ApplyEnvironment(&o);
+    ApplyOverrides(&o);
     const double t = Now();
     const LightEstimate e = EstimateLights(scene, train, o, 7);
     PrintRounds(e);
@@ -566,7 +555,7 @@ int main(int argc, char** argv) {
   std::vector<double> weights = {0.0, 1e-4, 1e-3, 1e-2};
   int threads = 0;
   std::string size = "160x120";
-  CLI::App app{"bench_lights: light estimation (issue 7) on our replica of the paper's Fig. 3 (a Cornell box lit by a "
+  CLI::App app{"bench_lights: light estimation on our replica of the paper's Fig. 3 (a Cornell box lit by a "
                "0.5 m ceiling light, 3 training + 2 novel views). Section 1 sweeps the penalty weights: a table of "
                "active voxels, training and novel relative RMSE (raw and with the Monte Carlo noise of both images "
                "taken out, *) and seconds, and OUT/fig3_lights.png. Section 2 compares time to error with plain "
@@ -584,9 +573,26 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--gd-spp", gd_spp, "paths per pixel of every gradient-descent step")->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--threads", threads, "worker threads (0: all cores)")->check(CLI::NonNegativeNumber);
-  app.footer("Environment: CYCLES=DIR runs the Cycles Cornell box of DIR/cbox-cycles instead (section 3). Overrides of the "
-             "estimate's options: MAXDEPTH ROUNDS REFINE RSCALE RFRAC RGROW RCOARSE RSPP RREACH DIRECT MVOX SPLIT. "
-             "Diagnostics: VOXEL_TRUTH SOLVER_CHECK FINE_CHECK ORACLE DUMP.");
+  app.add_option("--cycles", g_flags.cycles, "../shared/data: run the Cycles Cornell box of DATA/cbox-cycles instead (section 3)");
+  const char* overrides = "Overrides of the estimate's options (default: the estimate's defaults)";
+  app.add_option("--max-depth", g_flags.max_depth, "path length of the references and the estimate (Mitsuba convention)")->group(overrides);
+  app.add_option("--rounds", g_flags.rounds, "resampling rounds")->group(overrides);
+  app.add_option("--refine-levels", g_flags.refine_levels, "adaptive refinement levels")->group(overrides);
+  app.add_option("--refine-penalty-scale", g_flags.refine_penalty_scale, "penalty scale per refinement level")->group(overrides);
+  app.add_option("--refine-fraction", g_flags.refine_fraction, "share of the power whose voxels are split")->group(overrides);
+  app.add_option("--refine-grow", g_flags.refine_grow, "neighbourhood grown around split voxels")->group(overrides);
+  app.add_option("--refine-coarse-pixels", g_flags.refine_coarse_pixels, "pixels per view of the coarse level")->group(overrides);
+  app.add_option("--refine-spp", g_flags.refine_spp, "paths per pixel of the refinement levels")->group(overrides);
+  app.add_option("--refine-reach", g_flags.refine_reach, "voxels a split reaches")->group(overrides);
+  app.add_option("--direct-paths", g_flags.direct_paths, "paths per pixel of the direct-light connections")->group(overrides);
+  app.add_option("--resample-voxels", g_flags.resample_voxels, "voxels kept for resampling")->group(overrides);
+  app.add_option("--split-depth", g_flags.split_depth, "path depth up to which vertices connect to every voxel")->group(overrides);
+  const char* diagnostics = "Diagnostics";
+  app.add_flag("--voxel-truth", g_flags.voxel_truth, "the truth is one voxel light the grid can hold")->group(diagnostics);
+  app.add_flag("--dump", g_flags.dump, "print the estimate's active voxels")->group(diagnostics);
+  app.add_flag("--oracle", g_flags.oracle, "render the replica's light as one voxel and as grids of points")->group(diagnostics);
+  app.add_flag("--fine-check", g_flags.fine_check, "solve a 14^3 grid around the replica's light")->group(diagnostics);
+  app.add_flag("--solver-check", g_flags.solver_check, "the solver's cost against the truth's")->group(diagnostics);
   CLI11_PARSE(app, argc, argv);
   if (std::sscanf(size.c_str(), "%dx%d", &width, &height) != 2 || width <= 0 || height <= 0) {
     std::fprintf(stderr, "bench_lights: --size %s: expected WIDTHxHEIGHT, e.g. 160x120\n", size.c_str());
@@ -598,7 +604,7 @@ int main(int argc, char** argv) {
   }
   if (threads > 0) SetThreadCount(threads);
   fs::create_directories(out);
-  if (std::getenv("SOLVER_CHECK")) {  // diagnostic: the solver's cost against the truth's
+  if (g_flags.solver_check) {  // diagnostic: the solver's cost against the truth's
     const Replica replica = MakeReplica(width, height, ref_spp, out);
     Scene s = WithoutLights(replica.scene);
     VoxelLightGrid truth = MakeVoxelGrid(s, 7);
@@ -611,11 +617,8 @@ int main(int argc, char** argv) {
     o.noise_correction = gamma;
     o.penalty_weight = weights[0];
     const std::vector<SampledPixel> pixels = SamplePixels(tracer, replica.train, o, 7);
-    LightEstimationOptions half = o;
-    half.spp = spp / 2;
     VoxelSplitting all;
-    const LightCache a = TraceLightCache(tracer, truth, all, replica.train, pixels, half, 1);
-    const LightCache b = TraceLightCache(tracer, truth, all, replica.train, pixels, half, 2);
+    const auto [a, b] = TraceLightCacheHalves(tracer, truth, all, replica.train, pixels, o, 1, 2);
     const NormalEquations eq = NormalEquations::FromCaches(a, b, gamma);
     const LightCost cost(eq, o.penalty_weight, o.penalty_epsilon);
     double data = 0.0;
@@ -640,15 +643,15 @@ int main(int argc, char** argv) {
     std::printf("solve from truth: cost %.6g data %.6g iterations %d\n", r.cost, r.data, r.iterations);
     return 0;
   }
-  if (std::getenv("CYCLES")) {
-    Cycles(std::getenv("CYCLES"), weights, spp, eval_spp);
+  if (!g_flags.cycles.empty()) {
+    Cycles(g_flags.cycles, weights, spp, eval_spp);
     return 0;
   }
   double t = Now();
   const Replica replica = MakeReplica(width, height, ref_spp, out);
   std::printf("replica: 5 views %dx%d at %d spp in %.1f s, %d threads\n", width, height, ref_spp, Now() - t,
               ThreadCount());
-  if (std::getenv("FINE_CHECK")) {  // diagnostic: the fine level's cost at the oracle and at the solve
+  if (g_flags.fine_check) {  // diagnostic: the fine level's cost at the oracle and at the solve
     Scene s = WithoutLights(replica.scene);
     VoxelLightGrid fine = MakeVoxelGrid(s, 14), oracle = fine;
     VoxelSplitting sp;
@@ -671,10 +674,7 @@ int main(int argc, char** argv) {
     o.spp = spp;
     o.noise_correction = gamma;
     const std::vector<SampledPixel> pixels = SamplePixels(tracer, replica.train, o, 7);
-    LightEstimationOptions half = o;
-    half.spp = spp / 2;
-    const LightCache a = TraceLightCache(tracer, fine, sp, replica.train, pixels, half, 1);
-    const LightCache b = TraceLightCache(tracer, fine, sp, replica.train, pixels, half, 2);
+    const auto [a, b] = TraceLightCacheHalves(tracer, fine, sp, replica.train, pixels, o, 1, 2);
     const NormalEquations eq = NormalEquations::FromCaches(a, b, gamma);
     for (double w : weights) {
       o.penalty_weight = w;
@@ -699,7 +699,7 @@ int main(int argc, char** argv) {
     }
     return 0;
   }
-  if (std::getenv("ORACLE")) {  // diagnostic: the replica's light as voxel lights with its power
+  if (g_flags.oracle) {  // diagnostic: the replica's light as voxel lights with its power
     const Scene s = WithoutLights(replica.scene);
     const auto judge = [&](const VoxelLightGrid& g, const std::string& label) {
       const std::vector<ViewError> errors = ReplicaErrors(replica, g, eval_spp);
@@ -740,12 +740,12 @@ int main(int argc, char** argv) {
     o.penalty_weight = weight;
     o.spp = spp;
     o.noise_correction = gamma;
-    ApplyEnvironment(&o);
+    ApplyOverrides(&o);
     t = Now();
     const LightEstimate e = EstimateLights(replica.scene, replica.train, o, 7);
     const double seconds = Now() - t;
     PrintRounds(e);
-    if (std::getenv("DUMP")) {
+    if (g_flags.dump) {
       for (int j : e.lights.ActiveVoxels(1e-3)) {
         const Eigen::Vector3d c = e.lights.VoxelCenter(j);
         const auto& l = e.lights.weights[j];

@@ -24,7 +24,7 @@
 #include "core/parallel.h"
 #include "core/tsdf_volume.h"
 #include "meshing/marching_cubes.h"
-#include "tests/meshing/analytic_volume.h"
+#include "core/analytic_volume.h"
 
 using namespace genscene;
 
@@ -72,11 +72,11 @@ double BestSeconds(const TsdfVolume& volume, meshing::MeshingResult* result) {
 }
 
 void DecimationTable() {
-  test::AnalyticVolumeSpec spec;  // 2 cm voxels
+  analytic::AnalyticVolumeSpec spec;  // 2 cm voxels
   const auto torus = [](const Eigen::Vector3d& p) {
-    return test::TorusSdf(p, {0.0113, -0.0071, 0.0047}, 0.28, 0.11);
+    return analytic::TorusSdf(p, {0.0113, -0.0071, 0.0047}, 0.28, 0.11);
   };
-  const TsdfVolume volume = test::MakeAnalyticVolume(spec, torus);
+  const TsdfVolume volume = analytic::MakeAnalyticVolume(spec, torus);
   const TriangleMesh full = meshing::ExtractMesh(volume, meshing::MeshingOptions()).mesh;
   std::printf(
       "\nDecimation of an analytic torus (R 0.28 m, r 0.11 m, 2 cm voxels): one-sided Hausdorff =\n"
@@ -90,7 +90,7 @@ void DecimationTable() {
     const meshing::MeshingResult r = meshing::ExtractMesh(volume, options);
     double hausdorff = 0.0, centroid = 0.0;
     for (const Eigen::Vector3f& v : full.vertices) {
-      hausdorff = std::max(hausdorff, test::DistanceToMesh(v.cast<double>(), r.mesh));
+      hausdorff = std::max(hausdorff, analytic::DistanceToMesh(v.cast<double>(), r.mesh));
     }
     for (const Eigen::Vector3i& f : r.mesh.faces) {
       const Eigen::Vector3f c =
@@ -178,13 +178,13 @@ int main(int argc, char** argv) {
               "vertices", "triangles", "ms", "Mcells/s", "classify ms");
   for (int n : sizes) {
     n = (n + kTsdfBlockSide - 1) / kTsdfBlockSide * kTsdfBlockSide;
-    test::AnalyticVolumeSpec spec;
+    analytic::AnalyticVolumeSpec spec;
     spec.voxel_size = 0.01;
     spec.truncation = 0.05;
     spec.sparse = false;
     spec.lo = Eigen::Vector3i::Zero();
     spec.hi = Eigen::Vector3i::Constant(n - 1);
-    const TsdfVolume volume = test::MakeAnalyticVolume(
+    const TsdfVolume volume = analytic::MakeAnalyticVolume(
         spec, nullptr, [&](const Eigen::Vector3i& g) { return Gyroid(g, spec.voxel_size); });
     if (!dump.empty()) WriteNpy(dump / ("gyroid_" + std::to_string(n) + ".npy"), volume, n);
     for (int threads : {1, 0}) {

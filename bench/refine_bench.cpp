@@ -1,10 +1,10 @@
-// Vertex refinement speed against error (issue 8, acceptance 2, 3, 4 and 6).
+// Vertex refinement speed against error.
 //  1. The paper's replica (Fig. 4) with our own renderer: the icosphere in the Cornell box
 //     (MakeIcosphereBox), one 106 x 80 reference view, two vertices that face the camera perturbed
 //     by 20 % of the radius. Per iteration: seconds, image relative RMSE, the two vertices' errors
 //     as a fraction of their perturbation, Jacobian non-zeros per pixel. Writes OUT/fig4_refine.png:
 //     the reference, then the shading-only render (every albedo grey) per iteration.
-//  2. With CYCLES=../shared/data: the same from Blender Cycles' icosphere_flat and icosphere_smooth
+//  2. With --cycles ../shared/data: the same from Blender Cycles' icosphere_flat and icosphere_smooth
 //     renders (cbox-cycles), with their geometry.
 //  3. Every vertex perturbed with noise sigma = 5 % of the radius (per coordinate, or with
 //     --radial-noise 1 along the radius): RMS vertex error per iteration and flipped faces, from
@@ -17,8 +17,10 @@
 //               [--refined-only 0|1] [--refine-unseen 0|1] [--perturbation F] [--flat 0|1]
 //               [--jacobian-depth D] [--average-after K] [--views N] [--radial-noise 0|1]
 //               [--noise-seed N] [--smooth M] [--edge-margin PX]
-// RADIAL=1 also prints, per iteration, the Levenberg-Marquardt state and the vertex errors split
-// along the sphere's radius and across it.
+// --help lists every flag. Diagnostics: --radial 1 also prints, per iteration, the
+// Levenberg-Marquardt state and the vertex errors split along the sphere's radius and across it
+// (2: per vertex too); --gradcheck the objective along the gradient; --views-png the references.
+#include <CLI/CLI.hpp>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -65,6 +67,10 @@ struct Settings {
   bool smooth = true;         // the replica's sphere shades with area-weighted vertex normals
   std::string sections = "123";
   uint64_t seed = 1;          // of the refinement's random numbers
+  std::string cycles;         // ../shared/data: section 2 from the Cycles renders
+  int radial = 0;             // diagnostic: 1 the LM state and radial / tangential errors, 2 per vertex too
+  bool gradcheck = false;     // diagnostic: the objective along -gradient against its slope
+  bool views_png = false;     // diagnostic: the references side by side
 };
 
 void Paste(ImageRgb& canvas, const ImageRgb& image, int x0) {
@@ -104,7 +110,7 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
 
   DifferentiablePathTracer tracer(scene, refined);
   tracer.SetPositions(start);
-  if (std::getenv("GRADCHECK")) {  // diagnostic: the objective along -gradient against its slope
+  if (s.gradcheck) {  // diagnostic: the objective along -gradient against its slope
     const RefineLinearization l = LinearizeRefinement(tracer, targets, options);
     const Eigen::VectorXd d = -l.gradient.normalized();
     std::printf("gradient check: E %.6g, |g| %.4g\n", l.cost, l.gradient.norm());
@@ -142,7 +148,7 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
     const Eigen::VectorXd d = at.Positions() - truth;
     double watched_max = 0.0;
     for (int v : watched) watched_max = std::max(watched_max, d.segment<3>(3 * v).norm());
-    if (std::getenv("RADIAL")) {
+    if (s.radial > 0) {
       std::printf("   cost %.6g step %.5f rejected %d damping %.3g accepted %d\n", it.cost, it.step_rms, it.rejected,
                   it.damping, it.accepted ? 1 : 0);
       // Vertex v's error along the sphere's radius (signed) and across it; both spheres are
@@ -162,7 +168,7 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
         rad += radial * radial;
         tan += across * across;
       }
-      if (std::string(std::getenv("RADIAL")) == "2") {
+      if (s.radial == 2) {
         std::printf("   radial mm:");
         const Eigen::Vector3d eye = view.world_from_camera.translation().cast<double>();
         for (int v = 0; v < at.VertexCount(); ++v) {
@@ -270,7 +276,7 @@ void AllVertices(const Settings& s) {
   for (size_t i = 1; i < views.size(); ++i) {
     targets.push_back({views[i], renderer.Render(views[i], render, 1234 + i).radiance});
   }
-  if (std::getenv("VIEWS_PNG")) {  // diagnostic: the references side by side
+  if (s.views_png) {  // diagnostic: the references side by side
     ImageRgb canvas(reference.width() * static_cast<int>(targets.size()), reference.height());
     for (size_t i = 0; i < targets.size(); ++i) Paste(canvas, targets[i].image, reference.width() * static_cast<int>(i));
     WritePng(s.out / "views.png", canvas);
@@ -296,42 +302,53 @@ void AllVertices(const Settings& s) {
 
 int main(int argc, char** argv) {
   Settings s;
-  for (int i = 1; i + 1 < argc; i += 2) {
-    if (!std::strcmp(argv[i], "--out")) s.out = argv[i + 1];
-    if (!std::strcmp(argv[i], "--ref-spp")) s.ref_spp = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--spp")) s.spp = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--iterations")) s.iterations = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--max-depth")) s.max_depth = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--threads")) SetThreadCount(std::atoi(argv[i + 1]));
-    if (!std::strcmp(argv[i], "--sections")) s.sections = argv[i + 1];
-    if (!std::strcmp(argv[i], "--perturbation")) s.perturbation = std::atof(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--prior")) s.prior_sigma = std::atof(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--prior-tangent")) s.prior_tangent_sigma = std::atof(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--robust")) s.robust = std::atof(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--refine-unseen")) s.refine_unseen = std::atoi(argv[i + 1]) != 0;
-    if (!std::strcmp(argv[i], "--refined-only")) s.refined_only = std::atoi(argv[i + 1]) != 0;
-    if (!std::strcmp(argv[i], "--relax")) s.relax_sigma = std::atof(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--smooth")) s.smooth_sigma = std::atof(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--prior-robust")) s.prior_robust = std::atof(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--damping")) s.damping = std::atof(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--seed")) s.seed = std::strtoull(argv[i + 1], nullptr, 10);
-    if (!std::strcmp(argv[i], "--jacobian-depth")) s.jacobian_depth = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--average-after")) s.average_after = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--edge-margin")) s.edge_margin = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--views")) s.views = std::atoi(argv[i + 1]);
-    if (!std::strcmp(argv[i], "--noise-seed")) s.noise_seed = std::strtoull(argv[i + 1], nullptr, 10);
-    if (!std::strcmp(argv[i], "--radial-noise")) s.radial_noise = std::atoi(argv[i + 1]) != 0;
-    if (!std::strcmp(argv[i], "--flat")) s.smooth = !std::atoi(argv[i + 1]);
-  }
+  int threads = 0;
+  CLI::App app{"bench_refine: vertex refinement on the paper's Fig. 4 replica (section 1), the Cycles renders "
+               "(section 2, with --cycles) and every vertex perturbed (section 3): per iteration seconds, image error "
+               "and vertex errors."};
+  app.add_option("--out", s.out, "folder for the figure")->capture_default_str();
+  app.add_option("--ref-spp", s.ref_spp, "paths per pixel of the references")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--spp", s.spp, "paths per pixel of the refinement")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--iterations", s.iterations, "Levenberg-Marquardt iterations")->check(CLI::NonNegativeNumber)->capture_default_str();
+  app.add_option("--max-depth", s.max_depth, "longest path (Mitsuba convention; -1 = unlimited)")->capture_default_str();
+  app.add_option("--threads", threads, "worker threads (0: all cores)")->check(CLI::NonNegativeNumber);
+  app.add_option("--sections", s.sections, "which sections to run (digits 1, 2, 3)")->capture_default_str();
+  app.add_option("--perturbation", s.perturbation, "section 1's perturbation, a fraction of the radius")->capture_default_str();
+  app.add_option("--prior", s.prior_sigma, "prior_sigma [m]")->capture_default_str();
+  app.add_option("--prior-tangent", s.prior_tangent_sigma, "prior_tangent_sigma [m]")->capture_default_str();
+  app.add_option("--robust", s.robust, "Huber threshold of the residuals in noise units")->capture_default_str();
+  app.add_option("--refine-unseen", s.refine_unseen, "refine vertices no pixel sees (0 or 1)")->capture_default_str();
+  app.add_option("--refined-only", s.refined_only, "only pixels whose first hit is a refined mesh (0 or 1)")->capture_default_str();
+  app.add_option("--relax", s.relax_sigma, "relax_sigma [m]")->capture_default_str();
+  app.add_option("--smooth", s.smooth_sigma, "smooth_sigma [m]")->capture_default_str();
+  app.add_option("--prior-robust", s.prior_robust, "prior_robust [sigma]")->capture_default_str();
+  app.add_option("--damping", s.damping, "initial Levenberg-Marquardt damping")->capture_default_str();
+  app.add_option("--seed", s.seed, "seed of the refinement's random numbers")->capture_default_str();
+  app.add_option("--jacobian-depth", s.jacobian_depth, "jacobian_max_depth [segments]")->capture_default_str();
+  app.add_option("--average-after", s.average_after, "average the steps after this many iterations")->capture_default_str();
+  app.add_option("--edge-margin", s.edge_margin, "pixels next to silhouettes left out [px]")->capture_default_str();
+  app.add_option("--views", s.views, "section 3's views")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--noise-seed", s.noise_seed, "section 3's noise draw")->capture_default_str();
+  app.add_option("--radial-noise", s.radial_noise, "section 3's noise along the radius (0 or 1)")->capture_default_str();
+  bool flat = !s.smooth;
+  app.add_option("--flat", flat, "the replica's sphere flat-shaded (0 or 1)")->capture_default_str();
+  app.add_option("--cycles", s.cycles, "../shared/data: section 2 from the Cycles renders of DATA/cbox-cycles");
+  app.add_option("--radial", s.radial, "diagnostic: 1 prints the LM state and radial / tangential errors, 2 per vertex too")
+      ->check(CLI::Range(0, 2));
+  app.add_flag("--gradcheck", s.gradcheck, "diagnostic: the objective along -gradient against its slope");
+  app.add_flag("--views-png", s.views_png, "diagnostic: write the references side by side");
+  CLI11_PARSE(app, argc, argv);
+  s.smooth = !flat;
+  if (threads > 0) SetThreadCount(threads);
   fs::create_directories(s.out);
-  std::printf("Vertex refinement (issue 8): Levenberg-Marquardt on the sparse forward-mode AD path tracer, %d threads\n",
+  std::printf("Vertex refinement: Levenberg-Marquardt on the sparse forward-mode AD path tracer, %d threads\n",
               ThreadCount());
   if (s.sections.find('1') != std::string::npos) Replica(s);
   if (s.sections.find('2') != std::string::npos) {
-    if (const char* data = std::getenv("CYCLES")) {
-      Cycles(data, s);
+    if (!s.cycles.empty()) {
+      Cycles(s.cycles, s);
     } else {
-      std::printf("\n2. Cycles: skipped (set CYCLES=../shared/data)\n");
+      std::printf("\n2. Cycles: skipped (give --cycles ../shared/data)\n");
     }
   }
   if (s.sections.find('3') != std::string::npos) AllVertices(s);

@@ -1,4 +1,4 @@
-// Frame sources on OpenNI2 (issue 9): a live camera (`openni2` = the first device,
+// Frame sources on OpenNI2: a live camera (`openni2` = the first device,
 // `openni2:URI` = that device) or a .oni recording, which OpenNI2 opens as a device too. Both give
 // depth + colour as RgbdFrame through the FrameSource interface of core/frame_source.h, so fusion
 // reads them unchanged. Only this file and its .cpp see OpenNI2 types.
@@ -21,7 +21,7 @@
 
 namespace genscene::capture {
 
-// The one line shown when no camera is attached (issue 9).
+// The one line shown when no camera is attached.
 inline constexpr const char* kNoDeviceMessage =
     "no OpenNI2 device found \xE2\x80\x94 connect a camera or give a .oni file or a folder";
 

@@ -1,6 +1,6 @@
 // Analytic test scenes: a room (an inward-facing box), axis-aligned boxes and spheres, each with a
 // Lambertian albedo, ray cast exactly. They give depth maps with closed-form ground truth for the
-// tests of every stage, and the built-in demo sequence before the path tracer (issue 3) renders
+// tests of every stage, and the built-in demo sequence before the path tracer renders
 // radiometrically exact ones. Shading here is a simple local model (no shadows, no
 // interreflection): colour = albedo * (ambient + (1 - ambient) * max(0, n.l)) for a light point.
 #pragma once

@@ -1,7 +1,7 @@
 // The workspace folder (DESIGN.md §2): every stage reads its inputs from and writes its outputs
 // to one folder, so that any stage can be re-run, inspected or fed by hand. Outputs are written
-// atomically (file_util.h), so an existing output is a complete one; a stage is skipped when all
-// its outputs exist and are newer than all its inputs.
+// atomically (file_util.h), so an existing output is a complete one; `genscene run` skips a stage
+// whose outputs exist and were made from the same inputs and options (StageFingerprints()).
 #pragma once
 
 #include <filesystem>
@@ -33,6 +33,20 @@ class Workspace {
   std::filesystem::path Lights() const { return root_ / "lights.json"; }
   std::filesystem::path RefinedMesh() const { return root_ / "mesh_refined.ply"; }
   std::filesystem::path Log() const { return root_ / "genscene.log"; }
+  // Each stage's report (options, figures) and its folder of images.
+  std::filesystem::path SequenceJson() const { return root_ / "sequence.json"; }
+  std::filesystem::path FusionJson() const { return root_ / "fusion.json"; }
+  std::filesystem::path TextureJson() const { return root_ / "texture.json"; }
+  std::filesystem::path AlbedoJson() const { return root_ / "albedo.json"; }
+  std::filesystem::path LightsDir() const { return root_ / "lights"; }
+  std::filesystem::path RefineDir() const { return root_ / "refine"; }
+  std::filesystem::path RefineReport() const { return RefineDir() / "report.json"; }
+  std::filesystem::path ExportDir() const { return root_ / "export"; }
+  std::filesystem::path EvaluationDir() const { return root_ / "evaluation"; }
+  std::filesystem::path EvaluationJson() const { return EvaluationDir() / "evaluation.json"; }
+  std::filesystem::path HeldOutJson() const { return EvaluationDir() / "holdout.json"; }
+  // The run's rows (stage, seconds, memory, figures), for `genscene report`.
+  std::filesystem::path SummaryJson() const { return root_ / "summary.json"; }
   // What each stage of the chain was made from: {"stage": fingerprint of its inputs and options}.
   std::filesystem::path StageFingerprints() const { return root_ / "stages.json"; }
   std::filesystem::path Report() const { return root_ / "report"; }
@@ -40,6 +54,5 @@ class Workspace {
  private:
   std::filesystem::path root_;
 };
-
 
 }  // namespace genscene

@@ -70,7 +70,7 @@ NormalEquations Accumulate(const PyramidLevel& live, const RaycastResult& model,
           const int v = static_cast<int>(row);
           // One row's sums in float, as the outer products w j (j, r) of rows of 8 (j, the
           // residual r, a zero) that the compiler turns into SIMD; the rows' sums are added in
-          // double. A row is at most a few hundred terms (session 17, synthetic room: ATE 0.514
+          // double. A row is at most a few hundred terms (measured on the synthetic room: ATE 0.514
           // against 0.513 cm with double sums).
           Eigen::Matrix<float, 8, 6> sums = Eigen::Matrix<float, 8, 6>::Zero();  // column a: w j_a (j, r, 0)
           float squared_residuals = 0.0f, squared_ranges = 0.0f;

@@ -39,7 +39,7 @@ struct IntegrationStats {
 // axial noise, sigma(z) = 0.0012 + 0.0019 (z - 0.4)^2 m (Nguyen, Izadi & Lovell 2012, Kinect v1;
 // the model of genscene-synth's `--noise kinect`), relative to z = 1 m: 2.4 at 0.5 m, 1 at 1 m,
 // 0.12 at 2 m, 0.018 at 3 m. A surface seen from near and far is then averaged as the noise
-// warrants instead of equally. Session 18, synthetic room 150 frames with Kinect noise, known
+// warrants instead of equally. Measured on the synthetic room 150 frames with Kinect noise, known
 // poses, mesh against the truth (bench/compare_open3d_fusion.py), uniform -> noise weights:
 // 320x240 RMS 4.68 -> 4.55 mm, mean 2.57 -> 2.39, p90 6.48 -> 6.04; 640x480 RMS 4.23 -> 4.07,
 // mean 2.39 -> 2.19, p90 6.09 -> 5.63; tracked ATE 0.531 -> 0.451 cm (320x240), 0.340 -> 0.288

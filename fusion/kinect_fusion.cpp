@@ -331,7 +331,7 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
   std::error_code ec;
   std::filesystem::remove_all(workspace.HeldOut(), ec);  // an earlier run's held-out frames are not this run's
   if (!fusion.held_out().empty()) WriteTumSequence(workspace.HeldOut(), fusion.held_out(), write);
-  WriteTextFileAtomically(workspace.root() / "fusion.json",
+  WriteTextFileAtomically(workspace.FusionJson(),
                           json({{"summary", summary}, {"options", options}, {"frames", frames}}).dump(1) + "\n");
 }
 

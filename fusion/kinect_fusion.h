@@ -43,7 +43,7 @@ struct FusionOptions {
   std::string tracking = "icp";   // icp (estimate the poses) or known (fuse with the source's poses)
   double min_valid_fraction = 0.05;  // frames with fewer valid depth pixels are blank (skipped)
   // The model is raycast at 1/N of the depth's resolution for ICP (normals over the same
-  // baseline in metres). Session 17, synthetic room 150 frames: N = 2 gives ATE 0.521 cm against
+  // baseline in metres). Measured on the synthetic room 150 frames: N = 2 gives ATE 0.521 cm against
   // 0.515 at full resolution (320x240) and 0.337 against 0.338 (640x480), TUM fr1/desk 0.1773
   // against 0.1774 cm, for a third of the raycast time; N = 3: 0.581 / 0.359 cm.
   int model_subsample = 2;
@@ -52,7 +52,7 @@ struct FusionOptions {
   // lone pixel's band reaches (the rim of an observed region, a flying pixel) then waits until
   // more of the surface is seen. 0 = by the image's width, the same angular spacing at every
   // resolution: width / 160 rounded, at least 1 (2 at 320x240, 4 at 640x480; AllocationStride).
-  // Session 18, synthetic room 150 frames with Kinect noise, known poses, uniform weights
+  // Measured on the synthetic room 150 frames with Kinect noise, known poses, uniform weights
   // (bench/compare_open3d_fusion.py; Open3D samples every 4th pixel):
   //   320x240: N = 1: 8301 blocks, mesh RMS 4.77 mm, 93 fps; N = 2: 7959, 4.68 mm, 127 fps;
   //            N = 3: 7664, 4.60 mm, 140 fps; Open3D 4.72 mm; tracked ATE 0.521 / 0.531 / 0.528 cm;

@@ -1,4 +1,4 @@
-// libFuzzer harnesses for every parser (issue 12). Each harness writes its input to a scratch
+// libFuzzer harnesses for every parser. Each harness writes its input to a scratch
 // file, whose extension chooses the format, and calls one reader. genscene::Error is the expected
 // answer to bad input; anything else is a finding: another exception (uncaught: std::terminate),
 // a crash, an ASan / UBSan report, a hang (-timeout) or an allocation over -malloc_limit_mb.

@@ -8,27 +8,11 @@
 #include <numeric>
 
 #include "core/check.h"
+#include "core/disjoint_sets.h"
 
 namespace genscene::meshing {
 
 namespace {
-
-// Union-find with path halving; the root of a set is its smallest member.
-class DisjointSets {
- public:
-  explicit DisjointSets(size_t n) : parent_(n) { std::iota(parent_.begin(), parent_.end(), 0); }
-  size_t Find(size_t i) {
-    while (parent_[i] != i) i = parent_[i] = parent_[parent_[i]];
-    return i;
-  }
-  void Union(size_t a, size_t b) {
-    a = Find(a), b = Find(b);
-    if (a != b) parent_[std::max(a, b)] = std::min(a, b);
-  }
-
- private:
-  std::vector<size_t> parent_;
-};
 
 // Keeps the faces with keep[f] and the vertices they use, in their original order.
 void KeepFaces(TriangleMesh* mesh, const std::vector<bool>& keep) {

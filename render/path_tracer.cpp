@@ -454,4 +454,22 @@ RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, 
   return out;
 }
 
+double RenderHalves::NoiseRms() const {
+  double noise = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) noise += 0.25 * (a.data()[i] - b.data()[i]).cast<double>().squaredNorm();
+  return a.size() == 0 ? 0.0 : std::sqrt(noise / (3.0 * static_cast<double>(a.size())));
+}
+
+RenderHalves RenderInHalves(const PathTracer& tracer, const View& view, const RenderOptions& options, uint64_t seed_a,
+                            uint64_t seed_b) {
+  RenderOptions half = options;
+  half.spp = std::max(1, options.spp / 2);
+  RenderHalves out;
+  out.a = tracer.Render(view, half, seed_a).radiance;
+  out.b = tracer.Render(view, half, seed_b).radiance;
+  out.mean = ImageRgb(out.a.width(), out.a.height());
+  for (size_t i = 0; i < out.a.size(); ++i) out.mean.data()[i] = 0.5f * (out.a.data()[i] + out.b.data()[i]);
+  return out;
+}
+
 }  // namespace genscene::render

@@ -64,7 +64,7 @@ struct RenderOutput {
   RayCounts rays;        // traced for the radiance (not for the geometry buffers)
 };
 
-// Which voxel lights a path vertex connects to when light estimation splits (issue 7). Vertices up
+// Which voxel lights a path vertex connects to when light estimation splits. Vertices up
 // to depth `all_until_depth` (1 = the first surface hit) connect to every voxel with
 // `enabled[j]` (empty = all of them); deeper vertices draw `samples` voxels with probabilities
 // `pmf` (sum 1), each connection weighted 1 / (samples * pmf[j]); with samples = 0 they connect
@@ -114,7 +114,7 @@ class PathTracer {
   Eigen::Vector3f Radiance(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
                            const RenderOptions& options, CounterRng& rng, RayCounts* counts = nullptr) const;
 
-  // Light estimation's walk (issue 7): the same camera path as Radiance() (BSDF sampling,
+  // Light estimation's walk: the same camera path as Radiance() (BSDF sampling,
   // Russian roulette, max_depth), but at every vertex it connects to the voxels of `splitting`
   // (positions from `grid`; its intensities are not read) with a shadow ray each, and reports
   // the coefficients of the products L_j lambda_jk to `sink` (once per vertex, the connections
@@ -148,5 +148,18 @@ class PathTracer {
   std::unique_ptr<RayTracer> tracer_;
   std::unique_ptr<LightSampler> lights_;
 };
+
+// Two independent renders of a view with half the paths each (random numbers keyed by seed_a and
+// seed_b): their mean is the render, and their difference measures its Monte Carlo noise, for
+// every comparison that takes the noise out (the evaluation, the held-out judge, CompareRender).
+struct RenderHalves {
+  ImageRgb a, b;  // the two halves
+  ImageRgb mean;  // (a + b) / 2
+  // RMS per channel of the mean's noise over all pixels: sqrt(sum |a - b|^2 / 4 / (3 pixels)).
+  double NoiseRms() const;
+};
+// `options.spp` is the total (each half gets max(1, spp / 2)).
+RenderHalves RenderInHalves(const PathTracer& tracer, const View& view, const RenderOptions& options, uint64_t seed_a,
+                            uint64_t seed_b);
 
 }  // namespace genscene::render

@@ -14,12 +14,12 @@ Scene MakeCornellBoxScene();
 // a ball, lit by a ceiling panel and a warm lamp on the cabinet.
 Scene MakeRoomScene();
 
-// The light-estimation replica of the paper's Fig. 3 (issue 7): five views inside the Cornell box
+// The light-estimation replica of the paper's Fig. 3: five views inside the Cornell box
 // of MakeCornellBoxScene, `width` x `height`, 60 degrees horizontal field of view; the first three
 // are the training views, the last two the novel views.
 std::vector<View> CornellLightViews(int width, int height);
 
-// The vertex-refinement replica of the paper's Fig. 4 (issue 8), the scene of
+// The vertex-refinement replica of the paper's Fig. 4, the scene of
 // ../shared/data/cbox-cycles/icosphere_flat (and _smooth) built in code: the 1 m Cornell box
 // (interior x, y in [-0.5, 0.5], z in [0, 1], open towards -y; red wall at x = -0.5, green at
 // x = +0.5) lit by a 0.25 m square light under the ceiling (radiance (30, 24, 18)), with an

@@ -8,6 +8,7 @@
 
 #include <Eigen/Geometry>
 #include <array>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -91,5 +92,10 @@ struct TrainingView {
   View view;
   ImageRgb image;
 };
+
+// The posed images of a view set or keyframes folder (intrinsics.txt, groundtruth.txt, rgb.txt):
+// EXR as linear, PNG as sRGB. Throws Error when the folder is missing, empty, or an image has no
+// pose or no colour.
+std::vector<TrainingView> ReadViews(const std::filesystem::path& folder);
 
 }  // namespace genscene::render

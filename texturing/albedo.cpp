@@ -8,6 +8,7 @@
 
 #include "core/check.h"
 #include "core/color.h"
+#include "core/disjoint_sets.h"
 
 namespace genscene::texturing {
 
@@ -29,20 +30,6 @@ Eigen::Vector2d Chroma(const Eigen::Vector3f& c) {
   const double sum = std::max(1e-12, static_cast<double>(c.sum()));
   return Eigen::Vector2d(c.x() / sum, c.y() / sum);
 }
-
-// Union-find with path halving; deterministic roots (the smaller index wins).
-struct DisjointSets {
-  std::vector<uint32_t> parent;
-  explicit DisjointSets(size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
-  uint32_t Find(uint32_t a) {
-    while (parent[a] != a) a = parent[a] = parent[parent[a]];
-    return a;
-  }
-  void Union(uint32_t a, uint32_t b) {
-    a = Find(a), b = Find(b);
-    if (a != b) parent[std::max(a, b)] = std::min(a, b);
-  }
-};
 
 // Mean shift over a weighted 2D histogram of chromaticities (step 1 of albedo.h): the surviving
 // modes, heaviest first.

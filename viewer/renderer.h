@@ -50,7 +50,7 @@ class Renderer {
   // Whether `mode` has the data it needs (e.g. kShading needs both fields).
   bool Supports(ColorMode mode) const;
   bool HasRefinedMesh() const;
-  // The hook for light estimation (issue 7): replaces the light glyphs drawn in the overlay.
+  // The hook for light estimation: replaces the light glyphs drawn in the overlay.
   void SetLights(const std::vector<LightGlyph>& lights);
   // The bounding box of everything drawn (mesh, cameras, lights), for camera placement.
   Eigen::AlignedBox3d Bounds() const;

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <tuple>
+#include <utility>
 
 #include "core/check.h"
 #include "core/color.h"
@@ -388,6 +390,21 @@ void LightCache::Merge(const LightCache& other) {
   coefficient = std::move(merged_coefficient);
   rays.intersect += other.rays.intersect;
   rays.occluded += other.rays.occluded;
+}
+
+std::pair<LightCache, LightCache> TraceLightCacheHalves(const PathTracer& tracer, const VoxelLightGrid& grid,
+                                                        const VoxelSplitting& splitting,
+                                                        const std::vector<TrainingView>& views,
+                                                        const std::vector<SampledPixel>& pixels,
+                                                        const LightEstimationOptions& options, uint64_t seed_a,
+                                                        uint64_t seed_b, double cap_bytes) {
+  LightEstimationOptions half = options;
+  half.spp = options.spp / 2;
+  std::pair<LightCache, LightCache> out;
+  out.first = TraceLightCache(tracer, grid, splitting, views, pixels, half, seed_a, cap_bytes);
+  const double left = cap_bytes > 0.0 ? std::max(1.0, cap_bytes - static_cast<double>(out.first.Bytes())) : 0.0;
+  out.second = TraceLightCache(tracer, grid, splitting, views, pixels, half, seed_b, left);
+  return out;
 }
 
 Eigen::Vector3f RenderSampledPixel(const PathTracer& tracer, const VoxelLightGrid& grid,
@@ -1116,13 +1133,12 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
                                 const VoxelSplitting& splitting, int spp, uint64_t key, double equation_bytes,
                                 LightCache* second, LightRound* r) {
     const auto t = std::chrono::steady_clock::now();
-    LightEstimationOptions half = options;
-    half.spp = spp / 2;
-    const double cache_bytes = cap_bytes - equation_bytes;
-    last = LightCache();  // the previous cache is not needed while tracing
-    last = TraceLightCache(tracer, lights, splitting, views, traced_pixels, half, key, cache_bytes);
-    *second = TraceLightCache(tracer, lights, splitting, views, traced_pixels, half, ~key,
-                              std::max(1.0, cache_bytes - static_cast<double>(last.Bytes())));
+    LightEstimationOptions paths = options;
+    paths.spp = spp;
+    last = LightCache();  // the previous caches are not needed while tracing
+    *second = LightCache();
+    std::tie(last, *second) =
+        TraceLightCacheHalves(tracer, lights, splitting, views, traced_pixels, paths, key, ~key, cap_bytes - equation_bytes);
     r->trace_seconds = SecondsSince(t);
     r->nonzeros = last.NonZeros() + second->NonZeros();
     r->rays = last.rays.total() + second->rays.total();
@@ -1387,10 +1403,9 @@ ViewError CompareRender(const PathTracer& lit, const TrainingView& reference, co
                         int spp, uint64_t seed, double reference_noise_rms, ImageRgb* render, int block) {
   GS_CHECK_GE(block, 1);
   const Image<uint8_t> valid = ValidPixels(lit, reference, options);
-  RenderOptions half = options.Paths();
-  half.spp = std::max(1, spp / 2);
-  const RenderOutput a = lit.Render(reference.view, half, seed);
-  const RenderOutput b = lit.Render(reference.view, half, seed ^ 0xB5297A4D3F1E0C2Bull);
+  RenderOptions paths = options.Paths();
+  paths.spp = spp;
+  const RenderHalves halves = RenderInHalves(lit, reference.view, paths, seed, seed ^ 0xB5297A4D3F1E0C2Bull);
   ViewError e;
   double err = 0.0, ref = 0.0, noise = 0.0;
   const double reference_variance = 3.0 * reference_noise_rms * reference_noise_rms;  // per pixel
@@ -1403,7 +1418,7 @@ ViewError CompareRender(const PathTracer& lit, const TrainingView& reference, co
       for (int v = v0; v < std::min(v0 + block, valid.height()); ++v) {
         for (int u = u0; u < std::min(u0 + block, valid.width()); ++u) {
           if (!valid(u, v)) continue;
-          const Eigen::Vector3d pa = a.radiance(u, v).cast<double>(), pb = b.radiance(u, v).cast<double>();
+          const Eigen::Vector3d pa = halves.a(u, v).cast<double>(), pb = halves.b(u, v).cast<double>();
           sum_mean += 0.5 * (pa + pb);
           sum_ref += reference.image(u, v).cast<double>();
           // Variance of the mean of two independent halves: |a - b|^2 / 4.
@@ -1422,8 +1437,7 @@ ViewError CompareRender(const PathTracer& lit, const TrainingView& reference, co
     }
   }
   if (render) {
-    *render = ImageRgb(a.radiance.width(), a.radiance.height());
-    for (size_t i = 0; i < render->size(); ++i) render->data()[i] = 0.5f * (a.radiance.data()[i] + b.radiance.data()[i]);
+    *render = halves.mean;
   }
   if (ref > 0.0) {
     e.rmse = std::sqrt(err / ref);

@@ -38,6 +38,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/image.h"
@@ -200,6 +201,16 @@ double NormalEquationsBoundBytes(int dims);
 LightCache TraceLightCache(const render::PathTracer& tracer, const VoxelLightGrid& grid, const render::VoxelSplitting& splitting,
                            const std::vector<render::TrainingView>& views, const std::vector<SampledPixel>& pixels,
                            const LightEstimationOptions& options, uint64_t seed, double cap_bytes = 0.0);
+
+// Two independent caches of the same pixels with half of `options.spp` each (keys seed_a and
+// seed_b): the normal equations' noise correction takes their product (NormalEquations::FromCaches).
+// The second cache gets what the first leaves of `cap_bytes` (0: no cap).
+std::pair<LightCache, LightCache> TraceLightCacheHalves(const render::PathTracer& tracer, const VoxelLightGrid& grid,
+                                                        const render::VoxelSplitting& splitting,
+                                                        const std::vector<render::TrainingView>& views,
+                                                        const std::vector<SampledPixel>& pixels,
+                                                        const LightEstimationOptions& options, uint64_t seed_a,
+                                                        uint64_t seed_b, double cap_bytes = 0.0);
 
 // The radiance of one sampled pixel for the lights `grid`, by the same walk and the same random
 // numbers as TraceLightCache (a fresh render, for checking the cache).

@@ -6,7 +6,7 @@
 
 #include "core/ply_io.h"
 #include "core/tsdf_volume.h"
-#include "tests/meshing/analytic_volume.h"
+#include "core/analytic_volume.h"
 #include "tests/test_util.h"
 
 namespace genscene {
@@ -24,11 +24,11 @@ std::string LastLine(std::string text) {
 
 TEST(GensceneMesh, MeshesTheWorkspaceVolume) {
   test::TempDir dir;
-  test::AnalyticVolumeSpec spec;
+  analytic::AnalyticVolumeSpec spec;
   spec.lo = Eigen::Vector3i::Constant(-12);
   spec.hi = Eigen::Vector3i::Constant(12);
-  WriteTsdfVolume(dir / "tsdf.gsv", test::MakeAnalyticVolume(spec, [](const Eigen::Vector3d& p) {
-                    return test::SphereSdf(p, Eigen::Vector3d(0.003, 0.001, -0.002), 0.15);
+  WriteTsdfVolume(dir / "tsdf.gsv", analytic::MakeAnalyticVolume(spec, [](const Eigen::Vector3d& p) {
+                    return analytic::SphereSdf(p, Eigen::Vector3d(0.003, 0.001, -0.002), 0.15);
                   }));
   const auto r = RunCommand(AppPath("genscene-mesh") + " " + dir.path().string() + " --threads 2");
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -37,7 +37,7 @@ TEST(GensceneMesh, MeshesTheWorkspaceVolume) {
   EXPECT_GT(mesh.faces.size(), 500u);
   EXPECT_EQ(mesh.normals.size(), mesh.vertices.size());
   EXPECT_EQ(mesh.vertex_colors.size(), mesh.vertices.size());
-  const test::MeshTopology topology = test::AnalyseMesh(mesh);
+  const analytic::MeshTopology topology = analytic::AnalyseMesh(mesh);
   EXPECT_TRUE(topology.closed);
   EXPECT_EQ(topology.euler, 2);
   EXPECT_EQ(test::CountFilesContaining(dir.path(), ".tmp"), 0);

@@ -1,4 +1,4 @@
-// The whole chain (issue 11): `genscene demo` killed in every stage and started again gives the
+// The whole chain: `genscene demo` killed in every stage and started again gives the
 // model of an uninterrupted run; the exported Mitsuba XML re-imports and renders the same image;
 // the demo's model against its synthetic ground truth. Labelled "slow" (CI runs it under ASan +
 // UBSan).
@@ -93,12 +93,12 @@ void ExpectOutputsReadable(const Workspace& ws, const std::string& when) {
     readable(ws.Texture(), [&] { ReadMeshColors(ws.Texture(), mesh); });
     readable(ws.Albedo(), [&] { ReadMeshColors(ws.Albedo(), mesh); });
   }
-  for (const fs::path& ply : {ws.RefinedMesh(), ws.TexturePly(), ws.AlbedoPly(), ws.root() / "export" / "model.ply"}) {
+  for (const fs::path& ply : {ws.RefinedMesh(), ws.TexturePly(), ws.AlbedoPly(), ws.ExportDir() / "model.ply"}) {
     readable(ply, [&] { ReadPly(ply); });
   }
   readable(ws.Lights(), [&] { ReadLightsJson(ws.Lights()); });
-  for (const fs::path& json : {ws.root() / "fusion.json", ws.root() / "sequence.json", ws.root() / "summary.json",
-                               ws.root() / "refine" / "report.json", ws.root() / "evaluation" / "evaluation.json"}) {
+  for (const fs::path& json : {ws.FusionJson(), ws.SequenceJson(), ws.SummaryJson(),
+                               ws.RefineReport(), ws.EvaluationJson()}) {
     readable(json, [&] {
       try {
         const auto parsed = nlohmann::json::parse(ReadTextFile(json));
@@ -108,7 +108,7 @@ void ExpectOutputsReadable(const Workspace& ws, const std::string& when) {
       }
     });
   }
-  readable(ws.root() / "export" / "model.xml", [&] { render::LoadScene(ws.root() / "export" / "model.xml"); });
+  readable(ws.ExportDir() / "model.xml", [&] { render::LoadScene(ws.ExportDir() / "model.xml"); });
 }
 
 // One uninterrupted small demo, shared by the tests (its run is the costly part).
@@ -185,8 +185,8 @@ TEST_F(GensceneChain, KilledInEveryStageAndRestartedGivesTheUninterruptedModel) 
   const VoxelLightGrid a = ReadLightsJson(reference.Lights()), b = ReadLightsJson(ws.Lights());
   EXPECT_EQ(a.intensity, b.intensity);
   EXPECT_EQ(a.weights, b.weights);
-  EXPECT_EQ(nlohmann::json::parse(ReadTextFile(reference.root() / "evaluation" / "evaluation.json"))["relative_rmse"],
-            nlohmann::json::parse(ReadTextFile(ws.root() / "evaluation" / "evaluation.json"))["relative_rmse"]);
+  EXPECT_EQ(nlohmann::json::parse(ReadTextFile(reference.EvaluationJson()))["relative_rmse"],
+            nlohmann::json::parse(ReadTextFile(ws.EvaluationJson()))["relative_rmse"]);
 }
 
 // Which stages a run ran (not skipped), from its summary.json.
@@ -317,7 +317,7 @@ TEST_F(GensceneChain, OneThreadGivesTheSameModelAsAllCores) {
 // refined mesh with its albedo per face and the voxel lights as emissive cube faces).
 TEST_F(GensceneChain, ExportedMitsubaXmlRendersTheSameImage) {
   const Workspace ws = Reference();
-  const render::LoadedScene loaded = render::LoadScene(ws.root() / "export" / "model.xml");
+  const render::LoadedScene loaded = render::LoadScene(ws.ExportDir() / "model.xml");
   ASSERT_FALSE(loaded.views.empty()) << "the keyframe cameras are exported as sensors";
 
   std::vector<std::string> warnings;
@@ -354,7 +354,7 @@ TEST(GensceneDemo, ModelMatchesTheGroundTruth) {
   ASSERT_EQ(RunToEnd({AppPath("genscene"), "demo", "--out", ws.root().string(), "--no-report"}, tmp / "demo.err"), 0)
       << Bytes(tmp / "demo.err");
   const AteResult ate = ComputeAte(ReadTumTrajectory(ws.Trajectory()), ReadTumTrajectory(ws.Input() / "groundtruth.txt"));
-  const auto eval = nlohmann::json::parse(ReadTextFile(ws.root() / "evaluation" / "evaluation.json"));
+  const auto eval = nlohmann::json::parse(ReadTextFile(ws.EvaluationJson()));
   const double novel = eval["relative_rmse"].get<double>();
   std::printf("demo: ATE %.4f cm over %zu poses; novel views: relative RMSE %.4f (noise taken out)\n", 100.0 * ate.rmse,
               ate.pairs, novel);
@@ -363,7 +363,7 @@ TEST(GensceneDemo, ModelMatchesTheGroundTruth) {
   EXPECT_LE(novel, 0.10);
   // The demo's lights are spread over the grid, and its decimated mesh has long thin faces: before
   // refinement held the vertices of faces a step would turn over, 7 faces came out folded.
-  const auto refine = nlohmann::json::parse(ReadTextFile(ws.root() / "refine" / "report.json"));
+  const auto refine = nlohmann::json::parse(ReadTextFile(ws.RefineReport()));
   EXPECT_EQ(refine["flipped_faces"].get<int>(), 0) << "vertex refinement turned faces over";
 }
 
@@ -376,7 +376,7 @@ TEST(GensceneDemo, HeldOutFramesAreAlsoJudgedAgainstTheTruth) {
   std::vector<std::string> args = DemoArgs(ws.root());
   args.insert(args.end(), {"--holdout", "4"});
   ASSERT_EQ(RunToEnd(args, tmp / "demo.err"), 0) << Bytes(tmp / "demo.err");
-  const auto holdout = nlohmann::json::parse(ReadTextFile(ws.root() / "evaluation" / "holdout.json"));
+  const auto holdout = nlohmann::json::parse(ReadTextFile(ws.HeldOutJson()));
   ASSERT_EQ(holdout["frames"].size(), 3u);
   ASSERT_TRUE(holdout["mean"].contains("against_truth")) << holdout["mean"].dump();
   const auto& truth = holdout["mean"]["against_truth"];
@@ -391,8 +391,8 @@ TEST(GensceneDemo, HeldOutFramesAreAlsoJudgedAgainstTheTruth) {
   EXPECT_LT(frame, truth["model"]["relative_rmse"].get<double>());
   EXPECT_LT(frame, truth["albedo_ambient"]["relative_rmse"].get<double>());
   for (const auto& f : holdout["frames"]) EXPECT_TRUE(f.contains("against_truth"));
-  EXPECT_TRUE(fs::exists(ws.root() / "evaluation" / "holdout_00_truth.png"));
-  const auto summary = nlohmann::json::parse(ReadTextFile(ws.root() / "summary.json"));
+  EXPECT_TRUE(fs::exists(ws.EvaluationDir() / "holdout_00_truth.png"));
+  const auto summary = nlohmann::json::parse(ReadTextFile(ws.SummaryJson()));
   std::string evaluate;
   for (const auto& row : summary["stages"]) {
     if (row["stage"] == "evaluate") evaluate = row["result"].get<std::string>();

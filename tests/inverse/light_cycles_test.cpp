@@ -16,14 +16,6 @@ namespace genscene::inverse {
 using namespace genscene::render;  // the renderer the inverse stages are built on
 namespace {
 
-std::vector<TrainingView> ReadViews(const std::filesystem::path& folder) {
-  std::vector<TrainingView> out;
-  auto source = OpenFrameSource(folder.string(), SourceOptions());
-  while (auto frame = source->Next()) {
-    out.push_back({View{frame->intrinsics, *frame->world_from_camera, frame->timestamp}, frame->color});
-  }
-  return out;
-}
 
 TEST(LightEstimationCycles, ActiveVoxelsConcentrateUnderTheTrueLight) {
   GS_REQUIRE_SHARED_DATA(data);

@@ -1,4 +1,4 @@
-// Light estimation (issue 7): the cache against renders, the cost's gradient against finite
+// Light estimation: the cache against renders, the cost's gradient against finite
 // differences, recovery of known lights, and the hard cases.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Vertex refinement (issue 8): the paper's Fig. 4 replica (two perturbed vertices of an icosphere
+// Vertex refinement: the paper's Fig. 4 replica (two perturbed vertices of an icosphere
 // in the Cornell box, one 106 x 80 view rendered by our path tracer), the prior, bad input.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Marching cubes against closed forms (issue 5): exact SDFs of a sphere, a torus and a box give
+// Marching cubes against closed forms: exact SDFs of a sphere, a torus and a box give
 // closed meshes of the right genus with every vertex on the true surface; the block layout, the
 // thread count and exact iso values change nothing they should not.
 #include "meshing/marching_cubes.h"
@@ -13,15 +13,15 @@
 #include "core/ply_io.h"
 #include "meshing/cube_cases.h"
 #include "meshing/mesh_cleanup.h"
-#include "tests/meshing/analytic_volume.h"
+#include "core/analytic_volume.h"
 #include "tests/test_util.h"
 
 namespace genscene::meshing {
 namespace {
 
-using test::AnalyseMesh;
-using test::AnalyticVolumeSpec;
-using test::MakeAnalyticVolume;
+using analytic::AnalyseMesh;
+using analytic::AnalyticVolumeSpec;
+using analytic::MakeAnalyticVolume;
 
 // ---- Kernels ----------------------------------------------------------------------------------
 
@@ -73,7 +73,7 @@ TEST(CubeCases, TrianglesUseExactlyTheCrossedEdges) {
 
 struct ShapeCase {
   const char* name;
-  test::Sdf sdf;
+  analytic::Sdf sdf;
   long long euler;
   // True where a vertex is close to a sharp feature (box edges), excluded from the distance check.
   std::function<bool(const Eigen::Vector3d&)> near_feature;
@@ -87,12 +87,12 @@ std::vector<ShapeCase> Shapes(double voxel) {
   const Eigen::Matrix3d box_from_world =
       Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix().transpose();
   return {
-      {"sphere", [=](const Eigen::Vector3d& p) { return test::SphereSdf(p, c, 0.3); }, 2, nullptr},
-      {"torus", [=](const Eigen::Vector3d& p) { return test::TorusSdf(p, c, 0.28, 0.11); }, 0,
+      {"sphere", [=](const Eigen::Vector3d& p) { return analytic::SphereSdf(p, c, 0.3); }, 2, nullptr},
+      {"torus", [=](const Eigen::Vector3d& p) { return analytic::TorusSdf(p, c, 0.28, 0.11); }, 0,
        nullptr},
       {"box",
        [=](const Eigen::Vector3d& p) {
-         return test::BoxSdf(box_from_world * (p - c), {0, 0, 0}, half);
+         return analytic::BoxSdf(box_from_world * (p - c), {0, 0, 0}, half);
        },
        2,
        [=](const Eigen::Vector3d& p) {
@@ -111,7 +111,7 @@ TEST(MarchingCubes, ClosedFormShapesAreClosedWithTheRightGenusAndOnTheSurface) {
     const TriangleMesh& mesh = result.mesh;
     ASSERT_GT(mesh.faces.size(), 1000u);
     mesh.Validate(shape.name);
-    const test::MeshTopology topology = AnalyseMesh(mesh);
+    const analytic::MeshTopology topology = AnalyseMesh(mesh);
     EXPECT_TRUE(topology.closed);
     EXPECT_TRUE(topology.consistently_oriented);
     EXPECT_EQ(topology.euler, shape.euler);
@@ -121,7 +121,7 @@ TEST(MarchingCubes, ClosedFormShapesAreClosedWithTheRightGenusAndOnTheSurface) {
     for (size_t v = 0; v < mesh.vertices.size(); ++v) {
       const Eigen::Vector3d p = mesh.vertices[v].cast<double>();
       max_color_error =
-          std::max(max_color_error, double((mesh.vertex_colors[v] - test::TestColor(p)).norm()));
+          std::max(max_color_error, double((mesh.vertex_colors[v] - analytic::TestColor(p)).norm()));
       if (shape.near_feature && shape.near_feature(p)) continue;
       max_distance = std::max(max_distance, std::abs(shape.sdf(p)) / spec.voxel_size);
       // Normals: against the exact gradient by central differences of the closed form.
@@ -174,7 +174,7 @@ TEST(MarchingCubes, SameVerticesAndTrianglesWhateverTheBlockLayout) {
   AnalyticVolumeSpec dense, sparse;
   dense.sparse = false;
   sparse.shift = Eigen::Vector3i(3, -5, 6);
-  const test::Sdf torus = Shapes(dense.voxel_size)[1].sdf;
+  const analytic::Sdf torus = Shapes(dense.voxel_size)[1].sdf;
   const TriangleMesh a = ExtractMesh(MakeAnalyticVolume(dense, torus), MeshingOptions()).mesh;
   const TriangleMesh b = ExtractMesh(MakeAnalyticVolume(sparse, torus), MeshingOptions()).mesh;
   ASSERT_EQ(a.vertices.size(), b.vertices.size());
@@ -253,7 +253,7 @@ TEST(MarchingCubes, ExactIsoValuesGiveNoDuplicateVerticesOrZeroAreaTriangles) {
     const TriangleMesh mesh =
         ExtractMesh(MakeAnalyticVolume(spec, nullptr, plane.sdf), MeshingOptions()).mesh;
     ASSERT_GT(mesh.faces.size(), 100u);
-    const test::MeshTopology topology = AnalyseMesh(mesh);
+    const analytic::MeshTopology topology = AnalyseMesh(mesh);
     EXPECT_EQ(topology.duplicate_vertices, 0u);
     EXPECT_EQ(topology.degenerate_faces, 0u);
     EXPECT_TRUE(topology.consistently_oriented);
@@ -287,7 +287,7 @@ TEST(MarchingCubes, RandomFieldWithExactIsoValuesIsClosed) {
     const TriangleMesh mesh =
         ExtractMesh(MakeAnalyticVolume(spec, nullptr, field), MeshingOptions()).mesh;
     ASSERT_GT(mesh.faces.size(), 1000u);
-    const test::MeshTopology topology = AnalyseMesh(mesh);
+    const analytic::MeshTopology topology = AnalyseMesh(mesh);
     EXPECT_TRUE(topology.closed) << "variant " << variant;
     EXPECT_TRUE(topology.consistently_oriented) << "variant " << variant;
     EXPECT_EQ(topology.duplicate_vertices, 0u);
@@ -299,7 +299,7 @@ TEST(MarchingCubes, RandomFieldWithExactIsoValuesIsClosed) {
 
 TEST(MarchingCubes, UnobservedVoxelsProduceNoTriangles) {
   AnalyticVolumeSpec spec;
-  const test::Sdf sphere = Shapes(spec.voxel_size)[0].sdf;
+  const analytic::Sdf sphere = Shapes(spec.voxel_size)[0].sdf;
   TsdfVolume volume = MakeAnalyticVolume(spec, sphere);
   // Voxels with x > 0.05 m were never observed: the mesh ends at the last observed cells.
   for (size_t b = 0; b < volume.num_blocks(); ++b) {
@@ -314,7 +314,7 @@ TEST(MarchingCubes, UnobservedVoxelsProduceNoTriangles) {
   float max_x = -1e9f;
   for (const Eigen::Vector3f& v : mesh.vertices) max_x = std::max(max_x, v.x());
   EXPECT_LE(max_x, 0.05f);
-  const test::MeshTopology topology = AnalyseMesh(mesh);
+  const analytic::MeshTopology topology = AnalyseMesh(mesh);
   EXPECT_FALSE(topology.closed);  // open where observation stops
   EXPECT_TRUE(topology.consistently_oriented);
   // Weights below min_weight count as unobserved.
@@ -340,7 +340,7 @@ TEST(MarchingCubes, SmallComponentsAreRemoved) {
   AnalyticVolumeSpec spec;
   const Eigen::Vector3d big(0, 0, 0), small(0.33, 0.33, 0.33);
   const TsdfVolume volume = MakeAnalyticVolume(spec, [&](const Eigen::Vector3d& p) {
-    return std::min(test::SphereSdf(p, big, 0.25), test::SphereSdf(p, small, 0.05));
+    return std::min(analytic::SphereSdf(p, big, 0.25), analytic::SphereSdf(p, small, 0.05));
   });
   MeshingOptions options;
   const MeshingResult all = ExtractMesh(volume, options);
@@ -349,7 +349,7 @@ TEST(MarchingCubes, SmallComponentsAreRemoved) {
   EXPECT_EQ(kept.stats.removed_components, 1u);
   EXPECT_EQ(kept.mesh.faces.size() + kept.stats.removed_component_triangles, all.mesh.faces.size());
   for (const Eigen::Vector3f& v : kept.mesh.vertices) EXPECT_LT(v.norm(), 0.3f);
-  const test::MeshTopology topology = AnalyseMesh(kept.mesh);
+  const analytic::MeshTopology topology = AnalyseMesh(kept.mesh);
   EXPECT_TRUE(topology.closed);
   EXPECT_EQ(topology.euler, 2);
 }
@@ -365,13 +365,13 @@ TEST(MarchingCubes, DecimationStaysWithinItsErrorBound) {
   const TriangleMesh& mesh = result.mesh;
   mesh.Validate("decimated torus");
   EXPECT_LT(mesh.faces.size(), full.faces.size() / 2);
-  const test::MeshTopology topology = AnalyseMesh(mesh);
+  const analytic::MeshTopology topology = AnalyseMesh(mesh);
   EXPECT_TRUE(topology.closed);
   EXPECT_EQ(topology.euler, 0);
   // The guarantee: every vertex of the full mesh lies within the bound of the simplified one.
   double max_distance = 0.0;
   for (const Eigen::Vector3f& v : full.vertices) {
-    max_distance = std::max(max_distance, test::DistanceToMesh(v.cast<double>(), mesh));
+    max_distance = std::max(max_distance, analytic::DistanceToMesh(v.cast<double>(), mesh));
   }
   // The other direction is not bounded by ModHausdorffT; the face centroids show how far off it is.
   double max_centroid = 0.0;
@@ -379,7 +379,7 @@ TEST(MarchingCubes, DecimationStaysWithinItsErrorBound) {
     const Eigen::Vector3i& i = mesh.faces[f];
     const Eigen::Vector3d centroid =
         (mesh.vertices[i[0]] + mesh.vertices[i[1]] + mesh.vertices[i[2]]).cast<double>() / 3;
-    max_centroid = std::max(max_centroid, test::DistanceToMesh(centroid, full));
+    max_centroid = std::max(max_centroid, analytic::DistanceToMesh(centroid, full));
   }
   std::printf(
       "[ decim. ] %zu -> %zu triangles at bound %.4f m; full -> simplified %.5f m, centroids -> "

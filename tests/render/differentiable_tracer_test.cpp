@@ -1,4 +1,4 @@
-// Vertex refinement's differentiable path tracer (issue 8): the sparse dual number against closed
+// Vertex refinement's differentiable path tracer: the sparse dual number against closed
 // forms, and the path tracer's derivatives against central finite differences, sample by sample,
 // for direct and one-bounce light from point, area and voxel lights, flat and smooth shading.
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
-// Test helpers: TSDF volumes sampled from exact signed distance functions, and mesh checks that
-// the marching-cubes tests share.
+// TSDF volumes sampled from exact signed distance functions (sphere, torus, box), and the mesh
+// checks (topology, distance to a mesh) that the marching-cubes tests and bench share.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -12,7 +12,7 @@
 #include "core/mesh.h"
 #include "core/tsdf_volume.h"
 
-namespace genscene::test {
+namespace genscene::analytic {
 
 // Signed distance in metres at a world point (positive outside).
 using Sdf = std::function<double(const Eigen::Vector3d&)>;
@@ -164,4 +164,4 @@ inline double DistanceToMesh(const Eigen::Vector3d& p, const TriangleMesh& mesh)
   return best;
 }
 
-}  // namespace genscene::test
+}  // namespace genscene::analytic
