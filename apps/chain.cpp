@@ -1,22 +1,20 @@
 #include "apps/chain.h"
 
+#include <spdlog/sinks/base_sink.h>
+#include <spdlog/spdlog.h>
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
-#include <sstream>
-
-#include <atomic>
 #include <memory>
 #include <mutex>
-#include <set>
-#include <utility>
-
 #include <nlohmann/json.hpp>
-#include <spdlog/sinks/base_sink.h>
-#include <spdlog/spdlog.h>
+#include <set>
+#include <sstream>
+#include <utility>
 
 #include "apps/fuse.h"
 #include "apps/holdout.h"
@@ -26,18 +24,18 @@
 #include "apps/scene_inputs.h"
 #include "apps/texture.h"
 #include "core/check.h"
-#include "core/options.h"
-#include "core/options_json.h"
+#include "core/file_util.h"
 #include "core/image_io.h"
 #include "core/light_set.h"
-#include "render/path_tracer.h"
-#include "render/formats/scene_io.h"
-#include "core/file_util.h"
 #include "core/mesh_colors.h"
+#include "core/options.h"
+#include "core/options_json.h"
 #include "core/ply_io.h"
 #include "core/trajectory.h"
 #include "core/tsdf_volume.h"
 #include "render/formats/mitsuba_xml.h"
+#include "render/formats/scene_io.h"
+#include "render/path_tracer.h"
 #include "render/scene.h"
 
 namespace genscene::apps {
@@ -70,7 +68,8 @@ ChainOptions DemoChainOptions() {
   o.meshing.decimate_max_error = 0.003;
   o.lights.grid = 5;
   o.lights.pixels_per_view = 1500;
-  o.lights.penalty_weight = 1e-5;  // novel views 0.079 (1e-4: 0.096, 1e-3: 0.145), see the report's sweep
+  o.lights.penalty_weight =
+      1e-5;  // novel views 0.079 (1e-4: 0.096, 1e-3: 0.145), see the report's sweep
   // At this weight the light spreads over about 50 of the 125 voxels, more than adaptive
   // refinement takes (refine_max_voxels): it would stop and estimate the coarse grid twice.
   o.lights.refine_levels = 0;
@@ -82,8 +81,9 @@ ChainOptions DemoChainOptions() {
 }
 
 const std::vector<std::string>& ChainStages() {
-  static const std::vector<std::string> stages = {"ingest", "fusion", "meshing", "texturing",
-                                                  "albedo", "lights", "refine",  "export", "evaluate"};
+  static const std::vector<std::string> stages = {"ingest",    "fusion", "meshing",
+                                                  "texturing", "albedo", "lights",
+                                                  "refine",    "export", "evaluate"};
   return stages;
 }
 
@@ -91,7 +91,9 @@ namespace {
 std::atomic<const char*> current_stage{nullptr};
 }  // namespace
 
-const char* RunningStage() { return current_stage.load(); }
+const char* RunningStage() {
+  return current_stage.load();
+}
 
 double PeakMegabytes() {
   rusage usage{};
@@ -100,8 +102,9 @@ double PeakMegabytes() {
 }
 
 std::string Describe(const IngestSummary& s) {
-  return Format(s.frames, " frames ", s.width, "x", s.height, ", depth ", s.min_depth, "-", s.max_depth, " m, ",
-                100.0 * s.valid_depth_fraction, "% valid, ", s.frames_with_pose, " with pose");
+  return Format(s.frames, " frames ", s.width, "x", s.height, ", depth ", s.min_depth, "-",
+                s.max_depth, " m, ", 100.0 * s.valid_depth_fraction, "% valid, ",
+                s.frames_with_pose, " with pose");
 }
 
 namespace {
@@ -134,7 +137,8 @@ class WarningCollector : public spdlog::sinks::base_sink<std::mutex> {
 
  protected:
   void sink_it_(const spdlog::details::log_msg& msg) override {
-    if (msg.level >= spdlog::level::warn) messages_.emplace_back(msg.payload.data(), msg.payload.size());
+    if (msg.level >= spdlog::level::warn)
+      messages_.emplace_back(msg.payload.data(), msg.payload.size());
   }
   void flush_() override {}
 
@@ -166,7 +170,8 @@ class ScopedWarningCollector {
 // input twice. Warnings logged while the stage runs go into its row and the log.
 class StageRunner {
  public:
-  StageRunner(const Workspace& ws, bool redo, std::ostream& log, std::vector<StageRow>& rows, std::string until)
+  StageRunner(const Workspace& ws, bool redo, std::ostream& log, std::vector<StageRow>& rows,
+              std::string until)
       : ws_(ws), redo_(redo), log_(log), rows_(rows), until_(std::move(until)) {
     if (fs::exists(ws.StageFingerprints())) {
       try {
@@ -178,17 +183,23 @@ class StageRunner {
   }
 
   template <typename F>
-  void Run(const std::string& stage, const std::vector<fs::path>& outputs, const std::vector<fs::path>& inputs,
-           const std::string& settings, F&& body) {
+  void Run(const std::string& stage, const std::vector<fs::path>& outputs,
+           const std::vector<fs::path>& inputs, const std::string& settings, F&& body) {
     if (done_) return;
     done_ = stage == until_;
     const auto& stages = ChainStages();
     const size_t index = std::find(stages.begin(), stages.end(), stage) - stages.begin() + 1;
     std::string fingerprint = Hash(stage, settings);
     for (const fs::path& in : inputs) fingerprint = Hash(fingerprint, Content(in));
-    const bool outputs_exist = std::all_of(outputs.begin(), outputs.end(), [](const fs::path& p) { return fs::exists(p); });
+    const bool outputs_exist = std::all_of(outputs.begin(), outputs.end(),
+                                           [](const fs::path& p) { return fs::exists(p); });
     if (!redo_ && outputs_exist && stored_.value(stage, std::string()) == fingerprint) {
-      StageRow row{stage, 0.0, PeakMegabytes(), true, "up to date (" + outputs.front().string() + "), skipped", {}};
+      StageRow row{stage,
+                   0.0,
+                   PeakMegabytes(),
+                   true,
+                   "up to date (" + outputs.front().string() + "), skipped",
+                   {}};
       log_ << Now() << " " << stage << ": " << row.result << "\n" << std::flush;
       rows_.push_back(row);
       return;
@@ -202,8 +213,13 @@ class StageRunner {
     try {
       result = body();
     } catch (const std::exception& e) {
-      StageRow failed{stage, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
-                      PeakMegabytes(), false, Format("failed: ", e.what()), warnings_.Take()};
+      StageRow failed{
+          stage,
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+          PeakMegabytes(),
+          false,
+          Format("failed: ", e.what()),
+          warnings_.Take()};
       failed.failed = true;
       LogWarnings(stage, failed.warnings);
       log_ << Now() << " " << stage << ": error: " << e.what() << "\n" << std::flush;
@@ -212,10 +228,15 @@ class StageRunner {
       throw;
     }
     current_stage.store(nullptr);
-    StageRow row{stage, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
-                 PeakMegabytes(), false, result, warnings_.Take()};
+    StageRow row{stage,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                 PeakMegabytes(),
+                 false,
+                 result,
+                 warnings_.Take()};
     LogWarnings(stage, row.warnings);
-    log_ << Now() << " " << stage << ": done in " << Format(row.seconds) << " s: " << result << "\n" << std::flush;
+    log_ << Now() << " " << stage << ": done in " << Format(row.seconds) << " s: " << result << "\n"
+         << std::flush;
     rows_.push_back(row);
     stored_[stage] = fingerprint;  // after the stage's outputs: a killed stage has none
     WriteTextFileAtomically(ws_.StageFingerprints(), stored_.dump(1) + "\n");
@@ -230,7 +251,8 @@ class StageRunner {
       return Hash(path.string(), std::chrono::system_clock::now().time_since_epoch().count());
     }
     auto it = content_.find(path.string());
-    if (it == content_.end()) it = content_.emplace(path.string(), Hash(ContentFingerprint(path))).first;
+    if (it == content_.end())
+      it = content_.emplace(path.string(), Hash(ContentFingerprint(path))).first;
     return it->second;
   }
 
@@ -245,7 +267,8 @@ class StageRunner {
   ScopedWarningCollector warnings_;
 
   void LogWarnings(const std::string& stage, const std::vector<std::string>& warnings) {
-    for (const std::string& w : warnings) log_ << Now() << " " << stage << ": warning: " << w << "\n";
+    for (const std::string& w : warnings)
+      log_ << Now() << " " << stage << ": warning: " << w << "\n";
   }
 };
 
@@ -255,7 +278,8 @@ void Warn(const std::vector<std::string>& warnings) {
 }
 
 // The workspace's model as a scene: `mesh` with the Mesh Colors albedo and the voxel lights.
-render::Scene LoadModel(const Workspace& ws, const fs::path& mesh, std::vector<std::string>* warnings) {
+render::Scene LoadModel(const Workspace& ws, const fs::path& mesh,
+                        std::vector<std::string>* warnings) {
   render::Scene scene = LoadGeometry({{}, mesh, ws.Albedo()}, ws, warnings);
   scene.meshes.front().name = "model";
   scene.voxel_lights = ReadLightsJson(ws.Lights());
@@ -277,15 +301,19 @@ std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings)
   std::vector<render::View> views;  // the keyframe cameras as sensors
   for (const render::TrainingView& v : render::ReadViews(ws.Keyframes())) views.push_back(v.view);
   try {
-    for (std::string& w : render::ExportMitsubaXml(dir / "model.xml", scene, views)) warnings->push_back(std::move(w));
+    for (std::string& w : render::ExportMitsubaXml(dir / "model.xml", scene, views))
+      warnings->push_back(std::move(w));
   } catch (const Error& e) {  // cameras Mitsuba cannot express (fx != fy, distortion): none
     warnings->push_back(Format("keyframe cameras left out of model.xml: ", e.what()));
-    for (std::string& w : render::ExportMitsubaXml(dir / "model.xml", scene, {})) warnings->push_back(std::move(w));
+    for (std::string& w : render::ExportMitsubaXml(dir / "model.xml", scene, {}))
+      warnings->push_back(std::move(w));
   }
-  return Format(colored.vertices.size(), " coloured vertices (", (dir / "model.ply").string(), "), ",
-                scene.voxel_lights->ActiveVoxels().size(), " active voxel lights (",
-                scene.voxel_lights->ActiveVoxels(0.0).size(), " with any power, all exported) as emissive cube faces (",
-                (dir / "model.xml").string(), "), trajectory (", (dir / "trajectory.txt").string(), ")");
+  return Format(colored.vertices.size(), " coloured vertices (", (dir / "model.ply").string(),
+                "), ", scene.voxel_lights->ActiveVoxels().size(), " active voxel lights (",
+                scene.voxel_lights->ActiveVoxels(0.0).size(),
+                " with any power, all exported) as emissive cube faces (",
+                (dir / "model.xml").string(), "), trajectory (", (dir / "trajectory.txt").string(),
+                ")");
 }
 
 template <typename O>
@@ -295,8 +323,9 @@ std::string OptionsText(const O& options) {
 
 }  // namespace
 
-void RunChain(const std::string& input, const SourceOptions& source, const ChainOptions& options, uint64_t seed,
-              const Workspace& ws, bool redo, std::ostream& log, std::vector<StageRow>& rows, const std::string& until) {
+void RunChain(const std::string& input, const SourceOptions& source, const ChainOptions& options,
+              uint64_t seed, const Workspace& ws, bool redo, std::ostream& log,
+              std::vector<StageRow>& rows, const std::string& until) {
   const auto& names = ChainStages();
   if (!until.empty() && std::find(names.begin(), names.end(), until) == names.end()) {
     std::string known;
@@ -309,7 +338,8 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
   std::string source_settings = OptionsText(source);
   for (const std::string& file : {source.intrinsics, source.associations, source.trajectory}) {
     std::error_code ec;
-    if (!file.empty() && fs::is_regular_file(file, ec)) source_settings += Hash(ContentFingerprint(file));
+    if (!file.empty() && fs::is_regular_file(file, ec))
+      source_settings += Hash(ContentFingerprint(file));
   }
   const fs::path summary_path = ws.SequenceJson();
   stage.Run("ingest", {summary_path}, {input}, source_settings,
@@ -317,48 +347,52 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
 
   stage.Run("fusion", {ws.Trajectory(), ws.Tsdf(), ws.FusionJson()}, {input},
             source_settings + OptionsText(options.fusion), [&] {
-    const FuseSummary s = FuseSequence(input, source, options.fusion, ws);
-    std::string result = Format(s.fused, "/", s.frames, " frames fused (", s.lost, " lost, ", s.degenerate,
-                                " degenerate, ", s.blank, " blank), ", s.blocks, " blocks (", s.megabytes, " MB), ",
-                                s.keyframes, " keyframes");
-    if (s.held_out > 0) result += Format(", ", s.held_out, " held out");
-    if (s.ate) result += Format(", ATE ", 100.0 * s.ate->rmse, " cm");
-    return result;
-  });
+              const FuseSummary s = FuseSequence(input, source, options.fusion, ws);
+              std::string result =
+                  Format(s.fused, "/", s.frames, " frames fused (", s.lost, " lost, ", s.degenerate,
+                         " degenerate, ", s.blank, " blank), ", s.blocks, " blocks (", s.megabytes,
+                         " MB), ", s.keyframes, " keyframes");
+              if (s.held_out > 0) result += Format(", ", s.held_out, " held out");
+              if (s.ate) result += Format(", ATE ", 100.0 * s.ate->rmse, " cm");
+              return result;
+            });
 
   stage.Run("meshing", {ws.Mesh()}, {ws.Tsdf()}, OptionsText(options.meshing), [&] {
     const TsdfVolume volume = ReadTsdfVolume(ws.Tsdf());
     const auto r = meshing::ExtractMesh(volume, options.meshing);
-    if (r.mesh.empty()) throw Error(Format(ws.Tsdf().string(), ": the volume holds no surface; no mesh written"));
+    if (r.mesh.empty())
+      throw Error(Format(ws.Tsdf().string(), ": the volume holds no surface; no mesh written"));
     WritePly(ws.Mesh(), r.mesh);
-    return Format(r.stats.vertices, " vertices, ", r.stats.triangles, " triangles (", ws.Mesh().string(), ")");
+    return Format(r.stats.vertices, " vertices, ", r.stats.triangles, " triangles (",
+                  ws.Mesh().string(), ")");
   });
 
   stage.Run("texturing", {ws.Texture(), ws.TexturePly()}, {ws.Mesh(), ws.Keyframes()},
             OptionsText(options.texturing) + source.camera_response, [&] {
-    SourceOptions keyframes;
-    keyframes.camera_response = source.camera_response;
-    return ToString(TextureWorkspace({}, keyframes, options.texturing, ws));
-  });
+              SourceOptions keyframes;
+              keyframes.camera_response = source.camera_response;
+              return ToString(TextureWorkspace({}, keyframes, options.texturing, ws));
+            });
 
-  stage.Run("albedo", {ws.Albedo(), ws.AlbedoPly()}, {ws.Mesh(), ws.Texture()}, OptionsText(options.albedo),
+  stage.Run("albedo", {ws.Albedo(), ws.AlbedoPly()}, {ws.Mesh(), ws.Texture()},
+            OptionsText(options.albedo),
             [&] { return ToString(AlbedoWorkspace({}, options.albedo, ws)); });
 
-  stage.Run("lights", {ws.Lights()}, {ws.Mesh(), ws.Albedo(), ws.Keyframes()}, Hash(OptionsText(options.lights), seed),
-            [&] {
-    const LightsSummary s = LightsWorkspace({}, options.lights, seed, ws);
-    Warn(s.warnings);
-    return ToString(s);
-  });
+  stage.Run("lights", {ws.Lights()}, {ws.Mesh(), ws.Albedo(), ws.Keyframes()},
+            Hash(OptionsText(options.lights), seed), [&] {
+              const LightsSummary s = LightsWorkspace({}, options.lights, seed, ws);
+              Warn(s.warnings);
+              return ToString(s);
+            });
 
   stage.Run("refine", {ws.RefinedMesh()}, {ws.Mesh(), ws.Albedo(), ws.Lights(), ws.Keyframes()},
             Hash(OptionsText(options.refine), seed), [&] {
-    RefineInputs in;
-    in.render_spp = 16;
-    const RefineSummary s = RefineWorkspace(in, options.refine, seed, ws);
-    Warn(s.warnings);
-    return ToString(s);
-  });
+              RefineInputs in;
+              in.render_spp = 16;
+              const RefineSummary s = RefineWorkspace(in, options.refine, seed, ws);
+              Warn(s.warnings);
+              return ToString(s);
+            });
 
   const fs::path exported = ws.ExportDir();
   stage.Run("export", {exported / "model.xml", exported / "model.ply", exported / "trajectory.txt"},
@@ -377,39 +411,50 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
     const fs::path judged = ws.EvaluationJson(), holdout = ws.HeldOutJson();
     std::vector<fs::path> outputs, inputs = {ws.RefinedMesh(), ws.Albedo(), ws.Lights()};
     if (synthetic) outputs.push_back(judged), inputs.push_back(input);
-    if (held_out) outputs.push_back(holdout), inputs.push_back(ws.HeldOut()), inputs.push_back(ws.Texture());
-    stage.Run("evaluate", outputs, inputs, Hash(OptionsText(options.evaluate), OptionsText(options.lights), seed), [&] {
-      std::string result;
-      if (synthetic) {
-        const DemoEvaluation e = EvaluateAgainstTruth(ws, input, options.lights, options.evaluate, seed);
-        result = Format(e.views.size(), " novel views against the ground truth: relative RMSE ", e.relative_rmse,
-                        " (noise taken out, ", options.evaluate.block, "x", options.evaluate.block, " pixel tiles) (",
-                        judged.string(), ")");
-      }
-      if (held_out) {
-        std::optional<render::Scene> truth;
-        if (synthetic) truth = render::LoadScene(fs::path(input) / "scene.json").scene;
-        const HeldOutEvaluation h = EvaluateHeldOut(ws, options.lights, options.evaluate.model_spp, seed,
-                                                    truth ? &*truth : nullptr, options.evaluate.truth_spp);
-        result += Format(result.empty() ? "" : "; ", h.frames.size(), " held-out frames: model relative RMSE ",
-                         h.model.rmse, " (render noise ", h.noise, "), SSIM ", h.model.ssim, "; unlit texture ",
-                         h.texture.rmse, ", SSIM ", h.texture.ssim, "; albedo under ambient ", h.ambient.rmse,
-                         ", SSIM ", h.ambient.ssim);
-        if (h.truth) {
-          result += Format("; against the true scene at those poses: model ", h.truth->model.rmse, ", unlit texture ",
-                           h.truth->texture.rmse, ", albedo under ambient ", h.truth->ambient.rmse,
-                           ", the frames themselves ", h.truth->frame.rmse);
-        }
-        result += Format(" (", holdout.string(), ")");
-        if (h.model.rmse > std::min(h.texture.rmse, h.ambient.rmse)) {
-          spdlog::warn("on the held-out frames the model's renders are further from the real images (relative RMSE {:.3f}) "
-                       "than the {} ({:.3f})",
-                       h.model.rmse, h.texture.rmse < h.ambient.rmse ? "unlit observed-colour texture" : "albedo under ambient light",
-                       std::min(h.texture.rmse, h.ambient.rmse));
-        }
-      }
-      return result;
-    });
+    if (held_out)
+      outputs.push_back(holdout), inputs.push_back(ws.HeldOut()), inputs.push_back(ws.Texture());
+    stage.Run(
+        "evaluate", outputs, inputs,
+        Hash(OptionsText(options.evaluate), OptionsText(options.lights), seed), [&] {
+          std::string result;
+          if (synthetic) {
+            const DemoEvaluation e =
+                EvaluateAgainstTruth(ws, input, options.lights, options.evaluate, seed);
+            result = Format(e.views.size(), " novel views against the ground truth: relative RMSE ",
+                            e.relative_rmse, " (noise taken out, ", options.evaluate.block, "x",
+                            options.evaluate.block, " pixel tiles) (", judged.string(), ")");
+          }
+          if (held_out) {
+            std::optional<render::Scene> truth;
+            if (synthetic) truth = render::LoadScene(fs::path(input) / "scene.json").scene;
+            const HeldOutEvaluation h =
+                EvaluateHeldOut(ws, options.lights, options.evaluate.model_spp, seed,
+                                truth ? &*truth : nullptr, options.evaluate.truth_spp);
+            result += Format(result.empty() ? "" : "; ", h.frames.size(),
+                             " held-out frames: model relative RMSE ", h.model.rmse,
+                             " (render noise ", h.noise, "), SSIM ", h.model.ssim,
+                             "; unlit texture ", h.texture.rmse, ", SSIM ", h.texture.ssim,
+                             "; albedo under ambient ", h.ambient.rmse, ", SSIM ", h.ambient.ssim);
+            if (h.truth) {
+              result +=
+                  Format("; against the true scene at those poses: model ", h.truth->model.rmse,
+                         ", unlit texture ", h.truth->texture.rmse, ", albedo under ambient ",
+                         h.truth->ambient.rmse, ", the frames themselves ", h.truth->frame.rmse);
+            }
+            result += Format(" (", holdout.string(), ")");
+            if (h.model.rmse > std::min(h.texture.rmse, h.ambient.rmse)) {
+              spdlog::warn(
+                  "on the held-out frames the model's renders are further from the real images "
+                  "(relative RMSE {:.3f}) "
+                  "than the {} ({:.3f})",
+                  h.model.rmse,
+                  h.texture.rmse < h.ambient.rmse ? "unlit observed-colour texture"
+                                                  : "albedo under ambient light",
+                  std::min(h.texture.rmse, h.ambient.rmse));
+            }
+          }
+          return result;
+        });
   }
 }
 
@@ -421,8 +466,8 @@ void EvaluationOptions::Validate() const {
 }
 
 DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
-                                    const inverse::LightEstimationOptions& lights, const EvaluationOptions& eval,
-                                    uint64_t seed) {
+                                    const inverse::LightEstimationOptions& lights,
+                                    const EvaluationOptions& eval, uint64_t seed) {
   const int views = eval.views, truth_spp = eval.truth_spp, model_spp = eval.model_spp;
   using namespace inverse;
   using namespace render;
@@ -444,20 +489,24 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
     TrainingView reference{all[index].view, {}};
     RenderOptions paths;
     paths.spp = truth_spp;
-    const RenderHalves truth_render = RenderInHalves(truth_tracer, reference.view, paths, seed + 1000 + k,
-                                                     (seed + 1000 + k) ^ 0x9E3779B97F4A7C15ull);
+    const RenderHalves truth_render =
+        RenderInHalves(truth_tracer, reference.view, paths, seed + 1000 + k,
+                       (seed + 1000 + k) ^ 0x9E3779B97F4A7C15ull);
     reference.image = truth_render.mean;
     const double noise_rms = truth_render.NoiseRms();
     ImageRgb render;
-    const ViewError e =
-        CompareRender(model_tracer, reference, lights, model_spp, seed + 2000 + k, noise_rms, &render, eval.block);
+    const ViewError e = CompareRender(model_tracer, reference, lights, model_spp, seed + 2000 + k,
+                                      noise_rms, &render, eval.block);
     char name[32];
     std::snprintf(name, sizeof(name), "novel_%02d", k);
     WritePng(dir / (std::string(name) + "_truth.png"), reference.image);
     WritePng(dir / (std::string(name) + "_model.png"), render);
     out.views.push_back(e);
     out.relative_rmse += e.rmse_bias / views;
-    list.push_back({{"frame", index}, {"pixels", e.pixels}, {"relative_rmse", e.rmse}, {"noise", e.noise},
+    list.push_back({{"frame", index},
+                    {"pixels", e.pixels},
+                    {"relative_rmse", e.rmse},
+                    {"noise", e.noise},
                     {"relative_rmse_bias", e.rmse_bias}});
   }
   nlohmann::ordered_json report;
@@ -470,7 +519,8 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
   return out;
 }
 
-void WriteSummaryJson(const Workspace& ws, const std::string& input, uint64_t seed, const std::vector<StageRow>& rows) {
+void WriteSummaryJson(const Workspace& ws, const std::string& input, uint64_t seed,
+                      const std::vector<StageRow>& rows) {
   const fs::path path = ws.SummaryJson();
   nlohmann::ordered_json previous;
   if (fs::exists(path)) {
@@ -481,9 +531,10 @@ void WriteSummaryJson(const Workspace& ws, const std::string& input, uint64_t se
   }
   nlohmann::ordered_json stages = nlohmann::ordered_json::array();
   for (const StageRow& r : rows) {
-    nlohmann::ordered_json row = {{"stage", r.stage}, {"seconds", r.seconds}, {"peak_megabytes", r.peak_megabytes},
-                                  {"skipped", r.skipped}, {"failed", r.failed}, {"result", r.result},
-                                  {"warnings", r.warnings}};
+    nlohmann::ordered_json row = {
+        {"stage", r.stage},      {"seconds", r.seconds}, {"peak_megabytes", r.peak_megabytes},
+        {"skipped", r.skipped},  {"failed", r.failed},   {"result", r.result},
+        {"warnings", r.warnings}};
     // A skipped stage keeps the figures of the run that made its outputs, marked skipped.
     if (r.skipped && previous.contains("stages")) {
       for (const auto& old : previous["stages"]) {
@@ -506,7 +557,8 @@ std::string SummaryTable(const std::vector<StageRow>& rows) {
   o << line;
   double total = 0.0;
   for (const StageRow& r : rows) {
-    std::snprintf(line, sizeof(line), "%-10s %9.2f %9.0f  ", r.stage.c_str(), r.seconds, r.peak_megabytes);
+    std::snprintf(line, sizeof(line), "%-10s %9.2f %9.0f  ", r.stage.c_str(), r.seconds,
+                  r.peak_megabytes);
     o << line << r.result << "\n";
     total += r.seconds;
   }
@@ -521,7 +573,10 @@ std::string SummaryTable(const std::vector<StageRow>& rows) {
       if (seen.insert(w).second) list << "  " << r.stage << ": " << w << "\n";
     }
   }
-  if (!seen.empty()) o << "\n" << seen.size() << (seen.size() == 1 ? " warning" : " warnings") << ":\n" << list.str();
+  if (!seen.empty())
+    o << "\n"
+      << seen.size() << (seen.size() == 1 ? " warning" : " warnings") << ":\n"
+      << list.str();
   return o.str();
 }
 

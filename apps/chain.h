@@ -40,9 +40,11 @@ struct EvaluationOptions {
   void Visit(V&& v) {
     v("views", views, "", "novel views judged against the synthetic ground truth");
     v("truth_spp", truth_spp, "", "samples per pixel of the ground-truth renders");
-    v("model_spp", model_spp, "", "samples per pixel of the model's renders (two halves: the noise is measured)");
+    v("model_spp", model_spp, "",
+      "samples per pixel of the model's renders (two halves: the noise is measured)");
     v("block", block, "pixels",
-      "compare the means of block x block pixel tiles, with their noise taken out (1: pixel by pixel)");
+      "compare the means of block x block pixel tiles, with their noise taken out (1: pixel by "
+      "pixel)");
   }
   void Validate() const;
 };
@@ -77,7 +79,7 @@ struct StageRow {
   double seconds = 0.0;
   double peak_megabytes = 0.0;  // the process's peak resident memory after the stage
   bool skipped = false;
-  std::string result;           // the stage's own figures
+  std::string result;                 // the stage's own figures
   std::vector<std::string> warnings;  // every warning the stage gave (console, log, summary)
   bool failed = false;                // the stage stopped with an error (result: "failed: ...")
 };
@@ -89,14 +91,15 @@ const char* RunningStage();
 // The chain's stages in order, for --help texts and the kill-and-resume test.
 const std::vector<std::string>& ChainStages();
 
-// Runs the chain on `input` into `ws`, appending one row per stage to `rows` and a line per event to
-// `log` (the workspace's genscene.log). Every warning a stage gives (spdlog::warn anywhere below
-// it, or a warning its summary returns) reaches the console, the log and the stage's row. `redo`: run stages whose outputs are up to date. When
-// `input` holds a ground truth (scene.json of genscene-synth), an "evaluate" stage follows.
-// `until`: the last stage to run (empty: all); throws Error when it names no stage.
-void RunChain(const std::string& input, const SourceOptions& source, const ChainOptions& options, uint64_t seed,
-              const Workspace& ws, bool redo, std::ostream& log, std::vector<StageRow>& rows,
-              const std::string& until = "");
+// Runs the chain on `input` into `ws`, appending one row per stage to `rows` and a line per event
+// to `log` (the workspace's genscene.log). Every warning a stage gives (spdlog::warn anywhere below
+// it, or a warning its summary returns) reaches the console, the log and the stage's row. `redo`:
+// run stages whose outputs are up to date. When `input` holds a ground truth (scene.json of
+// genscene-synth), an "evaluate" stage follows. `until`: the last stage to run (empty: all); throws
+// Error when it names no stage.
+void RunChain(const std::string& input, const SourceOptions& source, const ChainOptions& options,
+              uint64_t seed, const Workspace& ws, bool redo, std::ostream& log,
+              std::vector<StageRow>& rows, const std::string& until = "");
 
 // The demo's judge: novel views between the keyframes rendered from the synthetic ground truth
 // (input/scene.json, `truth_spp`) and from the model (refined mesh, albedo, voxel lights,
@@ -107,12 +110,13 @@ struct DemoEvaluation {
   double relative_rmse = 0.0;  // mean over the views, noise taken out
 };
 DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const std::filesystem::path& input,
-                                    const inverse::LightEstimationOptions& lights, const EvaluationOptions& options,
-                                    uint64_t seed);
+                                    const inverse::LightEstimationOptions& lights,
+                                    const EvaluationOptions& options, uint64_t seed);
 
 // WS/summary.json: the input, the seed and a row per stage (a skipped stage keeps the row of the
 // run that made its outputs), for `genscene report`.
-void WriteSummaryJson(const Workspace& ws, const std::string& input, uint64_t seed, const std::vector<StageRow>& rows);
+void WriteSummaryJson(const Workspace& ws, const std::string& input, uint64_t seed,
+                      const std::vector<StageRow>& rows);
 
 // The summary table printed at the end of a run.
 std::string SummaryTable(const std::vector<StageRow>& rows);

@@ -20,8 +20,8 @@ struct FuseSummary {
   size_t blocks = 0;
   double megabytes = 0.0;
   size_t keyframes = 0;
-  size_t held_out = 0;  // frames kept out of the model (holdout), written to WS/holdout/
-  double seconds = 0.0;  // processing time of all frames (reading excluded)
+  size_t held_out = 0;           // frames kept out of the model (holdout), written to WS/holdout/
+  double seconds = 0.0;          // processing time of all frames (reading excluded)
   std::optional<AteResult> ate;  // against the source's known poses (tracking = icp only)
   std::vector<std::string> warnings;  // also logged with spdlog::warn as they arise
 };

@@ -52,9 +52,11 @@ int main(int argc, char** argv) {
     app.add_option("--record-fps", file_fps, "frame rate stored in the .oni file")
         ->capture_default_str();
     bool mirror = false;
-    app.add_flag("--record-mirrored", mirror,
-                 "write the .oni as a camera with mirroring on records it (xnMirror = 1, every frame flipped "
-                 "left-right, as NiViewer's recordings); genscene reads either kind the right way round");
+    app.add_flag(
+        "--record-mirrored", mirror,
+        "write the .oni as a camera with mirroring on records it (xnMirror = 1, every frame "
+        "flipped "
+        "left-right, as NiViewer's recordings); genscene reads either kind the right way round");
     if (auto code = cli.Parse(argc, argv)) return *code;
 
     if (out.empty() && record.empty()) {

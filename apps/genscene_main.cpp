@@ -9,8 +9,8 @@
 
 #include <chrono>
 #include <csignal>
-#include <cstring>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iostream>
 
@@ -28,8 +28,9 @@ using genscene::apps::StageRow;
 
 // Runs the chain with the workspace's log open (appended), then prints and logs the summary.
 void RunLogged(const std::string& input, const genscene::SourceOptions& source,
-               const genscene::apps::ChainOptions& chain, uint64_t seed, const genscene::Workspace& ws, bool existed,
-               bool redo, const std::string& until, std::vector<StageRow>& rows) {
+               const genscene::apps::ChainOptions& chain, uint64_t seed,
+               const genscene::Workspace& ws, bool existed, bool redo, const std::string& until,
+               std::vector<StageRow>& rows) {
   const bool fresh_log = !std::filesystem::exists(ws.Log());
   std::ofstream log(ws.Log(), std::ios::app);
   if (!log) throw genscene::Error(ws.Log().string() + ": cannot open the log for writing");
@@ -40,7 +41,8 @@ void RunLogged(const std::string& input, const genscene::SourceOptions& source,
     // Bad input found before any stage finished leaves no file behind (the error is on stderr),
     // and no workspace folder this run made. Otherwise the summary says how far the run came.
     bool finished = false;
-    for (const StageRow& r : rows) finished = finished || (!r.skipped && !r.failed && r.stage != "synth");
+    for (const StageRow& r : rows)
+      finished = finished || (!r.skipped && !r.failed && r.stage != "synth");
     if (fresh_log && !finished) {
       log.close();
       std::filesystem::remove(ws.Log());
@@ -55,12 +57,15 @@ void RunLogged(const std::string& input, const genscene::SourceOptions& source,
   genscene::apps::WriteSummaryJson(ws, input, seed, rows);
   const std::string table = genscene::apps::SummaryTable(rows);
   log << table << std::flush;
-  std::cout << "\n" << table << "\nworkspace: " << ws.root().string() << " (log: " << ws.Log().string() << ")\n";
+  std::cout << "\n"
+            << table << "\nworkspace: " << ws.root().string() << " (log: " << ws.Log().string()
+            << ")\n";
 }
 
 int Demo(int argc, char** argv) {
-  CLI::App app{"genscene demo: synthesise a Cornell-box RGB-D sequence with ground truth, run the whole "
-               "chain on it and judge the model on novel views against the truth"};
+  CLI::App app{
+      "genscene demo: synthesise a Cornell-box RGB-D sequence with ground truth, run the whole "
+      "chain on it and judge the model on novel views against the truth"};
   genscene::CommandLine cli(app);
   genscene::apps::SynthOptions synth;
   synth.frames = 20;
@@ -72,55 +77,73 @@ int Demo(int argc, char** argv) {
   app.add_option("out,--out", out, "workspace folder")->capture_default_str();
   app.add_flag("!--no-report", report, "do not write the report (WS/report/report.md) at the end");
   std::string until;
-  app.add_option("--until", until, "last stage to run: ingest, fusion, meshing, texturing, albedo, lights, refine, export, evaluate");
+  app.add_option("--until", until,
+                 "last stage to run: ingest, fusion, meshing, texturing, albedo, lights, refine, "
+                 "export, evaluate");
   app.add_flag("--redo", redo, "re-run stages whose outputs are up to date");
   if (auto code = cli.Parse(argc, argv)) return *code;
 
   const genscene::Workspace ws(out);
   std::vector<StageRow> rows;
   if (!redo && std::filesystem::exists(ws.Input())) {
-    rows.push_back({"synth", 0.0, genscene::apps::PeakMegabytes(), true,
-                    "up to date (" + ws.Input().string() + "), skipped", {}});
+    rows.push_back({"synth",
+                    0.0,
+                    genscene::apps::PeakMegabytes(),
+                    true,
+                    "up to date (" + ws.Input().string() + "), skipped",
+                    {}});
   } else {
     std::fprintf(stderr, "[0/%zu] synth\n", genscene::apps::ChainStages().size());
     const auto start = std::chrono::steady_clock::now();
     const auto s = genscene::apps::Synthesize(synth, cli.seed(), ws.Input());
-    rows.push_back({"synth", std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
-                    genscene::apps::PeakMegabytes(), false,
-                    genscene::Format(s.frames, " frames ", s.width, "x", s.height, ", ground-truth mesh ",
-                                     s.mesh_faces, " triangles"),
+    rows.push_back({"synth",
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                    genscene::apps::PeakMegabytes(),
+                    false,
+                    genscene::Format(s.frames, " frames ", s.width, "x", s.height,
+                                     ", ground-truth mesh ", s.mesh_faces, " triangles"),
                     {}});
   }
-  RunLogged(ws.Input().string(), genscene::SourceOptions(), chain, cli.seed(), ws, true, redo, until, rows);
+  RunLogged(ws.Input().string(), genscene::SourceOptions(), chain, cli.seed(), ws, true, redo,
+            until, rows);
   if (report && until.empty()) {
     genscene::apps::ReportOptions options;
     options.sweep = true;
     std::fprintf(stderr, "report (with the light penalty sweep)\n");
-    std::cout << "report: " << genscene::apps::WriteReport(ws, options, cli.seed()).string() << "\n";
+    std::cout << "report: " << genscene::apps::WriteReport(ws, options, cli.seed()).string()
+              << "\n";
   }
   return 0;
 }
 
 int Report(int argc, char** argv) {
-  CLI::App app{"genscene report: a Markdown report with PNG figures of speed against error for every stage a "
-               "workspace holds, written to WORKSPACE/report/report.md"};
+  CLI::App app{
+      "genscene report: a Markdown report with PNG figures of speed against error for every stage "
+      "a "
+      "workspace holds, written to WORKSPACE/report/report.md"};
   genscene::CommandLine cli(app);
   std::string workspace;
   genscene::apps::ReportOptions options;
-  app.add_option("workspace", workspace, "workspace folder (of genscene run or genscene demo)")->required();
-  app.add_flag("--sweep", options.sweep, "re-estimate the lights over penalty weights 1e-5 to 1e-1 (the paper's Fig. 3)");
-  app.add_option("--sweep-spp", options.sweep_spp, "samples per pixel of the sweep's renders")->capture_default_str()
+  app.add_option("workspace", workspace, "workspace folder (of genscene run or genscene demo)")
+      ->required();
+  app.add_flag("--sweep", options.sweep,
+               "re-estimate the lights over penalty weights 1e-5 to 1e-1 (the paper's Fig. 3)");
+  app.add_option("--sweep-spp", options.sweep_spp, "samples per pixel of the sweep's renders")
+      ->capture_default_str()
       ->check(CLI::Range(2, 65536));
   if (auto code = cli.Parse(argc, argv)) return *code;
-  if (!std::filesystem::is_directory(workspace)) throw genscene::Error(workspace + ": no such workspace folder");
+  if (!std::filesystem::is_directory(workspace))
+    throw genscene::Error(workspace + ": no such workspace folder");
   const genscene::Workspace ws(workspace);
   std::cout << "report: " << genscene::apps::WriteReport(ws, options, cli.seed()).string() << "\n";
   return 0;
 }
 
 int Run(int argc, char** argv) {
-  CLI::App app{"genscene run: run the whole chain on a recording into a workspace: ingest, fusion, meshing, "
-               "texturing, albedo, lights, refine, export (stages whose outputs are up to date are skipped)"};
+  CLI::App app{
+      "genscene run: run the whole chain on a recording into a workspace: ingest, fusion, meshing, "
+      "texturing, albedo, lights, refine, export (stages whose outputs are up to date are "
+      "skipped)"};
   genscene::CommandLine cli(app);
   genscene::SourceOptions source;
   cli.Add(source, "Input");
@@ -128,11 +151,15 @@ int Run(int argc, char** argv) {
   chain.AddTo(cli);
   std::string input, out;
   bool redo = false;
-  app.add_option("--input", input, "TUM folder, view set, Redwood folder, .oni recording or openni2[:URI]")->required();
+  app.add_option("--input", input,
+                 "TUM folder, view set, Redwood folder, .oni recording or openni2[:URI]")
+      ->required();
   app.add_option("out,--out", out, "workspace folder")->required();
   app.add_flag("--redo", redo, "re-run stages whose outputs are up to date");
   std::string until;
-  app.add_option("--until", until, "last stage to run: ingest, fusion, meshing, texturing, albedo, lights, refine, export, evaluate");
+  app.add_option("--until", until,
+                 "last stage to run: ingest, fusion, meshing, texturing, albedo, lights, refine, "
+                 "export, evaluate");
   if (auto code = cli.Parse(argc, argv)) return *code;
 
   const bool existed = std::filesystem::exists(out);
@@ -143,19 +170,23 @@ int Run(int argc, char** argv) {
 }
 
 int Inspect(int argc, char** argv) {
-  CLI::App app{"genscene inspect: read and check every frame of a recording and print what it holds"};
+  CLI::App app{
+      "genscene inspect: read and check every frame of a recording and print what it holds"};
   genscene::CommandLine cli(app);
   genscene::SourceOptions source;
   cli.Add(source, "Input");
   std::string input;
-  app.add_option("input,--input", input, "TUM folder, view set, Redwood folder, .oni recording, or a PLY mesh")->required();
+  app.add_option("input,--input", input,
+                 "TUM folder, view set, Redwood folder, .oni recording, or a PLY mesh")
+      ->required();
   if (auto code = cli.Parse(argc, argv)) return *code;
   if (std::filesystem::path(input).extension() == ".ply") {
     const genscene::TriangleMesh mesh = genscene::ReadPly(input);
     const auto box = mesh.Bounds();
     std::cout << input << ": " << mesh.vertices.size() << " vertices, " << mesh.faces.size()
-              << " triangles, bounds (" << box.min().transpose() << ") to (" << box.max().transpose() << ") m"
-              << (mesh.normals.empty() ? "" : ", normals") << (mesh.vertex_colors.empty() ? "" : ", vertex colours")
+              << " triangles, bounds (" << box.min().transpose() << ") to ("
+              << box.max().transpose() << ") m" << (mesh.normals.empty() ? "" : ", normals")
+              << (mesh.vertex_colors.empty() ? "" : ", vertex colours")
               << (mesh.face_colors.empty() ? "" : ", face colours") << "\n";
     return 0;
   }
@@ -170,7 +201,8 @@ void PrintUsage() {
                "commands:\n"
                "  demo      synthesise a Cornell-box sequence and run the chain on it\n"
                "  run       run the chain on a recording: --input SRC --out WORKSPACE\n"
-               "  report    write WORKSPACE/report/report.md: speed against error of every stage, with figures\n"
+               "  report    write WORKSPACE/report/report.md: speed against error of every stage, "
+               "with figures\n"
                "  inspect   read and check a recording (or a PLY mesh) and print what it holds\n";
 }
 

@@ -13,9 +13,9 @@
 #include "core/se3.h"
 #include "core/trajectory.h"
 #include "core/view_set.h"
-#include "render/path_tracer.h"
 #include "render/formats/mitsuba_xml.h"
 #include "render/formats/scene_io.h"
+#include "render/path_tracer.h"
 
 namespace {
 
@@ -29,8 +29,8 @@ std::string StampName(double timestamp) {
 }
 
 // The views to render: a view set, one --pose with --intrinsics, or the scene's cameras.
-std::vector<View> ChooseViews(const std::string& views_dir, const std::string& pose, const std::string& intrinsics,
-                              const LoadedScene& loaded) {
+std::vector<View> ChooseViews(const std::string& views_dir, const std::string& pose,
+                              const std::string& intrinsics, const LoadedScene& loaded) {
   if (!views_dir.empty()) return ReadViewSet(views_dir);
   if (!pose.empty()) {
     if (intrinsics.empty()) throw Error("--pose needs --intrinsics FILE");
@@ -41,10 +41,12 @@ std::vector<View> ChooseViews(const std::string& views_dir, const std::string& p
     }
     View view;
     view.intrinsics = ResolveIntrinsics(intrinsics);
-    view.world_from_camera = PoseFromTranslationQuaternion({v[0], v[1], v[2]}, Eigen::Quaterniond(v[6], v[3], v[4], v[5]));
+    view.world_from_camera = PoseFromTranslationQuaternion(
+        {v[0], v[1], v[2]}, Eigen::Quaterniond(v[6], v[3], v[4], v[5]));
     return {view};
   }
-  if (loaded.views.empty()) throw Error("the scene has no cameras: give --views DIR or --pose with --intrinsics");
+  if (loaded.views.empty())
+    throw Error("the scene has no cameras: give --views DIR or --pose with --intrinsics");
   return loaded.views;
 }
 
@@ -63,31 +65,41 @@ void ApplySceneSettings(const RenderSettings& s, const CommandLine& cli, RenderO
 
 int main(int argc, char** argv) {
   return RunApp("genscene-render", [&] {
-    CLI::App app{"genscene-render: path-trace a scene (Mitsuba 3 XML subset or genscene JSON) into linear EXR "
-                 "and sRGB PNG images"};
+    CLI::App app{
+        "genscene-render: path-trace a scene (Mitsuba 3 XML subset or genscene JSON) into linear "
+        "EXR "
+        "and sRGB PNG images"};
     CommandLine cli(app);
     RenderOptions options;
     cli.Add(options, "Rendering");
     std::string scene_path, views_dir, pose, intrinsics, out;
     bool aovs = false;
-    app.add_option("--scene", scene_path, "scene file: .xml (Mitsuba 3 subset) or .json (genscene)")->required();
-    app.add_option("--views", views_dir, "view set folder (intrinsics.txt, groundtruth.txt, rgb.txt)");
+    app.add_option("--scene", scene_path, "scene file: .xml (Mitsuba 3 subset) or .json (genscene)")
+        ->required();
+    app.add_option("--views", views_dir,
+                   "view set folder (intrinsics.txt, groundtruth.txt, rgb.txt)");
     app.add_option("--pose", pose, "one camera pose 'tx ty tz qx qy qz qw' (world_from_camera)");
-    app.add_option("--intrinsics", intrinsics, "intrinsics for --pose: file or tum1|tum2|tum3|primesense");
+    app.add_option("--intrinsics", intrinsics,
+                   "intrinsics for --pose: file or tum1|tum2|tum3|primesense");
     app.add_option("out,--out", out, "output folder")->required();
-    app.add_flag("--aovs", aovs, "also write <stamp>_depth.exr (planar z, m) and <stamp>_normal.exr (world)");
+    app.add_flag("--aovs", aovs,
+                 "also write <stamp>_depth.exr (planar z, m) and <stamp>_normal.exr (world)");
     std::string export_xml, export_json;
-    app.add_option("--export-xml", export_xml, "also write the scene and views as Mitsuba 3 XML (meshes as PLY beside it)");
-    app.add_option("--export-json", export_json, "also write the scene and views in genscene's JSON format");
+    app.add_option("--export-xml", export_xml,
+                   "also write the scene and views as Mitsuba 3 XML (meshes as PLY beside it)");
+    app.add_option("--export-json", export_json,
+                   "also write the scene and views in genscene's JSON format");
     if (auto code = cli.Parse(argc, argv)) return *code;
 
     const LoadedScene loaded = LoadScene(scene_path);
-    for (const std::string& w : loaded.warnings) std::cerr << "genscene-render: warning: " << w << "\n";
+    for (const std::string& w : loaded.warnings)
+      std::cerr << "genscene-render: warning: " << w << "\n";
     ApplySceneSettings(loaded.settings, cli, &options);
     const std::vector<View> views = ChooseViews(views_dir, pose, intrinsics, loaded);
     const PathTracer tracer(loaded.scene);
     if (!export_xml.empty()) {
-      for (const std::string& w : ExportMitsubaXml(export_xml, loaded.scene, views, loaded.settings)) {
+      for (const std::string& w :
+           ExportMitsubaXml(export_xml, loaded.scene, views, loaded.settings)) {
         std::cerr << "genscene-render: warning: " << w << "\n";
       }
     }
@@ -119,18 +131,22 @@ int main(int argc, char** argv) {
     std::cerr << "\n";
     const std::filesystem::path dir(out);
     bool same_intrinsics = true;
-    for (const View& v : views) same_intrinsics &= v.intrinsics.ToString() == views.front().intrinsics.ToString();
+    for (const View& v : views)
+      same_intrinsics &= v.intrinsics.ToString() == views.front().intrinsics.ToString();
     if (same_intrinsics) {
       WriteIntrinsicsFile(dir / "intrinsics.txt", views.front().intrinsics);
       WriteTumTrajectory(dir / "groundtruth.txt", poses);
       WriteTextFileAtomically(dir / "rgb.txt", rgb_list.str());
     } else {
-      std::cerr << "genscene-render: the views have different intrinsics; no view-set lists written\n";
+      std::cerr
+          << "genscene-render: the views have different intrinsics; no view-set lists written\n";
     }
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::printf("genscene-render: %zu views, %d spp, max depth %d, filter %s: %.2f s, %.2f Mrays/s -> %s\n",
-                views.size(), options.spp, options.max_depth, options.filter.c_str(), seconds, rays / seconds / 1e6,
-                out.c_str());
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    std::printf(
+        "genscene-render: %zu views, %d spp, max depth %d, filter %s: %.2f s, %.2f Mrays/s -> %s\n",
+        views.size(), options.spp, options.max_depth, options.filter.c_str(), seconds,
+        rays / seconds / 1e6, out.c_str());
     return 0;
   });
 }

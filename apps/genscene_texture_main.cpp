@@ -21,10 +21,14 @@ int main(int argc, char** argv) {
     std::string ws_path;
     apps::TextureInputs inputs;
     std::string mesh, views, response = source.camera_response;
-    app.add_option("workspace,--out", ws_path, "workspace folder (outputs; inputs unless given below)")->required();
+    app.add_option("workspace,--out", ws_path,
+                   "workspace folder (outputs; inputs unless given below)")
+        ->required();
     app.add_option("--mesh", mesh, "mesh PLY (default: WS/mesh.ply)");
-    app.add_option("--views", views, "posed colour images: a keyframes folder or view set (default: WS/keyframes)");
-    app.add_option("--camera-response", response, "8-bit colour to linear: srgb, linear or gamma:G")->capture_default_str();
+    app.add_option("--views", views,
+                   "posed colour images: a keyframes folder or view set (default: WS/keyframes)");
+    app.add_option("--camera-response", response, "8-bit colour to linear: srgb, linear or gamma:G")
+        ->capture_default_str();
     if (auto code = cli.Parse(argc, argv)) return *code;
     if (mesh.empty() && views.empty() && !std::filesystem::is_directory(ws_path)) {
       throw Error(Format(ws_path, ": no such workspace folder"));
@@ -34,8 +38,9 @@ int main(int argc, char** argv) {
     source.camera_response = response;
     const Workspace ws(ws_path);
     const apps::TextureSummary summary = apps::TextureWorkspace(inputs, source, options, ws);
-    std::printf("genscene-texture: %s\ngenscene-texture: %d threads -> %s, %s\n", apps::ToString(summary).c_str(),
-                ThreadCount(), ws.Texture().string().c_str(), ws.TexturePly().string().c_str());
+    std::printf("genscene-texture: %s\ngenscene-texture: %d threads -> %s, %s\n",
+                apps::ToString(summary).c_str(), ThreadCount(), ws.Texture().string().c_str(),
+                ws.TexturePly().string().c_str());
     return 0;
   });
 }

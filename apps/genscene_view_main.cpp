@@ -19,12 +19,13 @@ ColorMode ChooseMode(const ViewerOptions& options, const ViewData& data) {
   if (!options.mode.empty()) {
     const ColorMode mode = ParseColorMode(options.mode);
     const bool has = mode == ColorMode::kGeometry ||
-                     (data.mesh && (mode == ColorMode::kObserved   ? data.observed.has_value()
+                     (data.mesh && (mode == ColorMode::kObserved  ? data.observed.has_value()
                                     : mode == ColorMode::kShading ? data.observed && data.albedo
-                                                                   : data.albedo.has_value()));
+                                                                  : data.albedo.has_value()));
     if (!has) {
-      std::printf("genscene-view: --mode %s needs what this workspace lacks (above); showing geometry\n",
-                  options.mode.c_str());
+      std::printf(
+          "genscene-view: --mode %s needs what this workspace lacks (above); showing geometry\n",
+          options.mode.c_str());
       return ColorMode::kGeometry;
     }
     return mode;
@@ -58,8 +59,9 @@ int main(int argc, char** argv) {
     const std::string example = Format("xvfb-run -a genscene-view ", ws_path,
                                        options.screenshot.empty() ? " ..." : " --screenshot ...");
     if (!HasDisplay()) {
-      throw Error(Format("no display (DISPLAY is not set): run `", example, "`",
-                         options.screenshot.empty() ? ", or add --screenshot out.png under it" : ""));
+      throw Error(
+          Format("no display (DISPLAY is not set): run `", example, "`",
+                 options.screenshot.empty() ? ", or add --screenshot out.png under it" : ""));
     }
 
     // Open what exists; say what is missing.
@@ -76,22 +78,26 @@ int main(int argc, char** argv) {
     draw.show_overlay = !options.no_overlay;
     draw.show_refined = options.refined;
     if (options.refined && !data.refined_mesh) {
-      throw Error(Format(ws_path, ": --refined: no mesh_refined.ply to show (run genscene-refine)"));
+      throw Error(
+          Format(ws_path, ": --refined: no mesh_refined.ply to show (run genscene-refine)"));
     }
-    const PosedView view = ResolveCamera(ParseCameraSpec(options.camera), data, ParseSize(options.size));
+    const PosedView view =
+        ResolveCamera(ParseCameraSpec(options.camera), data, ParseSize(options.size));
 
     try {
       if (!options.screenshot.empty()) {
         const ImageRgb image = RenderScreenshot(data, view, draw);
         WritePng(options.screenshot, image);
-        std::printf("genscene-view: %s, %dx%d, camera %s -> %s\n", ColorModeName(draw.mode), image.width(),
-                    image.height(), options.camera.c_str(), options.screenshot.c_str());
+        std::printf("genscene-view: %s, %dx%d, camera %s -> %s\n", ColorModeName(draw.mode),
+                    image.width(), image.height(), options.camera.c_str(),
+                    options.screenshot.c_str());
         return 0;
       }
       RunInteractive(data, view, draw);
     } catch (const NoDisplayError& e) {
-      throw Error(Format(e.what(), ": run `", example, "`",
-                         options.screenshot.empty() ? ", or add --screenshot out.png under it" : ""));
+      throw Error(
+          Format(e.what(), ": run `", example, "`",
+                 options.screenshot.empty() ? ", or add --screenshot out.png under it" : ""));
     }
     return 0;
   });

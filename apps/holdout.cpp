@@ -3,7 +3,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -25,7 +24,9 @@ using namespace genscene::render;
 
 namespace {
 
-float Luminance(const Eigen::Vector3f& c) { return 0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z(); }
+float Luminance(const Eigen::Vector3f& c) {
+  return 0.2126f * c.x() + 0.7152f * c.y() + 0.0722f * c.z();
+}
 
 // The sRGB-encoded luminance of an image, clipped to [0, 1].
 cv::Mat EncodedLuminance(const ImageRgb& image) {
@@ -44,9 +45,11 @@ struct FirstHits {
   ImageRgb albedo, texture;
 };
 
-FirstHits TraceFirstHits(const PathTracer& tracer, const MeshColors& texture, const TrainingView& frame) {
+FirstHits TraceFirstHits(const PathTracer& tracer, const MeshColors& texture,
+                         const TrainingView& frame) {
   const CameraIntrinsics& k = frame.view.intrinsics;
-  FirstHits out{Image<uint8_t>(k.width, k.height, 0), ImageRgb(k.width, k.height), ImageRgb(k.width, k.height)};
+  FirstHits out{Image<uint8_t>(k.width, k.height, 0), ImageRgb(k.width, k.height),
+                ImageRgb(k.width, k.height)};
   const SceneMesh& mesh = tracer.scene().meshes.front();
   for (int v = 0; v < k.height; ++v) {
     for (int u = 0; u < k.width; ++u) {
@@ -72,11 +75,14 @@ ImageRgb Gained(const ImageRgb& prediction, const Eigen::Vector3d& gain, const I
 }
 
 nlohmann::ordered_json ToJson(const HeldOutScore& s) {
-  return {{"gain", {s.gain.x(), s.gain.y(), s.gain.z()}}, {"relative_rmse", s.rmse}, {"ssim", s.ssim}};
+  return {
+      {"gain", {s.gain.x(), s.gain.y(), s.gain.z()}}, {"relative_rmse", s.rmse}, {"ssim", s.ssim}};
 }
 
 nlohmann::ordered_json ToJson(const AgainstTruth& t) {
-  return {{"model", ToJson(t.model)}, {"texture_unlit", ToJson(t.texture)}, {"albedo_ambient", ToJson(t.ambient)},
+  return {{"model", ToJson(t.model)},
+          {"texture_unlit", ToJson(t.texture)},
+          {"albedo_ambient", ToJson(t.ambient)},
           {"frame", ToJson(t.frame)}};
 }
 
@@ -97,7 +103,8 @@ double MaskedSsim(const ImageRgb& a, const ImageRgb& b, const Image<uint8_t>& ma
     return out;
   };
   const cv::Mat mx = blur(x), my = blur(y);
-  const cv::Mat sxx = blur(x.mul(x)) - mx.mul(mx), syy = blur(y.mul(y)) - my.mul(my), sxy = blur(x.mul(y)) - mx.mul(my);
+  const cv::Mat sxx = blur(x.mul(x)) - mx.mul(mx), syy = blur(y.mul(y)) - my.mul(my),
+                sxy = blur(x.mul(y)) - mx.mul(my);
   constexpr double c1 = 0.01 * 0.01, c2 = 0.03 * 0.03;
   double sum = 0.0;
   size_t n = 0;
@@ -113,11 +120,13 @@ double MaskedSsim(const ImageRgb& a, const ImageRgb& b, const Image<uint8_t>& ma
   return n > 0 ? sum / static_cast<double>(n) : 0.0;
 }
 
-HeldOutScore ScorePrediction(const ImageRgb& prediction, const ImageRgb& reference, const Image<uint8_t>& mask) {
+HeldOutScore ScorePrediction(const ImageRgb& prediction, const ImageRgb& reference,
+                             const Image<uint8_t>& mask) {
   Eigen::Vector3d pr = Eigen::Vector3d::Zero(), pp = Eigen::Vector3d::Zero();
   for (size_t i = 0; i < mask.size(); ++i) {
     if (!mask.data()[i]) continue;
-    const Eigen::Vector3d p = prediction.data()[i].cast<double>(), r = reference.data()[i].cast<double>();
+    const Eigen::Vector3d p = prediction.data()[i].cast<double>(),
+                          r = reference.data()[i].cast<double>();
     pr += p.cwiseProduct(r);
     pp += p.cwiseProduct(p);
   }
@@ -135,10 +144,11 @@ HeldOutScore ScorePrediction(const ImageRgb& prediction, const ImageRgb& referen
   return s;
 }
 
-HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOptions& lights, int spp, uint64_t seed,
-                                  const Scene* truth, int truth_spp) {
+HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOptions& lights,
+                                  int spp, uint64_t seed, const Scene* truth, int truth_spp) {
   const std::vector<TrainingView> frames = ReadViews(ws.HeldOut());
-  if (frames.empty()) throw Error(Format(ws.HeldOut().string(), ": no held-out frames to judge the model on"));
+  if (frames.empty())
+    throw Error(Format(ws.HeldOut().string(), ": no held-out frames to judge the model on"));
   const fs::path mesh_path = fs::exists(ws.RefinedMesh()) ? ws.RefinedMesh() : ws.Mesh();
   std::vector<std::string> warnings;
   Scene model = LoadGeometry({{}, mesh_path, ws.Albedo()}, ws, &warnings);
@@ -157,7 +167,8 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
     const FirstHits hits = TraceFirstHits(tracer, texture, frame);
     RenderOptions paths = lights.Paths();
     paths.spp = spp;
-    const RenderHalves halves = RenderInHalves(tracer, frame.view, paths, seed + 3000 + f, (seed + 3000 + f) ^ 0xD1B54A32D192ED03ull);
+    const RenderHalves halves = RenderInHalves(tracer, frame.view, paths, seed + 3000 + f,
+                                               (seed + 3000 + f) ^ 0xD1B54A32D192ED03ull);
     const ImageRgb &a = halves.a, &b = halves.b, &render = halves.mean;
 
     HeldOutFrame r;
@@ -174,35 +185,45 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
       const Eigen::Vector3d g = r.model.gain;
       noise += 0.25 * (a.data()[i] - b.data()[i]).cast<double>().cwiseProduct(g).squaredNorm();
       ref += frame.image.data()[i].cast<double>().squaredNorm();
-      error.data()[i] = 4.0f * (render.data()[i].cwiseProduct(g.cast<float>()) - frame.image.data()[i]).cwiseAbs();
+      error.data()[i] =
+          4.0f *
+          (render.data()[i].cwiseProduct(g.cast<float>()) - frame.image.data()[i]).cwiseAbs();
     }
     r.noise = ref > 0.0 ? std::sqrt(noise / ref) : 0.0;
 
     char stem[32];
     std::snprintf(stem, sizeof(stem), "holdout_%02zu", f);
     WritePng(dir / (std::string(stem) + "_real.png"), frame.image);
-    WritePng(dir / (std::string(stem) + "_model.png"), Gained(render, r.model.gain, ImageRgb(a.width(), a.height()), hits.mask));
-    WritePng(dir / (std::string(stem) + "_texture.png"), Gained(hits.texture, r.texture.gain, ImageRgb(a.width(), a.height()), hits.mask));
-    WritePng(dir / (std::string(stem) + "_ambient.png"), Gained(hits.albedo, r.ambient.gain, ImageRgb(a.width(), a.height()), hits.mask));
+    WritePng(dir / (std::string(stem) + "_model.png"),
+             Gained(render, r.model.gain, ImageRgb(a.width(), a.height()), hits.mask));
+    WritePng(dir / (std::string(stem) + "_texture.png"),
+             Gained(hits.texture, r.texture.gain, ImageRgb(a.width(), a.height()), hits.mask));
+    WritePng(dir / (std::string(stem) + "_ambient.png"),
+             Gained(hits.albedo, r.ambient.gain, ImageRgb(a.width(), a.height()), hits.mask));
     WritePng(dir / (std::string(stem) + "_error.png"), error);
     if (truth_tracer) {
       RenderOptions paths = lights.Paths();
       paths.spp = truth_spp;
-      const ImageRgb true_render = truth_tracer->Render(frame.view, paths, seed + 4000 + f).radiance;
+      const ImageRgb true_render =
+          truth_tracer->Render(frame.view, paths, seed + 4000 + f).radiance;
       r.truth = AgainstTruth{ScorePrediction(render, true_render, hits.mask),
                              ScorePrediction(hits.texture, true_render, hits.mask),
                              ScorePrediction(hits.albedo, true_render, hits.mask),
                              ScorePrediction(frame.image, true_render, hits.mask)};
       WritePng(dir / (std::string(stem) + "_truth.png"), true_render);
     }
-    nlohmann::ordered_json entry = {{"timestamp", r.timestamp}, {"pixels", r.pixels}, {"noise", r.noise},
-                                    {"model", ToJson(r.model)}, {"texture_unlit", ToJson(r.texture)},
+    nlohmann::ordered_json entry = {{"timestamp", r.timestamp},
+                                    {"pixels", r.pixels},
+                                    {"noise", r.noise},
+                                    {"model", ToJson(r.model)},
+                                    {"texture_unlit", ToJson(r.texture)},
                                     {"albedo_ambient", ToJson(r.ambient)}};
     if (r.truth) entry["against_truth"] = ToJson(*r.truth);
     list.push_back(entry);
     out.frames.push_back(r);
   }
-  if (out.frames.empty()) throw Error(Format(ws.HeldOut().string(), ": the model is in view of no held-out frame"));
+  if (out.frames.empty())
+    throw Error(Format(ws.HeldOut().string(), ": the model is in view of no held-out frame"));
   const double n = static_cast<double>(out.frames.size());
   if (truth) out.truth = AgainstTruth();
   for (const HeldOutFrame& r : out.frames) {
@@ -221,7 +242,9 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
   report["spp"] = spp;
   if (truth) report["truth_spp"] = truth_spp;
   report["frames"] = list;
-  report["mean"] = {{"model", ToJson(out.model)}, {"noise", out.noise}, {"texture_unlit", ToJson(out.texture)},
+  report["mean"] = {{"model", ToJson(out.model)},
+                    {"noise", out.noise},
+                    {"texture_unlit", ToJson(out.texture)},
                     {"albedo_ambient", ToJson(out.ambient)}};
   if (out.truth) report["mean"]["against_truth"] = ToJson(*out.truth);
   WriteTextFileAtomically(dir / "holdout.json", report.dump(1) + "\n");

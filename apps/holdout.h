@@ -60,11 +60,14 @@ struct HeldOutEvaluation {
 // frame holdout_NN_real.png, _model.png, _texture.png, _ambient.png and _error.png (|g P - R| of
 // the model, 4x); with `truth`, rendered at `truth_spp`, also holdout_NN_truth.png and the scores
 // against it ("against_truth"). Throws Error when WS/holdout/ holds no frames.
-HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const inverse::LightEstimationOptions& lights, int spp,
-                                  uint64_t seed, const render::Scene* truth = nullptr, int truth_spp = 128);
+HeldOutEvaluation EvaluateHeldOut(const Workspace& ws,
+                                  const inverse::LightEstimationOptions& lights, int spp,
+                                  uint64_t seed, const render::Scene* truth = nullptr,
+                                  int truth_spp = 128);
 
 // The gain-fitted score of a prediction against a reference over the pixels of `mask`.
-HeldOutScore ScorePrediction(const ImageRgb& prediction, const ImageRgb& reference, const Image<uint8_t>& mask);
+HeldOutScore ScorePrediction(const ImageRgb& prediction, const ImageRgb& reference,
+                             const Image<uint8_t>& mask);
 
 // Mean SSIM of the sRGB-encoded luminance of a and b over the pixels of `mask` (the window reaches
 // outside it: give images that agree there).

@@ -39,7 +39,8 @@ IngestSummary IngestSequence(const std::string& input, const SourceOptions& opti
     frames.push_back({{"timestamp", frame->timestamp},
                       {"color", frame->color_path},
                       {"depth", frame->depth_path},
-                      {"valid_depth_fraction", frame->depth.empty() ? 0.0 : double(frame_valid) / frame->depth.size()},
+                      {"valid_depth_fraction",
+                       frame->depth.empty() ? 0.0 : double(frame_valid) / frame->depth.size()},
                       {"min_depth_m", frame_valid ? lo : 0.0},
                       {"max_depth_m", hi},
                       {"has_pose", frame->world_from_camera.has_value()}});

@@ -31,13 +31,14 @@ std::string Stamp(const char* prefix, size_t index) {
 
 }  // namespace
 
-LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptions& options, uint64_t seed,
-                              const Workspace& ws) {
+LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptions& options,
+                              uint64_t seed, const Workspace& ws) {
   options.Validate();
   LightsSummary out;
   const Scene scene = LoadGeometry({in.scene, in.mesh, in.albedo}, ws, &out.warnings);
   const std::vector<TrainingView> train = ReadViews(in.views.empty() ? ws.Keyframes() : in.views);
-  const std::vector<TrainingView> novel = in.novel.empty() ? std::vector<TrainingView>() : ReadViews(in.novel);
+  const std::vector<TrainingView> novel =
+      in.novel.empty() ? std::vector<TrainingView>() : ReadViews(in.novel);
   out.estimate = EstimateLights(scene, train, options, seed);
   for (const std::string& note : out.estimate.notes) out.warnings.push_back(note);
 
@@ -46,10 +47,12 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
   const PathTracer tracer(lit);
   const fs::path dir = ws.LightsDir();
   fs::create_directories(dir);
-  for (const auto& [views, prefix, errors] : {std::tuple{&train, "train", &out.train}, std::tuple{&novel, "novel", &out.novel}}) {
+  for (const auto& [views, prefix, errors] :
+       {std::tuple{&train, "train", &out.train}, std::tuple{&novel, "novel", &out.novel}}) {
     for (size_t i = 0; i < views->size(); ++i) {
       ImageRgb render;
-      errors->push_back(CompareRender(tracer, (*views)[i], options, in.render_spp, seed + i, 0.0, &render));
+      errors->push_back(
+          CompareRender(tracer, (*views)[i], options, in.render_spp, seed + i, 0.0, &render));
       WriteExr(dir / (Stamp(prefix, i) + ".exr"), render);
       WritePng(dir / (Stamp(prefix, i) + ".png"), render);
     }
@@ -59,15 +62,18 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
   out.ambient = FitAmbientBaseline(tracer, train, options);
   for (const ViewError& e : out.train) out.train_rmse += e.rmse_bias / out.train.size();
   if (!out.train.empty() && out.train_rmse > out.ambient.mean_rmse) {
-    out.warnings.push_back(Format("the voxel lights fit the training views worse than a constant ambient light (relative RMSE ",
-                                  out.train_rmse, " without render noise, against ", out.ambient.mean_rmse,
-                                  " for ambient radiance (", out.ambient.radiance.transpose(),
-                                  ")): the light model does not describe these images"));
+    out.warnings.push_back(
+        Format("the voxel lights fit the training views worse than a constant ambient light "
+               "(relative RMSE ",
+               out.train_rmse, " without render noise, against ", out.ambient.mean_rmse,
+               " for ambient radiance (", out.ambient.radiance.transpose(),
+               ")): the light model does not describe these images"));
   }
   try {
     std::vector<View> views;
     for (const TrainingView& v : train) views.push_back(v.view);
-    for (std::string& w : ExportMitsubaXml(dir / "scene.xml", lit, views)) out.warnings.push_back(std::move(w));
+    for (std::string& w : ExportMitsubaXml(dir / "scene.xml", lit, views))
+      out.warnings.push_back(std::move(w));
   } catch (const Error& e) {
     out.warnings.push_back(Format("Mitsuba export skipped: ", e.what()));
   }
@@ -82,20 +88,32 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
   estimate["seconds"] = out.estimate.seconds;
   nlohmann::ordered_json rounds = nlohmann::ordered_json::array();
   for (const LightRound& r : out.estimate.rounds) {
-    rounds.push_back({{"round", r.round}, {"level", r.level}, {"candidates", r.candidates},
-                      {"nonzeros", r.nonzeros}, {"rays", r.rays},
-                      {"trace_seconds", r.trace_seconds}, {"gram_seconds", r.gram_seconds},
-                      {"solve_seconds", r.solve_seconds}, {"iterations", r.solve.iterations},
-                      {"cost", r.solve.cost}, {"data", r.solve.data}, {"active_voxels", r.active_voxels},
+    rounds.push_back({{"round", r.round},
+                      {"level", r.level},
+                      {"candidates", r.candidates},
+                      {"nonzeros", r.nonzeros},
+                      {"rays", r.rays},
+                      {"trace_seconds", r.trace_seconds},
+                      {"gram_seconds", r.gram_seconds},
+                      {"solve_seconds", r.solve_seconds},
+                      {"iterations", r.solve.iterations},
+                      {"cost", r.solve.cost},
+                      {"data", r.solve.data},
+                      {"active_voxels", r.active_voxels},
                       {"power_change", r.power_change}});
   }
   estimate["rounds"] = rounds;
-  estimate["ambient_baseline"] = {{"radiance", {out.ambient.radiance.x(), out.ambient.radiance.y(), out.ambient.radiance.z()}},
-                                  {"train_relative_rmse", out.ambient.mean_rmse}};
-  for (const auto& [key, errors] : {std::pair{"train_views", &out.train}, std::pair{"novel_views", &out.novel}}) {
+  estimate["ambient_baseline"] = {
+      {"radiance", {out.ambient.radiance.x(), out.ambient.radiance.y(), out.ambient.radiance.z()}},
+      {"train_relative_rmse", out.ambient.mean_rmse}};
+  for (const auto& [key, errors] :
+       {std::pair{"train_views", &out.train}, std::pair{"novel_views", &out.novel}}) {
     nlohmann::ordered_json list = nlohmann::ordered_json::array();
     for (const ViewError& e : *errors) {
-      list.push_back({{"pixels", e.pixels}, {"relative_rmse", e.rmse}, {"noise", e.noise}, {"relative_rmse_bias", e.rmse_bias}});
+      list.push_back({{"pixels", e.pixels},
+                      {"relative_rmse", e.rmse},
+                      {"noise", e.noise},
+                      {"relative_rmse_bias", e.rmse_bias}});
     }
     estimate[key] = list;
   }
@@ -106,14 +124,17 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
 std::string ToString(const LightsSummary& s) {
   std::ostringstream o;
   const LightEstimate& e = s.estimate;
-  o << e.pixels << " pixels, " << e.rounds.size() << " rounds, " << e.active_voxels << " active voxels of "
-    << e.lights.VoxelCount() << ", " << Format(e.seconds) << " s";
-  for (const auto& [name, errors] : {std::pair{"training", &s.train}, std::pair{"novel", &s.novel}}) {
+  o << e.pixels << " pixels, " << e.rounds.size() << " rounds, " << e.active_voxels
+    << " active voxels of " << e.lights.VoxelCount() << ", " << Format(e.seconds) << " s";
+  for (const auto& [name, errors] :
+       {std::pair{"training", &s.train}, std::pair{"novel", &s.novel}}) {
     if (errors->empty()) continue;
     double rmse = 0.0, bias = 0.0;
-    for (const ViewError& v : *errors) rmse += v.rmse / errors->size(), bias += v.rmse_bias / errors->size();
+    for (const ViewError& v : *errors)
+      rmse += v.rmse / errors->size(), bias += v.rmse_bias / errors->size();
     char line[160];
-    std::snprintf(line, sizeof(line), "; %s views: relative RMSE %.3f (%.3f without render noise)", name, rmse, bias);
+    std::snprintf(line, sizeof(line), "; %s views: relative RMSE %.3f (%.3f without render noise)",
+                  name, rmse, bias);
     o << line;
   }
   if (!s.train.empty()) o << "; ambient baseline " << Format(s.ambient.mean_rmse);

@@ -51,11 +51,13 @@ std::string Label(double value, bool log) {
 
 }  // namespace
 
-void WritePlot(const std::filesystem::path& png, const PlotSpec& spec, const std::vector<PlotSeries>& series) {
+void WritePlot(const std::filesystem::path& png, const PlotSpec& spec,
+               const std::vector<PlotSeries>& series) {
   const auto tx = [&](double v) { return spec.log_x ? std::log10(v) : v; };
   const auto ty = [&](double v) { return spec.log_y ? std::log10(v) : v; };
   const auto usable = [&](double x, double y) {
-    return std::isfinite(x) && std::isfinite(y) && (!spec.log_x || x > 0.0) && (!spec.log_y || y > 0.0);
+    return std::isfinite(x) && std::isfinite(y) && (!spec.log_x || x > 0.0) &&
+           (!spec.log_y || y > 0.0);
   };
   double x0 = std::numeric_limits<double>::infinity(), x1 = -x0, y0 = x0, y1 = -x0;
   for (const PlotSeries& s : series) {
@@ -67,7 +69,8 @@ void WritePlot(const std::filesystem::path& png, const PlotSpec& spec, const std
   }
   if (!(x0 <= x1)) throw Error(Format(png.string(), ": nothing to plot for '", spec.title, "'"));
   if (x1 - x0 < 1e-12) x0 -= 0.5, x1 += 0.5;
-  if (y1 - y0 < 1e-12 * std::max(1.0, std::abs(y0))) y0 -= std::max(0.5, std::abs(y0) * 0.1), y1 += std::max(0.5, std::abs(y1) * 0.1);
+  if (y1 - y0 < 1e-12 * std::max(1.0, std::abs(y0)))
+    y0 -= std::max(0.5, std::abs(y0) * 0.1), y1 += std::max(0.5, std::abs(y1) * 0.1);
   if (!spec.log_y && y0 > 0.0 && y0 < 0.5 * y1) y0 = 0.0;  // show the zero when it is near
   const double pad_y = 0.05 * (y1 - y0);
   y1 += pad_y;
@@ -75,29 +78,38 @@ void WritePlot(const std::filesystem::path& png, const PlotSpec& spec, const std
 
   cv::Mat image(spec.height, spec.width, CV_8UC3, cv::Scalar(255, 255, 255));
   const int left = 70, right = spec.width - 20, top = 40, bottom = spec.height - 50;
-  const auto px = [&](double v) { return cv::Point(static_cast<int>(std::lround(left + (v - x0) / (x1 - x0) * (right - left))), 0); };
-  const auto py = [&](double v) { return static_cast<int>(std::lround(bottom - (v - y0) / (y1 - y0) * (bottom - top))); };
+  const auto px = [&](double v) {
+    return cv::Point(static_cast<int>(std::lround(left + (v - x0) / (x1 - x0) * (right - left))),
+                     0);
+  };
+  const auto py = [&](double v) {
+    return static_cast<int>(std::lround(bottom - (v - y0) / (y1 - y0) * (bottom - top)));
+  };
   const cv::Scalar black(0, 0, 0), grid(225, 225, 225);
   const int font = cv::FONT_HERSHEY_SIMPLEX;
   for (double t : Ticks(x0, x1, spec.log_x)) {
     const int x = px(t).x;
     cv::line(image, {x, top}, {x, bottom}, grid, 1);
     const std::string label = Label(t, spec.log_x);
-    cv::putText(image, label, {x - 4 * static_cast<int>(label.size()), bottom + 16}, font, 0.4, black, 1, cv::LINE_AA);
+    cv::putText(image, label, {x - 4 * static_cast<int>(label.size()), bottom + 16}, font, 0.4,
+                black, 1, cv::LINE_AA);
   }
   for (double t : Ticks(y0, y1, spec.log_y)) {
     const int y = py(t);
     cv::line(image, {left, y}, {right, y}, grid, 1);
     const std::string label = Label(t, spec.log_y);
-    cv::putText(image, label, {left - 8 - 7 * static_cast<int>(label.size()), y + 4}, font, 0.4, black, 1, cv::LINE_AA);
+    cv::putText(image, label, {left - 8 - 7 * static_cast<int>(label.size()), y + 4}, font, 0.4,
+                black, 1, cv::LINE_AA);
   }
   cv::rectangle(image, {left, top}, {right, bottom}, black, 1);
   cv::putText(image, spec.title, {left, 18}, font, 0.55, black, 1, cv::LINE_AA);
-  cv::putText(image, spec.x_label, {(left + right) / 2 - 4 * static_cast<int>(spec.x_label.size()), spec.height - 12},
+  cv::putText(image, spec.x_label,
+              {(left + right) / 2 - 4 * static_cast<int>(spec.x_label.size()), spec.height - 12},
               font, 0.45, black, 1, cv::LINE_AA);
   cv::putText(image, spec.y_label, {8, top - 6}, font, 0.4, cv::Scalar(80, 80, 80), 1, cv::LINE_AA);
 
-  static const cv::Scalar colours[] = {{180, 119, 31}, {14, 127, 255}, {44, 160, 44}, {40, 39, 214}, {189, 103, 148}, {75, 86, 140}};
+  static const cv::Scalar colours[] = {{180, 119, 31}, {14, 127, 255},  {44, 160, 44},
+                                       {40, 39, 214},  {189, 103, 148}, {75, 86, 140}};
   int legend_y = top + 16;
   for (size_t k = 0; k < series.size(); ++k) {
     const cv::Scalar colour = colours[k % 6];
@@ -112,17 +124,20 @@ void WritePlot(const std::filesystem::path& png, const PlotSpec& spec, const std
       int baseline = 0;
       const cv::Size text = cv::getTextSize(s.name, font, 0.4, 1, &baseline);
       const int x = right - 8 - text.width;
-      cv::rectangle(image, {x - 30, legend_y - text.height - 3}, {right - 2, legend_y + 4}, cv::Scalar(255, 255, 255), cv::FILLED);
+      cv::rectangle(image, {x - 30, legend_y - text.height - 3}, {right - 2, legend_y + 4},
+                    cv::Scalar(255, 255, 255), cv::FILLED);
       cv::line(image, {x - 26, legend_y - 4}, {x - 6, legend_y - 4}, colour, 2, cv::LINE_AA);
       cv::putText(image, s.name, {x, legend_y}, font, 0.4, black, 1, cv::LINE_AA);
       legend_y += 16;
     }
   }
   std::vector<uchar> bytes;
-  if (!cv::imencode(".png", image, bytes)) throw Error(Format(png.string(), ": cannot encode the plot"));
+  if (!cv::imencode(".png", image, bytes))
+    throw Error(Format(png.string(), ": cannot encode the plot"));
   WriteFileAtomically(png, [&](const std::filesystem::path& tmp) {
     std::FILE* f = std::fopen(tmp.c_str(), "wb");
-    if (!f || std::fwrite(bytes.data(), 1, bytes.size(), f) != bytes.size() || std::fclose(f) != 0) {
+    if (!f || std::fwrite(bytes.data(), 1, bytes.size(), f) != bytes.size() ||
+        std::fclose(f) != 0) {
       throw Error(Format(png.string(), ": cannot write the plot"));
     }
   });

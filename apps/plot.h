@@ -20,6 +20,7 @@ struct PlotSpec {
 };
 
 // Writes the plot atomically. Throws Error when no series has a finite point.
-void WritePlot(const std::filesystem::path& png, const PlotSpec& spec, const std::vector<PlotSeries>& series);
+void WritePlot(const std::filesystem::path& png, const PlotSpec& spec,
+               const std::vector<PlotSeries>& series);
 
 }  // namespace genscene::apps

@@ -2,8 +2,8 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <optional>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
 #include "core/check.h"
@@ -37,7 +37,8 @@ std::vector<bool> ChooseMeshes(const Scene& scene, const std::vector<std::string
     if (std::find(chosen->begin(), chosen->end(), name) == chosen->end()) {
       std::string known;
       for (const SceneMesh& m : scene.meshes) known += (known.empty() ? "" : ", ") + m.name;
-      throw Error(Format("--refine ", name, ": no such non-emitting mesh in the scene (meshes: ", known, ")"));
+      throw Error(Format("--refine ", name,
+                         ": no such non-emitting mesh in the scene (meshes: ", known, ")"));
     }
   }
   return refined;
@@ -49,15 +50,20 @@ TriangleMesh RefinedMesh(const Scene& scene, const std::vector<bool>& refined) {
   TriangleMesh out;
   bool colored = true;
   for (size_t m = 0; m < scene.meshes.size(); ++m) {
-    if (refined[m]) colored = colored && scene.meshes[m].mesh.vertex_colors.size() == scene.meshes[m].mesh.vertices.size();
+    if (refined[m])
+      colored = colored &&
+                scene.meshes[m].mesh.vertex_colors.size() == scene.meshes[m].mesh.vertices.size();
   }
   for (size_t m = 0; m < scene.meshes.size(); ++m) {
     if (!refined[m]) continue;
     const TriangleMesh& mesh = scene.meshes[m].mesh;
     const int offset = static_cast<int>(out.vertices.size());
     out.vertices.insert(out.vertices.end(), mesh.vertices.begin(), mesh.vertices.end());
-    if (colored) out.vertex_colors.insert(out.vertex_colors.end(), mesh.vertex_colors.begin(), mesh.vertex_colors.end());
-    for (const Eigen::Vector3i& f : mesh.faces) out.faces.push_back(f + Eigen::Vector3i::Constant(offset));
+    if (colored)
+      out.vertex_colors.insert(out.vertex_colors.end(), mesh.vertex_colors.begin(),
+                               mesh.vertex_colors.end());
+    for (const Eigen::Vector3i& f : mesh.faces)
+      out.faces.push_back(f + Eigen::Vector3i::Constant(offset));
   }
   out.ComputeVertexNormals();
   return out;
@@ -65,19 +71,23 @@ TriangleMesh RefinedMesh(const Scene& scene, const std::vector<bool>& refined) {
 
 }  // namespace
 
-RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& options, uint64_t seed, const Workspace& ws) {
+RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& options, uint64_t seed,
+                              const Workspace& ws) {
   options.Validate();
   RefineSummary out;
   Scene scene = LoadGeometry(in.geometry, ws, &out.warnings);
-  const fs::path lights = !in.lights.empty() ? in.lights
-                          : (in.geometry.scene.empty() && fs::exists(ws.Lights())) ? ws.Lights() : fs::path();
+  const fs::path lights = !in.lights.empty()                                       ? in.lights
+                          : (in.geometry.scene.empty() && fs::exists(ws.Lights())) ? ws.Lights()
+                                                                                   : fs::path();
   if (!lights.empty()) scene.voxel_lights = ReadLightsJson(lights);
   const bool lit = scene.voxel_lights || !scene.point_lights.empty() ||
-                   std::any_of(scene.meshes.begin(), scene.meshes.end(), [](const SceneMesh& m) { return m.IsEmitter(); });
+                   std::any_of(scene.meshes.begin(), scene.meshes.end(),
+                               [](const SceneMesh& m) { return m.IsEmitter(); });
   if (!lit) {
-    throw Error(in.geometry.scene.empty()
-                    ? Format(ws.Lights().string(), ": no lights (run genscene-lights, or give --lights)")
-                    : Format(in.geometry.scene.string(), ": the scene has no lights (give --lights)"));
+    throw Error(
+        in.geometry.scene.empty()
+            ? Format(ws.Lights().string(), ": no lights (run genscene-lights, or give --lights)")
+            : Format(in.geometry.scene.string(), ": the scene has no lights (give --lights)"));
   }
   const std::vector<TrainingView> targets = ReadViews(in.views.empty() ? ws.Keyframes() : in.views);
   const std::vector<bool> refined = ChooseMeshes(scene, in.refine, &out.refined);
@@ -88,11 +98,12 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
   if (!in.truth.empty()) {
     const TriangleMesh t = ReadPly(in.truth);
     if (static_cast<int>(t.vertices.size()) != tracer.VertexCount()) {
-      throw Error(Format(in.truth.string(), ": ", t.vertices.size(), " vertices, but the refined meshes have ",
-                         tracer.VertexCount()));
+      throw Error(Format(in.truth.string(), ": ", t.vertices.size(),
+                         " vertices, but the refined meshes have ", tracer.VertexCount()));
     }
     truth = Eigen::VectorXd(3 * t.vertices.size());
-    for (size_t v = 0; v < t.vertices.size(); ++v) truth->segment<3>(3 * v) = t.vertices[v].cast<double>();
+    for (size_t v = 0; v < t.vertices.size(); ++v)
+      truth->segment<3>(3 * v) = t.vertices[v].cast<double>();
   }
   const TriangleMesh start = RefinedMesh(scene, refined);
   const fs::path dir = ws.RefineDir();
@@ -101,8 +112,10 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
   render.spp = std::max(1, in.render_spp);
 
   const auto progress = [&](const RefineIteration& it, const DifferentiablePathTracer& at) {
-    std::printf("genscene-refine: iteration %d: cost %.6g, image RMSE %.4f, step %.2e m%s (%.1f s)\n", it.iteration,
-                it.cost, it.data_rmse, it.step_rms, it.accepted ? "" : ", rejected", it.seconds);
+    std::printf(
+        "genscene-refine: iteration %d: cost %.6g, image RMSE %.4f, step %.2e m%s (%.1f s)\n",
+        it.iteration, it.cost, it.data_rmse, it.step_rms, it.accepted ? "" : ", rejected",
+        it.seconds);
     std::fflush(stdout);
     if (truth) {
       const Eigen::VectorXd d = at.Positions() - *truth;
@@ -115,20 +128,25 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
       char name[32];
       std::snprintf(name, sizeof(name), "iter_%02d", it.iteration);
       const View& view = targets.front().view;
-      WritePng(dir / (std::string(name) + ".png"), PathTracer(at.scene()).Render(view, render, 1).radiance);
-      WritePng(dir / (std::string(name) + "_shading.png"), PathTracer(ShadingOnly(at.scene())).Render(view, render, 1).radiance);
+      WritePng(dir / (std::string(name) + ".png"),
+               PathTracer(at.scene()).Render(view, render, 1).radiance);
+      WritePng(dir / (std::string(name) + "_shading.png"),
+               PathTracer(ShadingOnly(at.scene())).Render(view, render, 1).radiance);
     }
   };
   out.result = RefineVertices(tracer, targets, options, seed, progress);
   // Judged on pixels it did not fit: never a mesh that explains the images worse than its input.
-  out.held_out = CompareOnFreshPixels(tracer, targets, options, seed ^ 0x6a09e667f3bcc909ull, out.result.initial,
-                                      out.result.positions);
+  out.held_out = CompareOnFreshPixels(tracer, targets, options, seed ^ 0x6a09e667f3bcc909ull,
+                                      out.result.initial, out.result.positions);
   if (out.held_out.rmse_b > out.held_out.rmse_a) {
     out.kept_unrefined = true;
     tracer.SetPositions(out.result.initial, false);
-    out.warnings.push_back(Format("the refined mesh fits ", out.held_out.pixels, " held-out pixels worse than the unrefined one "
-                                  "(image RMSE ", out.held_out.rmse_b, " against ", out.held_out.rmse_a,
-                                  "): the unrefined mesh is kept as ", ws.RefinedMesh().filename().string()));
+    out.warnings.push_back(Format("the refined mesh fits ", out.held_out.pixels,
+                                  " held-out pixels worse than the unrefined one "
+                                  "(image RMSE ",
+                                  out.held_out.rmse_b, " against ", out.held_out.rmse_a,
+                                  "): the unrefined mesh is kept as ",
+                                  ws.RefinedMesh().filename().string()));
   }
   const TriangleMesh final_mesh = RefinedMesh(tracer.scene(), refined);
   out.flipped_faces = FlippedFaces(start, final_mesh);
@@ -140,18 +158,26 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
   report["vertices"] = out.vertices;
   report["pixels"] = out.result.pixels;
   report["flipped_faces"] = out.flipped_faces;
-  report["held_out"] = {{"pixels", out.held_out.pixels}, {"image_rmse_unrefined", out.held_out.rmse_a},
-                        {"image_rmse_refined", out.held_out.rmse_b}, {"kept_unrefined", out.kept_unrefined}};
+  report["held_out"] = {{"pixels", out.held_out.pixels},
+                        {"image_rmse_unrefined", out.held_out.rmse_a},
+                        {"image_rmse_refined", out.held_out.rmse_b},
+                        {"kept_unrefined", out.kept_unrefined}};
   nlohmann::ordered_json iterations = nlohmann::ordered_json::array();
   for (size_t i = 0; i < out.result.history.size(); ++i) {
     const RefineIteration& it = out.result.history[i];
-    nlohmann::ordered_json j = {{"iteration", it.iteration}, {"cost", it.cost}, {"image_rmse", it.data_rmse},
-                                {"step_rms_m", it.step_rms}, {"accepted", it.accepted}, {"rejected", it.rejected},
+    nlohmann::ordered_json j = {{"iteration", it.iteration},
+                                {"cost", it.cost},
+                                {"image_rmse", it.data_rmse},
+                                {"step_rms_m", it.step_rms},
+                                {"accepted", it.accepted},
+                                {"rejected", it.rejected},
                                 {"held_vertices", it.held},
-                                {"damping", it.damping}, {"seconds", it.seconds},
+                                {"damping", it.damping},
+                                {"seconds", it.seconds},
                                 {"jacobian_nonzeros_per_pixel", it.jacobian_nonzeros_per_pixel},
                                 {"rays", it.rays.total()}};
-    if (i < out.vertex_rms.size()) j["vertex_rms_m"] = out.vertex_rms[i], j["vertex_max_m"] = out.vertex_max[i];
+    if (i < out.vertex_rms.size())
+      j["vertex_rms_m"] = out.vertex_rms[i], j["vertex_max_m"] = out.vertex_max[i];
     iterations.push_back(j);
   }
   report["iterations"] = iterations;
@@ -164,13 +190,16 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
 std::string ToString(const RefineSummary& s) {
   std::ostringstream o;
   const auto& h = s.result.history;
-  o << s.vertices << " vertices of " << s.refined.size() << " mesh(es), " << s.result.pixels << " pixels, "
-    << (h.size() - 1) << " iterations; image RMSE " << Format(h.front().data_rmse) << " -> " << Format(h.back().data_rmse);
+  o << s.vertices << " vertices of " << s.refined.size() << " mesh(es), " << s.result.pixels
+    << " pixels, " << (h.size() - 1) << " iterations; image RMSE " << Format(h.front().data_rmse)
+    << " -> " << Format(h.back().data_rmse);
   if (!s.vertex_rms.empty()) {
-    o << "; vertex RMS error " << Format(s.vertex_rms.front()) << " -> " << Format(s.vertex_rms.back()) << " m";
+    o << "; vertex RMS error " << Format(s.vertex_rms.front()) << " -> "
+      << Format(s.vertex_rms.back()) << " m";
   }
-  o << "; " << s.flipped_faces << " flipped faces; held-out pixels: image RMSE " << Format(s.held_out.rmse_a)
-    << " unrefined, " << Format(s.held_out.rmse_b) << " refined" << (s.kept_unrefined ? " (unrefined mesh kept)" : "");
+  o << "; " << s.flipped_faces << " flipped faces; held-out pixels: image RMSE "
+    << Format(s.held_out.rmse_a) << " unrefined, " << Format(s.held_out.rmse_b) << " refined"
+    << (s.kept_unrefined ? " (unrefined mesh kept)" : "");
   return o.str();
 }
 

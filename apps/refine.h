@@ -18,19 +18,19 @@ namespace genscene::apps {
 
 struct RefineInputs {
   GeometryInputs geometry;
-  std::filesystem::path lights;      // lights.json; empty = the workspace's when geometry is a mesh
-  std::filesystem::path views;       // empty = the workspace's keyframes/
-  std::vector<std::string> refine;   // names of the meshes to refine; empty = every non-emitter
-  std::filesystem::path truth;       // optional PLY: true positions of the refined vertices
-  int render_spp = 32;               // samples per pixel of the per-iteration renders (0 = none)
+  std::filesystem::path lights;     // lights.json; empty = the workspace's when geometry is a mesh
+  std::filesystem::path views;      // empty = the workspace's keyframes/
+  std::vector<std::string> refine;  // names of the meshes to refine; empty = every non-emitter
+  std::filesystem::path truth;      // optional PLY: true positions of the refined vertices
+  int render_spp = 32;              // samples per pixel of the per-iteration renders (0 = none)
 };
 
 struct RefineSummary {
   inverse::RefineResult result;
-  std::vector<std::string> refined;       // names of the refined meshes
+  std::vector<std::string> refined;  // names of the refined meshes
   int vertices = 0;
   std::vector<double> vertex_rms, vertex_max;  // per iteration, when a truth is given (m)
-  int flipped_faces = 0;                  // against the starting mesh
+  int flipped_faces = 0;                       // against the starting mesh
   // The baseline: the unrefined and the refined mesh on a fresh sample of pixels; when the refined
   // one fits them worse, the unrefined mesh is what the stage writes (kept_unrefined, a warning).
   inverse::HeldOutComparison held_out;
@@ -38,8 +38,8 @@ struct RefineSummary {
   std::vector<std::string> warnings;
 };
 
-RefineSummary RefineWorkspace(const RefineInputs& inputs, const inverse::RefineOptions& options, uint64_t seed,
-                              const Workspace& ws);
+RefineSummary RefineWorkspace(const RefineInputs& inputs, const inverse::RefineOptions& options,
+                              uint64_t seed, const Workspace& ws);
 std::string ToString(const RefineSummary& summary);
 
 }  // namespace genscene::apps

@@ -18,8 +18,8 @@
 namespace genscene::apps {
 
 struct ReportOptions {
-  bool sweep = false;          // re-estimate the lights over penalty weights (Fig. 3)
-  int sweep_spp = 32;          // samples per pixel of the sweep's renders
+  bool sweep = false;  // re-estimate the lights over penalty weights (Fig. 3)
+  int sweep_spp = 32;  // samples per pixel of the sweep's renders
 };
 
 // Writes WS/report/report.md (last) and its figures; returns the report's path. Throws Error

@@ -28,25 +28,29 @@ class MeshColorsAlbedo : public AlbedoField {
 
 }  // namespace
 
-Scene LoadGeometry(const GeometryInputs& in, const Workspace& ws, std::vector<std::string>* warnings) {
+Scene LoadGeometry(const GeometryInputs& in, const Workspace& ws,
+                   std::vector<std::string>* warnings) {
   if (!in.scene.empty()) {
     LoadedScene loaded = LoadScene(in.scene);
     for (std::string& w : loaded.warnings) warnings->push_back(std::move(w));
     return loaded.scene;
   }
   const fs::path mesh_path = in.mesh.empty() ? ws.Mesh() : in.mesh;
-  if (!fs::exists(mesh_path)) throw Error(Format(mesh_path.string(), ": no such mesh (run genscene-mesh, or give --mesh)"));
+  if (!fs::exists(mesh_path))
+    throw Error(Format(mesh_path.string(), ": no such mesh (run genscene-mesh, or give --mesh)"));
   SceneMesh m;
   m.name = mesh_path.stem().string();
   m.mesh = ReadPly(mesh_path);
-  const fs::path albedo = !in.albedo.empty() ? in.albedo : (fs::exists(ws.Albedo()) ? ws.Albedo() : fs::path());
+  const fs::path albedo =
+      !in.albedo.empty() ? in.albedo : (fs::exists(ws.Albedo()) ? ws.Albedo() : fs::path());
   if (!albedo.empty()) {
     m.albedo.kind = SurfaceAlbedo::Kind::kField;
     m.albedo.field = std::make_shared<MeshColorsAlbedo>(ReadMeshColors(albedo, m.mesh));
   } else {
     m.albedo = SurfaceAlbedo::FromMesh(m.mesh, Eigen::Vector3f::Constant(0.5f));
     if (m.mesh.face_colors.empty() && m.mesh.vertex_colors.empty()) {
-      warnings->push_back(Format(mesh_path.string(), ": no albedo given and no colours in the PLY; assuming grey 0.5"));
+      warnings->push_back(Format(mesh_path.string(),
+                                 ": no albedo given and no colours in the PLY; assuming grey 0.5"));
     }
   }
   Scene scene;

@@ -21,6 +21,7 @@ struct GeometryInputs {
 
 // The scene file's scene (lights included), or one mesh with its albedo. Throws Error naming the
 // file that is missing or bad; adds notes (e.g. "assuming grey") to `warnings`.
-render::Scene LoadGeometry(const GeometryInputs& inputs, const Workspace& ws, std::vector<std::string>* warnings);
+render::Scene LoadGeometry(const GeometryInputs& inputs, const Workspace& ws,
+                           std::vector<std::string>* warnings);
 
 }  // namespace genscene::apps

@@ -10,9 +10,9 @@
 #include "core/ply_io.h"
 #include "core/sequence_writer.h"
 #include "core/synthetic.h"
+#include "render/formats/scene_io.h"
 #include "render/path_tracer.h"
 #include "render/procedural.h"
-#include "render/formats/scene_io.h"
 
 namespace genscene::apps {
 
@@ -20,8 +20,10 @@ namespace {
 
 std::pair<long long, long long> ParseSize(const std::string& size) {
   const auto x = size.find('x');
-  if (x == std::string::npos) throw Error(Format("option size = '", size, "' is not WxH (e.g. 160x120)"));
-  return {ParseInteger(size.substr(0, x), "option size"), ParseInteger(size.substr(x + 1), "option size")};
+  if (x == std::string::npos)
+    throw Error(Format("option size = '", size, "' is not WxH (e.g. 160x120)"));
+  return {ParseInteger(size.substr(0, x), "option size"),
+          ParseInteger(size.substr(x + 1), "option size")};
 }
 
 bool IsSceneFile(const std::string& scene) {
@@ -29,7 +31,8 @@ bool IsSceneFile(const std::string& scene) {
   return ext == ".xml" || ext == ".json";
 }
 
-// All non-emitting meshes as one mesh with per-face albedo: the ground truth for fusion and meshing.
+// All non-emitting meshes as one mesh with per-face albedo: the ground truth for fusion and
+// meshing.
 TriangleMesh GroundTruthMesh(const render::Scene& scene) {
   TriangleMesh out;
   for (const render::SceneMesh& m : scene.meshes) {
@@ -74,7 +77,8 @@ Setup MakeSetup(const SynthOptions& o, uint64_t seed) {
       s.trajectory = MakeHandheldTrajectory(target, radius, eye.z(), o.arc, o.frames, seed);
     } else {
       const double size = box.diagonal().norm();
-      s.trajectory = MakeHandheldTrajectory(box.center(), 0.6 * size, box.center().z() + 0.2 * size, o.arc, o.frames, seed);
+      s.trajectory = MakeHandheldTrajectory(box.center(), 0.6 * size, box.center().z() + 0.2 * size,
+                                            o.arc, o.frames, seed);
     }
   }
   return s;
@@ -84,7 +88,8 @@ Setup MakeSetup(const SynthOptions& o, uint64_t seed) {
 
 void SynthOptions::Validate() const {
   if (scene != "cornell" && scene != "room" && !IsSceneFile(scene)) {
-    throw Error(Format("option scene = '", scene, "' is not cornell, room, or a .xml/.json scene file"));
+    throw Error(
+        Format("option scene = '", scene, "' is not cornell, room, or a .xml/.json scene file"));
   }
   RequireRange("frames", frames, 1, 100000);
   const auto [w, h] = ParseSize(size);
@@ -95,16 +100,23 @@ void SynthOptions::Validate() const {
   RequireRange("fov", fov, 10.0, 150.0);
   RequireRange("arc", arc, 0.0, 360.0);
   RequireRange("spp", spp, 1, 1 << 16);
-  if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
+  if (max_depth == 0 || max_depth < -1)
+    throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
 }
 
-int SynthOptions::Width() const { return static_cast<int>(ParseSize(size).first); }
-int SynthOptions::Height() const { return static_cast<int>(ParseSize(size).second); }
+int SynthOptions::Width() const {
+  return static_cast<int>(ParseSize(size).first);
+}
+int SynthOptions::Height() const {
+  return static_cast<int>(ParseSize(size).second);
+}
 
-SynthSummary Synthesize(const SynthOptions& options, uint64_t seed, const std::filesystem::path& out_dir) {
+SynthSummary Synthesize(const SynthOptions& options, uint64_t seed,
+                        const std::filesystem::path& out_dir) {
   options.Validate();
   const Setup setup = MakeSetup(options, seed);
-  const CameraIntrinsics k = CameraIntrinsics::FromHorizontalFov(options.Width(), options.Height(), options.fov);
+  const CameraIntrinsics k =
+      CameraIntrinsics::FromHorizontalFov(options.Width(), options.Height(), options.fov);
 
   const render::PathTracer tracer(setup.scene);
   render::RenderOptions render;
@@ -131,10 +143,12 @@ SynthSummary Synthesize(const SynthOptions& options, uint64_t seed, const std::f
       summary.max_depth = std::max<double>(summary.max_depth, z);
     }
     frames.push_back(std::move(frame));
-    std::cerr << "\rsynth: rendered " << i + 1 << "/" << setup.trajectory.size() << " frames" << std::flush;
+    std::cerr << "\rsynth: rendered " << i + 1 << "/" << setup.trajectory.size() << " frames"
+              << std::flush;
   }
   std::cerr << "\n";
-  summary.render_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  summary.render_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!std::isfinite(summary.min_depth)) summary.min_depth = 0.0;
   const TriangleMesh mesh = GroundTruthMesh(setup.scene);
   TumWriteOptions write;

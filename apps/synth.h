@@ -27,7 +27,8 @@ struct SynthOptions {
     v("scene", scene, "", "cornell, room, or a scene file (.xml Mitsuba 3 subset, .json genscene)");
     v("frames", frames, "", "number of frames");
     v("size", size, "px", "image size WxH");
-    v("noise", noise, "", "depth noise: none or kinect (axial noise, disparity steps, edge dropouts)");
+    v("noise", noise, "",
+      "depth noise: none or kinect (axial noise, disparity steps, edge dropouts)");
     v("fov", fov, "deg", "horizontal field of view");
     v("arc", arc, "deg", "arc the hand-held camera sways along");
     v("spp", spp, "", "path-tracing samples per pixel");
@@ -47,6 +48,7 @@ struct SynthSummary {
 };
 
 // Renders and writes the sequence to `out_dir` (atomically: complete or absent).
-SynthSummary Synthesize(const SynthOptions& options, uint64_t seed, const std::filesystem::path& out_dir);
+SynthSummary Synthesize(const SynthOptions& options, uint64_t seed,
+                        const std::filesystem::path& out_dir);
 
 }  // namespace genscene::apps

@@ -37,8 +37,8 @@ struct AlbedoSummary {
   std::vector<texturing::AlbedoCluster> clusters;
 };
 
-AlbedoSummary AlbedoWorkspace(const std::filesystem::path& mesh_path, const texturing::AlbedoOptions& options,
-                              const Workspace& ws);
+AlbedoSummary AlbedoWorkspace(const std::filesystem::path& mesh_path,
+                              const texturing::AlbedoOptions& options, const Workspace& ws);
 std::string ToString(const AlbedoSummary& summary);
 
 }  // namespace genscene::apps

@@ -11,9 +11,9 @@
 #include "core/file_util.h"
 #include "core/frame_source.h"
 #include "core/image_io.h"
+#include "render/formats/scene_io.h"
 #include "render/path_tracer.h"
 #include "render/render_compare.h"
-#include "render/formats/scene_io.h"
 
 using namespace genscene;
 using namespace genscene::render;
@@ -28,19 +28,20 @@ int main(int argc, char** argv) {
     int max_depth;
     const char* filter;
   };
-  const Case cases[] = {{"", "views/train", "rgb", 10, "box"},
-                        {"", "views/novel", "rgb", 10, "box"},
-                        {"", "views/train_direct", "rgb_direct", 2, "box"},
-                        {"", "views/novel_direct", "rgb_direct", 2, "box"},
-                        {"", "views/train_center", "rgb_center", 10, "center"},
-                        {"", "views/novel_center", "rgb_center", 10, "center"},
-                        {"icosphere_flat", "icosphere_flat/views/full", "rgb", 10, "box"},
-                        {"icosphere_flat", "icosphere_flat/views/direct", "rgb_direct", 2, "box"},
-                        {"icosphere_smooth", "icosphere_smooth/views/full", "rgb", 10, "box"},
-                        {"icosphere_smooth", "icosphere_smooth/views/direct", "rgb_direct", 2, "box"}};
+  const Case cases[] = {
+      {"", "views/train", "rgb", 10, "box"},
+      {"", "views/novel", "rgb", 10, "box"},
+      {"", "views/train_direct", "rgb_direct", 2, "box"},
+      {"", "views/novel_direct", "rgb_direct", 2, "box"},
+      {"", "views/train_center", "rgb_center", 10, "center"},
+      {"", "views/novel_center", "rgb_center", 10, "center"},
+      {"icosphere_flat", "icosphere_flat/views/full", "rgb", 10, "box"},
+      {"icosphere_flat", "icosphere_flat/views/direct", "rgb_direct", 2, "box"},
+      {"icosphere_smooth", "icosphere_smooth/views/full", "rgb", 10, "box"},
+      {"icosphere_smooth", "icosphere_smooth/views/direct", "rgb_direct", 2, "box"}};
   const fs::path root = data / "cbox-cycles";
-  std::printf("%-34s %-10s %8s %12s %12s %12s %9s\n", "views", "view", "regions", "worst bias", "rms diff",
-              "predicted", "seconds");
+  std::printf("%-34s %-10s %8s %12s %12s %12s %9s\n", "views", "view", "regions", "worst bias",
+              "rms diff", "predicted", "seconds");
   for (const Case& c : cases) {
     const Scene scene = LoadCyclesScene(root / c.scene);
     std::vector<bool> emitters;
@@ -59,7 +60,8 @@ int main(int argc, char** argv) {
       const auto start = std::chrono::steady_clock::now();
       const RenderOutput a = tracer.Render(view, options, 1000 + 2 * index);
       const RenderOutput b = tracer.Render(view, options, 1001 + 2 * index);
-      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      const double seconds =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
       ++index;
       const ImageComparison cmp = CompareWithReference(a, b, frame->color, emitters);
       double worst = 0.0;
@@ -69,15 +71,16 @@ int main(int argc, char** argv) {
         }
       }
       const double cycles_noise = stats["noise"][c.noise][name]["brighter_half"]["rel_rms_lum"];
-      std::printf("%-34s %-10s %8zu %11.3f%% %11.3f%% %11.3f%% %9.1f\n", c.views, name.c_str(), cmp.regions.size(),
-                  100 * worst, 100 * cmp.rms_relative_difference, 100 * std::hypot(cmp.ours_relative_noise, cycles_noise),
-                  seconds);
+      std::printf("%-34s %-10s %8zu %11.3f%% %11.3f%% %11.3f%% %9.1f\n", c.views, name.c_str(),
+                  cmp.regions.size(), 100 * worst, 100 * cmp.rms_relative_difference,
+                  100 * std::hypot(cmp.ours_relative_noise, cycles_noise), seconds);
       // Images: ours (mean of both seeds), Cycles, and (ours - Cycles) / Cycles.
       ImageRgb ours(a.radiance.width(), a.radiance.height()), diff = ours;
       for (size_t i = 0; i < ours.size(); ++i) {
         ours.pixels()[i] = 0.5f * (a.radiance.pixels()[i] + b.radiance.pixels()[i]);
         const Eigen::Vector3f ref = frame->color.pixels()[i];
-        for (int ch = 0; ch < 3; ++ch) diff.pixels()[i][ch] = ref[ch] > 0 ? (ours.pixels()[i][ch] - ref[ch]) / ref[ch] : 0.0f;
+        for (int ch = 0; ch < 3; ++ch)
+          diff.pixels()[i][ch] = ref[ch] > 0 ? (ours.pixels()[i][ch] - ref[ch]) / ref[ch] : 0.0f;
       }
       std::string tag = c.views;
       for (char& ch : tag) ch = ch == '/' ? '_' : ch;

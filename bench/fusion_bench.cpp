@@ -18,7 +18,8 @@ using namespace genscene;
 namespace {
 
 constexpr const char* kUsage =
-    "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] [--allocation-stride N]"
+    "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] "
+    "[--allocation-stride N]"
     " [--weighting noise|uniform]\n";
 
 int Run(int argc, char** argv) {
@@ -29,10 +30,11 @@ int Run(int argc, char** argv) {
   std::string weighting = fusion::FusionOptions().weighting;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
-      std::printf("%s"
-                  "  FOLDER: a TUM-layout sequence with groundtruth.txt (e.g. from genscene-synth)\n"
-                  "  prints per-frame times of each step, fps, ATE, and integration alone (known poses)\n",
-                  kUsage);
+      std::printf(
+          "%s"
+          "  FOLDER: a TUM-layout sequence with groundtruth.txt (e.g. from genscene-synth)\n"
+          "  prints per-frame times of each step, fps, ATE, and integration alone (known poses)\n",
+          kUsage);
       return 0;
     }
     if (std::strcmp(argv[i], "--model-subsample") == 0 && i + 1 < argc) {
@@ -52,10 +54,12 @@ int Run(int argc, char** argv) {
     return 2;
   }
   SetThreadCount(threads);
-  std::printf("threads %d, model raycast at 1/%d resolution, allocation stride %d (0 = width / 160), %s weights\n",
-              ThreadCount(), model_subsample, allocation_stride, weighting.c_str());
-  std::printf("%-28s %9s %7s | %8s %8s %8s %8s %8s | %9s | %8s %9s\n", "sequence", "size", "frames", "prep ms",
-              "track ms", "integ ms", "ray ms", "fps", "ATE cm", "integ fps", "blocks");
+  std::printf(
+      "threads %d, model raycast at 1/%d resolution, allocation stride %d (0 = width / 160), %s "
+      "weights\n",
+      ThreadCount(), model_subsample, allocation_stride, weighting.c_str());
+  std::printf("%-28s %9s %7s | %8s %8s %8s %8s %8s | %9s | %8s %9s\n", "sequence", "size", "frames",
+              "prep ms", "track ms", "integ ms", "ray ms", "fps", "ATE cm", "integ fps", "blocks");
   for (const std::string& folder : folders) {
     auto source = OpenFrameSource(folder, SourceOptions());
     const std::vector<RgbdFrame> frames = ReadAllFrames(*source);  // decoding is not timed
@@ -85,11 +89,13 @@ int Run(int argc, char** argv) {
     const double n = static_cast<double>(frames.size());
     const double per_frame = (totals[0][0] + totals[0][1] + totals[0][2] + totals[0][3]) / n;
     char size[32];
-    std::snprintf(size, sizeof(size), "%dx%d", source->Intrinsics().width, source->Intrinsics().height);
+    std::snprintf(size, sizeof(size), "%dx%d", source->Intrinsics().width,
+                  source->Intrinsics().height);
     std::printf("%-28s %9s %7zu | %8.2f %8.2f %8.2f %8.2f %8.1f | %9.3f | %8.1f %9zu\n",
-                folder.substr(folder.size() > 28 ? folder.size() - 28 : 0).c_str(), size, frames.size(),
-                1e3 * totals[0][0] / n, 1e3 * totals[0][1] / n, 1e3 * totals[0][2] / n, 1e3 * totals[0][3] / n,
-                1.0 / per_frame, 100.0 * ate, n / totals[1][2], blocks);
+                folder.substr(folder.size() > 28 ? folder.size() - 28 : 0).c_str(), size,
+                frames.size(), 1e3 * totals[0][0] / n, 1e3 * totals[0][1] / n,
+                1e3 * totals[0][2] / n, 1e3 * totals[0][3] / n, 1.0 / per_frame, 100.0 * ate,
+                n / totals[1][2], blocks);
   }
   return 0;
 }

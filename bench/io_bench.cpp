@@ -20,7 +20,8 @@ int main(int argc, char** argv) {
   const CameraIntrinsics k = CameraIntrinsics::Centered(width, height, 0.8 * width);
   std::vector<RgbdFrame> exact;
   const Trajectory orbit = MakeOrbitTrajectory({0, 0, 0.6}, 0.9, 1.0, 60.0, frames);
-  for (const auto& p : orbit.poses()) exact.push_back(RenderSyntheticFrame(scene, k, p.world_from_camera, p.timestamp));
+  for (const auto& p : orbit.poses())
+    exact.push_back(RenderSyntheticFrame(scene, k, p.world_from_camera, p.timestamp));
   const auto dir = std::filesystem::temp_directory_path() / "genscene-bench-io";
   std::filesystem::remove_all(dir);
 
@@ -30,7 +31,8 @@ int main(int argc, char** argv) {
     write.depth_scale = scale;
     auto t0 = std::chrono::steady_clock::now();
     WriteTumSequence(dir, exact, write);
-    const double write_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    const double write_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     SourceOptions options;
     options.depth_scale = scale;
     t0 = std::chrono::steady_clock::now();
@@ -39,15 +41,19 @@ int main(int argc, char** argv) {
     size_t i = 0;
     while (auto f = source->Next()) {
       for (size_t p = 0; p < f->depth.size(); ++p) {
-        max_error = std::max(max_error, std::abs(double(f->depth.pixels()[p]) - exact[i].depth.pixels()[p]));
+        max_error = std::max(max_error,
+                             std::abs(double(f->depth.pixels()[p]) - exact[i].depth.pixels()[p]));
       }
       ++i;
     }
-    const double read_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    std::printf("%-22s %10zu %12.1f %16.2e\n", ("TUM write, scale " + std::to_string(int(scale))).c_str(),
-                exact.size(), exact.size() / write_s, 0.0);
-    std::printf("%-22s %10zu %12.1f %16.2e\n", ("TUM read, scale " + std::to_string(int(scale))).c_str(), i,
-                i / read_s, max_error);
+    const double read_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    std::printf("%-22s %10zu %12.1f %16.2e\n",
+                ("TUM write, scale " + std::to_string(int(scale))).c_str(), exact.size(),
+                exact.size() / write_s, 0.0);
+    std::printf("%-22s %10zu %12.1f %16.2e\n",
+                ("TUM read, scale " + std::to_string(int(scale))).c_str(), i, i / read_s,
+                max_error);
   }
   std::filesystem::remove_all(dir);
   return 0;

@@ -20,11 +20,11 @@
 #include <string>
 #include <vector>
 
+#include "core/analytic_volume.h"
 #include "core/mesh_distance.h"
 #include "core/parallel.h"
 #include "core/tsdf_volume.h"
 #include "meshing/marching_cubes.h"
-#include "core/analytic_volume.h"
 
 using namespace genscene;
 

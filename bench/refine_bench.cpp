@@ -2,9 +2,11 @@
 //  1. The paper's replica (Fig. 4) with our own renderer: the icosphere in the Cornell box
 //     (MakeIcosphereBox), one 106 x 80 reference view, two vertices that face the camera perturbed
 //     by 20 % of the radius. Per iteration: seconds, image relative RMSE, the two vertices' errors
-//     as a fraction of their perturbation, Jacobian non-zeros per pixel. Writes OUT/fig4_refine.png:
-//     the reference, then the shading-only render (every albedo grey) per iteration.
-//  2. With --cycles ../shared/data: the same from Blender Cycles' icosphere_flat and icosphere_smooth
+//     as a fraction of their perturbation, Jacobian non-zeros per pixel. Writes
+//     OUT/fig4_refine.png: the reference, then the shading-only render (every albedo grey) per
+//     iteration.
+//  2. With --cycles ../shared/data: the same from Blender Cycles' icosphere_flat and
+//  icosphere_smooth
 //     renders (cbox-cycles), with their geometry.
 //  3. Every vertex perturbed with noise sigma = 5 % of the radius (per coordinate, or with
 //     --radial-noise 1 along the radius): RMS vertex error per iteration and flipped faces, from
@@ -34,9 +36,9 @@
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "core/synthetic.h"
-#include "render/procedural.h"
-#include "render/formats/scene_io.h"
 #include "inverse/refine/vertex_refinement.h"
+#include "render/formats/scene_io.h"
+#include "render/procedural.h"
 
 using namespace genscene;
 using namespace genscene::inverse;
@@ -66,11 +68,11 @@ struct Settings {
   bool radial_noise = false;  // section 3's noise along the radius instead of per coordinate
   bool smooth = true;         // the replica's sphere shades with area-weighted vertex normals
   std::string sections = "123";
-  uint64_t seed = 1;          // of the refinement's random numbers
-  std::string cycles;         // ../shared/data: section 2 from the Cycles renders
-  int radial = 0;             // diagnostic: 1 the LM state and radial / tangential errors, 2 per vertex too
-  bool gradcheck = false;     // diagnostic: the objective along -gradient against its slope
-  bool views_png = false;     // diagnostic: the references side by side
+  uint64_t seed = 1;   // of the refinement's random numbers
+  std::string cycles;  // ../shared/data: section 2 from the Cycles renders
+  int radial = 0;  // diagnostic: 1 the LM state and radial / tangential errors, 2 per vertex too
+  bool gradcheck = false;  // diagnostic: the objective along -gradient against its slope
+  bool views_png = false;  // diagnostic: the references side by side
 };
 
 void Paste(ImageRgb& canvas, const ImageRgb& image, int x0) {
@@ -81,9 +83,10 @@ void Paste(ImageRgb& canvas, const ImageRgb& image, int x0) {
 
 // Refines `sphere` of `scene` from `start` against `reference`; prints the table; returns the
 // shading renders per iteration.
-std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, const std::vector<TrainingView>& targets,
-                              const Eigen::VectorXd& truth, const Eigen::VectorXd& start, const std::vector<int>& watched,
-                              const Settings& s) {
+std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere,
+                              const std::vector<TrainingView>& targets,
+                              const Eigen::VectorXd& truth, const Eigen::VectorXd& start,
+                              const std::vector<int>& watched, const Settings& s) {
   const View& view = targets[0].view;
   std::vector<bool> refined(scene.meshes.size(), false);
   refined[sphere] = true;
@@ -117,12 +120,15 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
     for (double eps : {1e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2}) {
       tracer.SetPositions(start + eps * d);
       const double e = LinearizeRefinement(tracer, targets, options).cost;
-      std::printf("  eps %.0e: E change %.6g, predicted %.6g\n", eps, e - l.cost, -eps * l.gradient.norm());
+      std::printf("  eps %.0e: E change %.6g, predicted %.6g\n", eps, e - l.cost,
+                  -eps * l.gradient.norm());
     }
     const Eigen::VectorXd to_truth = truth - start;
     const double curvature = LinearizeRefinement(tracer, targets, options, 1, &to_truth).curvature;
-    std::printf("  slope towards the truth: AD %.6g per unit t, Gauss-Newton curvature %.6g: model E(1) - E(0) = %.6g\n",
-                l.gradient.dot(to_truth), curvature, l.gradient.dot(to_truth) + 0.5 * curvature);
+    std::printf(
+        "  slope towards the truth: AD %.6g per unit t, Gauss-Newton curvature %.6g: model E(1) - "
+        "E(0) = %.6g\n",
+        l.gradient.dot(to_truth), curvature, l.gradient.dot(to_truth) + 0.5 * curvature);
     for (double t : {0.0, 0.01, 0.05, 0.1, 0.25, 0.5, 0.75, 1.0}) {
       tracer.SetPositions(start + t * to_truth);
       std::printf("  t %.2f: E %.6g\n", t, LinearizeRefinement(tracer, targets, options).cost);
@@ -130,11 +136,13 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
     tracer.SetPositions(start);
   }
   const TriangleMesh start_mesh = tracer.scene().meshes[sphere].mesh;
-  std::printf("\n%s: %d vertices, %zu view(s) of %dx%d, %d spp per evaluation; image RMSE of the truth itself %.4f\n",
-              name, tracer.VertexCount(), targets.size(), view.intrinsics.width, view.intrinsics.height, s.spp,
-              truth_rmse);
-  std::printf("%5s %9s %10s %11s %12s %12s %9s %8s\n", "iter", "seconds", "image", "vertex RMS", "watched max",
-              "(fraction)", "nnz/px", "flipped");
+  std::printf(
+      "\n%s: %d vertices, %zu view(s) of %dx%d, %d spp per evaluation; image RMSE of the truth "
+      "itself %.4f\n",
+      name, tracer.VertexCount(), targets.size(), view.intrinsics.width, view.intrinsics.height,
+      s.spp, truth_rmse);
+  std::printf("%5s %9s %10s %11s %12s %12s %9s %8s\n", "iter", "seconds", "image", "vertex RMS",
+              "watched max", "(fraction)", "nnz/px", "flipped");
   std::vector<ImageRgb> shading;
   RenderOptions render;
   render.spp = 64;
@@ -149,13 +157,14 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
     double watched_max = 0.0;
     for (int v : watched) watched_max = std::max(watched_max, d.segment<3>(3 * v).norm());
     if (s.radial > 0) {
-      std::printf("   cost %.6g step %.5f rejected %d damping %.3g accepted %d\n", it.cost, it.step_rms, it.rejected,
-                  it.damping, it.accepted ? 1 : 0);
+      std::printf("   cost %.6g step %.5f rejected %d damping %.3g accepted %d\n", it.cost,
+                  it.step_rms, it.rejected, it.damping, it.accepted ? 1 : 0);
       // Vertex v's error along the sphere's radius (signed) and across it; both spheres are
       // centred at (0, 0, 0.201).
       const auto split = [&](int v) {
         const Eigen::Vector3d e = d.segment<3>(3 * v);
-        const Eigen::Vector3d n = (truth.segment<3>(3 * v) - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
+        const Eigen::Vector3d n =
+            (truth.segment<3>(3 * v) - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
         return std::make_pair(e.dot(n), (e - e.dot(n) * n).norm());
       };
       for (int v : watched) {
@@ -172,24 +181,30 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere, 
         std::printf("   radial mm:");
         const Eigen::Vector3d eye = view.world_from_camera.translation().cast<double>();
         for (int v = 0; v < at.VertexCount(); ++v) {
-          const Eigen::Vector3d p = truth.segment<3>(3 * v), n = (p - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
-          std::printf(" %d%s:%+.1f", v, n.dot((eye - p).normalized()) > 0.3 ? "F" : n.dot(eye - p) > 0 ? "s" : "b",
+          const Eigen::Vector3d p = truth.segment<3>(3 * v),
+                                n = (p - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
+          std::printf(" %d%s:%+.1f", v,
+                      n.dot((eye - p).normalized()) > 0.3 ? "F"
+                      : n.dot(eye - p) > 0                ? "s"
+                                                          : "b",
                       1000.0 * split(v).first);
         }
         std::printf("\n");
       }
-      std::printf("   all: radial RMS %.5f tangential RMS %.5f\n", std::sqrt(rad / at.VertexCount()),
-                  std::sqrt(tan / at.VertexCount()));
+      std::printf("   all: radial RMS %.5f tangential RMS %.5f\n",
+                  std::sqrt(rad / at.VertexCount()), std::sqrt(tan / at.VertexCount()));
     }
     total += it.seconds;
-    std::printf("%5d %9.2f %10.4f %11.5f %12.5f %12.3f %9.1f %8d\n", it.iteration, it.seconds, it.data_rmse,
-                std::sqrt(d.squaredNorm() / at.VertexCount()), watched_max, watched_max / perturbation,
-                it.jacobian_nonzeros_per_pixel, FlippedFaces(start_mesh, at.scene().meshes[sphere].mesh));
+    std::printf("%5d %9.2f %10.4f %11.5f %12.5f %12.3f %9.1f %8d\n", it.iteration, it.seconds,
+                it.data_rmse, std::sqrt(d.squaredNorm() / at.VertexCount()), watched_max,
+                watched_max / perturbation, it.jacobian_nonzeros_per_pixel,
+                FlippedFaces(start_mesh, at.scene().meshes[sphere].mesh));
     std::fflush(stdout);
     shading.push_back(PathTracer(ShadingOnly(at.scene())).Render(view, render, 3).radiance);
   };
   const RefineResult result = RefineVertices(tracer, targets, options, s.seed, progress);
-  std::printf("total %.1f s for %zu iterations (%.2f s per iteration)\n", total, result.history.size() - 1,
+  std::printf("total %.1f s for %zu iterations (%.2f s per iteration)\n", total,
+              result.history.size() - 1,
               (total - result.history[0].seconds) / std::max<size_t>(1, result.history.size() - 1));
   return shading;
 }
@@ -208,17 +223,19 @@ std::pair<ImageRgb, Eigen::VectorXd> ReferenceAndTruth(const IcosphereBox& box, 
 void Replica(const Settings& s) {
   const IcosphereBox box = MakeIcosphereBox(s.smooth);
   const auto [reference, truth] = ReferenceAndTruth(box, s);
-  const SpikeAndDent start = PerturbFacingVertices(box.scene.meshes[box.sphere].mesh, box.center, box.radius,
-                                                   box.view.world_from_camera.translation(), s.perturbation * box.radius);
+  const SpikeAndDent start =
+      PerturbFacingVertices(box.scene.meshes[box.sphere].mesh, box.center, box.radius,
+                            box.view.world_from_camera.translation(), s.perturbation * box.radius);
   const std::vector<ImageRgb> shading =
-      RunCase("1. Replica (our renderer, two vertices +-20 % of r)", box.scene, box.sphere, {{box.view, reference}}, truth,
-              start.positions, {start.spike, start.dent}, s);
+      RunCase("1. Replica (our renderer, two vertices +-20 % of r)", box.scene, box.sphere,
+              {{box.view, reference}}, truth, start.positions, {start.spike, start.dent}, s);
   ImageRgb canvas(reference.width() * (1 + static_cast<int>(shading.size())), reference.height());
   Paste(canvas, reference, 0);
-  for (size_t i = 0; i < shading.size(); ++i) Paste(canvas, shading[i], reference.width() * (1 + static_cast<int>(i)));
+  for (size_t i = 0; i < shading.size(); ++i)
+    Paste(canvas, shading[i], reference.width() * (1 + static_cast<int>(i)));
   WritePng(s.out / "fig4_refine.png", canvas);
-  std::printf("-> %s (reference, then the shading render of iterations 0..%zu)\n", (s.out / "fig4_refine.png").c_str(),
-              shading.size() - 1);
+  std::printf("-> %s (reference, then the shading render of iterations 0..%zu)\n",
+              (s.out / "fig4_refine.png").c_str(), shading.size() - 1);
 }
 
 void Cycles(const fs::path& data, const Settings& s) {
@@ -240,20 +257,24 @@ void Cycles(const fs::path& data, const Settings& s) {
     refined[sphere] = true;
     const Eigen::VectorXd truth = DifferentiablePathTracer(scene, refined).Positions();
     const Eigen::Vector3d center(0.0, 0.0, 0.201);
-    const SpikeAndDent start =
-        PerturbFacingVertices(scene.meshes[sphere].mesh, center, 0.2, view.world_from_camera.translation(), 0.04);
+    const SpikeAndDent start = PerturbFacingVertices(scene.meshes[sphere].mesh, center, 0.2,
+                                                     view.world_from_camera.translation(), 0.04);
     const std::string name = std::string("2. Cycles ") + variant + " (two vertices +-20 % of r)";
-    RunCase(name.c_str(), scene, sphere, {{view, frame->color}}, truth, start.positions, {start.spike, start.dent}, s);
+    RunCase(name.c_str(), scene, sphere, {{view, frame->color}}, truth, start.positions,
+            {start.spike, start.dent}, s);
   }
 }
 
 // The views of section 3: the replica's, then up to five more inside the box around the sphere (in
 // this order: two high in the back corners, two low in the front corners, one low at the back
-// wall), wider (f = 70 px) so that the sphere fits from half a metre. Together they see all but the vertices
-// next to the floor.
+// wall), wider (f = 70 px) so that the sphere fits from half a metre. Together they see all but the
+// vertices next to the floor.
 std::vector<View> AroundTheSphere(const IcosphereBox& box, int count) {
   std::vector<View> views = {box.view};
-  const Eigen::Vector3d eyes[] = {{-0.42, 0.42, 0.8}, {0.42, 0.42, 0.8}, {-0.44, -0.44, 0.1}, {0.44, -0.44, 0.1},
+  const Eigen::Vector3d eyes[] = {{-0.42, 0.42, 0.8},
+                                  {0.42, 0.42, 0.8},
+                                  {-0.44, -0.44, 0.1},
+                                  {0.44, -0.44, 0.1},
                                   {0.0, 0.47, 0.12}};
   for (int i = 0; i + 1 < count && i < 5; ++i) {
     View v = box.view;
@@ -278,7 +299,8 @@ void AllVertices(const Settings& s) {
   }
   if (s.views_png) {  // diagnostic: the references side by side
     ImageRgb canvas(reference.width() * static_cast<int>(targets.size()), reference.height());
-    for (size_t i = 0; i < targets.size(); ++i) Paste(canvas, targets[i].image, reference.width() * static_cast<int>(i));
+    for (size_t i = 0; i < targets.size(); ++i)
+      Paste(canvas, targets[i].image, reference.width() * static_cast<int>(i));
     WritePng(s.out / "views.png", canvas);
   }
   Eigen::VectorXd start = truth;
@@ -303,46 +325,80 @@ void AllVertices(const Settings& s) {
 int main(int argc, char** argv) {
   Settings s;
   int threads = 0;
-  CLI::App app{"bench_refine: vertex refinement on the paper's Fig. 4 replica (section 1), the Cycles renders "
-               "(section 2, with --cycles) and every vertex perturbed (section 3): per iteration seconds, image error "
-               "and vertex errors."};
+  CLI::App app{
+      "bench_refine: vertex refinement on the paper's Fig. 4 replica (section 1), the Cycles "
+      "renders "
+      "(section 2, with --cycles) and every vertex perturbed (section 3): per iteration seconds, "
+      "image error "
+      "and vertex errors."};
   app.add_option("--out", s.out, "folder for the figure")->capture_default_str();
-  app.add_option("--ref-spp", s.ref_spp, "paths per pixel of the references")->check(CLI::PositiveNumber)->capture_default_str();
-  app.add_option("--spp", s.spp, "paths per pixel of the refinement")->check(CLI::PositiveNumber)->capture_default_str();
-  app.add_option("--iterations", s.iterations, "Levenberg-Marquardt iterations")->check(CLI::NonNegativeNumber)->capture_default_str();
-  app.add_option("--max-depth", s.max_depth, "longest path (Mitsuba convention; -1 = unlimited)")->capture_default_str();
-  app.add_option("--threads", threads, "worker threads (0: all cores)")->check(CLI::NonNegativeNumber);
-  app.add_option("--sections", s.sections, "which sections to run (digits 1, 2, 3)")->capture_default_str();
-  app.add_option("--perturbation", s.perturbation, "section 1's perturbation, a fraction of the radius")->capture_default_str();
+  app.add_option("--ref-spp", s.ref_spp, "paths per pixel of the references")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--spp", s.spp, "paths per pixel of the refinement")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--iterations", s.iterations, "Levenberg-Marquardt iterations")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--max-depth", s.max_depth, "longest path (Mitsuba convention; -1 = unlimited)")
+      ->capture_default_str();
+  app.add_option("--threads", threads, "worker threads (0: all cores)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--sections", s.sections, "which sections to run (digits 1, 2, 3)")
+      ->capture_default_str();
+  app.add_option("--perturbation", s.perturbation,
+                 "section 1's perturbation, a fraction of the radius")
+      ->capture_default_str();
   app.add_option("--prior", s.prior_sigma, "prior_sigma [m]")->capture_default_str();
-  app.add_option("--prior-tangent", s.prior_tangent_sigma, "prior_tangent_sigma [m]")->capture_default_str();
-  app.add_option("--robust", s.robust, "Huber threshold of the residuals in noise units")->capture_default_str();
-  app.add_option("--refine-unseen", s.refine_unseen, "refine vertices no pixel sees (0 or 1)")->capture_default_str();
-  app.add_option("--refined-only", s.refined_only, "only pixels whose first hit is a refined mesh (0 or 1)")->capture_default_str();
+  app.add_option("--prior-tangent", s.prior_tangent_sigma, "prior_tangent_sigma [m]")
+      ->capture_default_str();
+  app.add_option("--robust", s.robust, "Huber threshold of the residuals in noise units")
+      ->capture_default_str();
+  app.add_option("--refine-unseen", s.refine_unseen, "refine vertices no pixel sees (0 or 1)")
+      ->capture_default_str();
+  app.add_option("--refined-only", s.refined_only,
+                 "only pixels whose first hit is a refined mesh (0 or 1)")
+      ->capture_default_str();
   app.add_option("--relax", s.relax_sigma, "relax_sigma [m]")->capture_default_str();
   app.add_option("--smooth", s.smooth_sigma, "smooth_sigma [m]")->capture_default_str();
   app.add_option("--prior-robust", s.prior_robust, "prior_robust [sigma]")->capture_default_str();
-  app.add_option("--damping", s.damping, "initial Levenberg-Marquardt damping")->capture_default_str();
-  app.add_option("--seed", s.seed, "seed of the refinement's random numbers")->capture_default_str();
-  app.add_option("--jacobian-depth", s.jacobian_depth, "jacobian_max_depth [segments]")->capture_default_str();
-  app.add_option("--average-after", s.average_after, "average the steps after this many iterations")->capture_default_str();
-  app.add_option("--edge-margin", s.edge_margin, "pixels next to silhouettes left out [px]")->capture_default_str();
-  app.add_option("--views", s.views, "section 3's views")->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--damping", s.damping, "initial Levenberg-Marquardt damping")
+      ->capture_default_str();
+  app.add_option("--seed", s.seed, "seed of the refinement's random numbers")
+      ->capture_default_str();
+  app.add_option("--jacobian-depth", s.jacobian_depth, "jacobian_max_depth [segments]")
+      ->capture_default_str();
+  app.add_option("--average-after", s.average_after, "average the steps after this many iterations")
+      ->capture_default_str();
+  app.add_option("--edge-margin", s.edge_margin, "pixels next to silhouettes left out [px]")
+      ->capture_default_str();
+  app.add_option("--views", s.views, "section 3's views")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--noise-seed", s.noise_seed, "section 3's noise draw")->capture_default_str();
-  app.add_option("--radial-noise", s.radial_noise, "section 3's noise along the radius (0 or 1)")->capture_default_str();
+  app.add_option("--radial-noise", s.radial_noise, "section 3's noise along the radius (0 or 1)")
+      ->capture_default_str();
   bool flat = !s.smooth;
-  app.add_option("--flat", flat, "the replica's sphere flat-shaded (0 or 1)")->capture_default_str();
-  app.add_option("--cycles", s.cycles, "../shared/data: section 2 from the Cycles renders of DATA/cbox-cycles");
-  app.add_option("--radial", s.radial, "diagnostic: 1 prints the LM state and radial / tangential errors, 2 per vertex too")
+  app.add_option("--flat", flat, "the replica's sphere flat-shaded (0 or 1)")
+      ->capture_default_str();
+  app.add_option("--cycles", s.cycles,
+                 "../shared/data: section 2 from the Cycles renders of DATA/cbox-cycles");
+  app.add_option(
+         "--radial", s.radial,
+         "diagnostic: 1 prints the LM state and radial / tangential errors, 2 per vertex too")
       ->check(CLI::Range(0, 2));
-  app.add_flag("--gradcheck", s.gradcheck, "diagnostic: the objective along -gradient against its slope");
+  app.add_flag("--gradcheck", s.gradcheck,
+               "diagnostic: the objective along -gradient against its slope");
   app.add_flag("--views-png", s.views_png, "diagnostic: write the references side by side");
   CLI11_PARSE(app, argc, argv);
   s.smooth = !flat;
   if (threads > 0) SetThreadCount(threads);
   fs::create_directories(s.out);
-  std::printf("Vertex refinement: Levenberg-Marquardt on the sparse forward-mode AD path tracer, %d threads\n",
-              ThreadCount());
+  std::printf(
+      "Vertex refinement: Levenberg-Marquardt on the sparse forward-mode AD path tracer, %d "
+      "threads\n",
+      ThreadCount());
   if (s.sections.find('1') != std::string::npos) Replica(s);
   if (s.sections.find('2') != std::string::npos) {
     if (!s.cycles.empty()) {

@@ -271,8 +271,8 @@ void OniWriter::Add(const OniRawFrame& frame) {
       WriteRecord(kNewData, 0, fields.str(), depth,
                   static_cast<uint32_t>(pixels * sizeof(uint16_t)), nodes_[0].last_data);
     } else {
-      WriteRecord(kNewData, 1, fields.str(), color,
-                  static_cast<uint32_t>(3 * pixels), nodes_[1].last_data);
+      WriteRecord(kNewData, 1, fields.str(), color, static_cast<uint32_t>(3 * pixels),
+                  nodes_[1].last_data);
     }
     nodes_[node].last_data = offset;
   }

@@ -456,7 +456,8 @@ class OpenNI2Source : public FrameSource {
       const auto* row = reinterpret_cast<const uint16_t*>(
           depth_bytes + static_cast<size_t>(v) * depth_frame_.getStrideInBytes());
       for (int u = 0; u < width_; ++u)
-        out.depth(mirrored_depth_ ? width_ - 1 - u : u, v) = static_cast<float>(row[u] / units_per_meter);
+        out.depth(mirrored_depth_ ? width_ - 1 - u : u, v) =
+            static_cast<float>(row[u] / units_per_meter);
     }
     // Colour: RGB888 code values -> linear with the camera response.
     if (color_frame_.getVideoMode().getPixelFormat() != openni::PIXEL_FORMAT_RGB888) {
@@ -468,8 +469,8 @@ class OpenNI2Source : public FrameSource {
     for (int v = 0; v < height_; ++v) {
       const uint8_t* row = color_bytes + static_cast<size_t>(v) * color_frame_.getStrideInBytes();
       for (int u = 0; u < width_; ++u) {
-        out.color(mirrored_color_ ? width_ - 1 - u : u, v) = {to_linear_[row[3 * u]], to_linear_[row[3 * u + 1]],
-                                                              to_linear_[row[3 * u + 2]]};
+        out.color(mirrored_color_ ? width_ - 1 - u : u, v) = {
+            to_linear_[row[3 * u]], to_linear_[row[3 * u + 1]], to_linear_[row[3 * u + 2]]};
       }
     }
     out.Validate();

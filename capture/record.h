@@ -21,9 +21,9 @@ struct RecordTargets {
 };
 
 struct RecordSettings {
-  size_t max_frames = 0;    // 0 = until the source ends (or `stop` is set)
-  int fps = 30;             // frame rate stored in the .oni file
-  bool mirror = false;      // write the .oni mirrored (xnMirror = 1, frames flipped), as NiViewer does
+  size_t max_frames = 0;  // 0 = until the source ends (or `stop` is set)
+  int fps = 30;           // frame rate stored in the .oni file
+  bool mirror = false;  // write the .oni mirrored (xnMirror = 1, frames flipped), as NiViewer does
   CameraResponse response;  // how 8-bit colour encodes linear values (the source's response)
   // Set from another thread or a signal handler to end a live recording after the current frame.
   const std::atomic<bool>* stop = nullptr;

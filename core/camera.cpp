@@ -12,7 +12,8 @@ namespace genscene {
 
 std::optional<Eigen::Vector2d> CameraIntrinsics::Project(const Eigen::Vector3d& p_camera) const {
   if (!(p_camera.z() > 0.0)) return std::nullopt;
-  return Eigen::Vector2d(fx * p_camera.x() / p_camera.z() + cx, fy * p_camera.y() / p_camera.z() + cy);
+  return Eigen::Vector2d(fx * p_camera.x() / p_camera.z() + cx,
+                         fy * p_camera.y() / p_camera.z() + cy);
 }
 
 bool CameraIntrinsics::Contains(const Eigen::Vector2d& uv) const {
@@ -47,7 +48,8 @@ CameraIntrinsics CameraIntrinsics::Scaled(double factor) const {
 
 void CameraIntrinsics::Validate(const std::string& source) const {
   for (double v : {fx, fy, cx, cy}) {
-    if (!std::isfinite(v)) throw Error(Format(source, ": non-finite value in intrinsics ", ToString()));
+    if (!std::isfinite(v))
+      throw Error(Format(source, ": non-finite value in intrinsics ", ToString()));
   }
   if (!(fx > 0.0 && fx <= 1e5 && fy > 0.0 && fy <= 1e5)) {
     throw Error(Format(source, ": focal length fx=", fx, " fy=", fy, " px is not in (0, 1e5]"));
@@ -83,7 +85,8 @@ CameraIntrinsics ReadOpen3dJson(const std::filesystem::path& path, const std::st
   CameraIntrinsics k;
   try {
     const auto& m = j.at("intrinsic_matrix");  // 3x3, column-major
-    if (!m.is_array() || m.size() != 9) throw Error(Format(path.string(), ": intrinsic_matrix must have 9 numbers"));
+    if (!m.is_array() || m.size() != 9)
+      throw Error(Format(path.string(), ": intrinsic_matrix must have 9 numbers"));
     k.width = json_util::JsonInt(j.at("width"), Format(path.string(), ": width"));
     k.height = json_util::JsonInt(j.at("height"), Format(path.string(), ": height"));
     k.fx = m[0].get<double>();
@@ -147,7 +150,8 @@ void WriteIntrinsicsFile(const std::filesystem::path& path, const CameraIntrinsi
 }
 
 std::optional<CameraIntrinsics> NamedIntrinsics(const std::string& name) {
-  // TUM RGB-D calibrations of the RGB cameras (vision.in.tum.de/data/datasets/rgbd-dataset/file_formats).
+  // TUM RGB-D calibrations of the RGB cameras
+  // (vision.in.tum.de/data/datasets/rgbd-dataset/file_formats).
   CameraIntrinsics k;
   k.width = 640;
   k.height = 480;
@@ -167,7 +171,9 @@ std::optional<CameraIntrinsics> NamedIntrinsics(const std::string& name) {
   return k;
 }
 
-std::string NamedIntrinsicsList() { return "tum1, tum2, tum3, primesense"; }
+std::string NamedIntrinsicsList() {
+  return "tum1, tum2, tum3, primesense";
+}
 
 CameraIntrinsics ResolveIntrinsics(const std::string& name_or_path) {
   if (auto named = NamedIntrinsics(name_or_path)) return *named;

@@ -14,9 +14,10 @@ namespace genscene {
 struct CameraIntrinsics {
   double fx = 0.0;  // focal length in pixels, x
   double fy = 0.0;  // focal length in pixels, y
-  double cx = 0.0;  // principal point in pixels (pixel-centre convention: centred image has (W-1)/2)
+  double cx =
+      0.0;  // principal point in pixels (pixel-centre convention: centred image has (W-1)/2)
   double cy = 0.0;
-  int width = 0;   // image size in pixels
+  int width = 0;  // image size in pixels
   int height = 0;
   // Lens distortion k1 k2 p1 p2 k3 (OpenCV order). Sources take it out at ingest
   // (core/frame_source.h Undistorted): every stage sees a camera without distortion.

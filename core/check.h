@@ -42,20 +42,19 @@ std::string Format(const Args&... args) {
 }  // namespace genscene
 
 // GS_CHECK(cond) << nothing: plain condition check with the expression in the message.
-#define GS_CHECK(cond)                                                                 \
-  do {                                                                                 \
-    if (!(cond))                                                                       \
-      ::genscene::detail::ThrowCheckFailure(__FILE__, __LINE__, "CHECK(" #cond ")"); \
+#define GS_CHECK(cond)                                                                          \
+  do {                                                                                          \
+    if (!(cond)) ::genscene::detail::ThrowCheckFailure(__FILE__, __LINE__, "CHECK(" #cond ")"); \
   } while (0)
 
 // Comparison checks print both operands: "CHECK_EQ(a, b) failed: 3 vs 4".
-#define GS_CHECK_OP_(op, name, a, b)                                                          \
-  do {                                                                                        \
-    const auto& gs_a_ = (a);                                                                  \
-    const auto& gs_b_ = (b);                                                                  \
-    if (!(gs_a_ op gs_b_))                                                                    \
-      ::genscene::detail::ThrowCheckFailure(                                                  \
-          __FILE__, __LINE__,                                                                 \
+#define GS_CHECK_OP_(op, name, a, b)                                                           \
+  do {                                                                                         \
+    const auto& gs_a_ = (a);                                                                   \
+    const auto& gs_b_ = (b);                                                                   \
+    if (!(gs_a_ op gs_b_))                                                                     \
+      ::genscene::detail::ThrowCheckFailure(                                                   \
+          __FILE__, __LINE__,                                                                  \
           ::genscene::detail::StrCat(name "(" #a ", " #b ") failed: ", gs_a_, " vs ", gs_b_)); \
   } while (0)
 

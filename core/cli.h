@@ -30,7 +30,9 @@ class CommandLine {
   // config file's keys stay as they are, in the stage's section.
   template <typename Options>
   void Add(Options& options, const std::string& group, const std::string& prefix = "") {
-    const auto flag = [prefix](const char* key) { return FlagName(prefix.empty() ? key : prefix + "_" + key); };
+    const auto flag = [prefix](const char* key) {
+      return FlagName(prefix.empty() ? key : prefix + "_" + key);
+    };
     options.Visit([&](const char* key, auto& value, const char* unit, const char* help) {
       using T = std::decay_t<decltype(value)>;
       std::string text = help;
@@ -45,8 +47,10 @@ class CommandLine {
         std::ostringstream def;
         def << value;
         opt->default_str(def.str());
-        if constexpr (std::is_arithmetic_v<T>) opt->type_name("NUMBER");
-        else opt->type_name("TEXT");
+        if constexpr (std::is_arithmetic_v<T>)
+          opt->type_name("NUMBER");
+        else
+          opt->type_name("TEXT");
       }
       opt->group(group);
     });

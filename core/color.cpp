@@ -81,7 +81,8 @@ double Sharpness(const ImageRgb& color) {
   size_t n = 0;
   for (int v = 1; v + 1 < h; ++v) {
     for (int u = 1; u + 1 < w; ++u) {
-      const double lap = luma(u - 1, v) + luma(u + 1, v) + luma(u, v - 1) + luma(u, v + 1) - 4.0 * luma(u, v);
+      const double lap =
+          luma(u - 1, v) + luma(u + 1, v) + luma(u, v - 1) + luma(u, v + 1) - 4.0 * luma(u, v);
       sum += lap;
       sum_sq += lap * lap;
       ++n;

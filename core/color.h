@@ -19,7 +19,8 @@ struct CameraResponse {
   double gamma = 2.2;  // used when kind == kGamma: linear = encoded^gamma
 
   // Parses "srgb", "linear" or "gamma:G" (e.g. "gamma:2.2"); throws Error naming `where`.
-  static CameraResponse Parse(const std::string& text, const std::string& where = "camera response");
+  static CameraResponse Parse(const std::string& text,
+                              const std::string& where = "camera response");
   std::string ToString() const;
 
   // Encoded value in [0, 1] -> linear.

@@ -1,13 +1,12 @@
 #include "core/file_util.h"
 
-#include <algorithm>
-#include <limits>
-
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <system_error>
 
@@ -92,7 +91,8 @@ int ParseInt32(const std::string& token, const std::string& where) {
 
 fs::path TemporaryPathFor(const fs::path& path) {
   fs::path tmp = path;
-  tmp.replace_filename(Format(path.stem().string(), ".tmp-", ::getpid(), path.extension().string()));
+  tmp.replace_filename(
+      Format(path.stem().string(), ".tmp-", ::getpid(), path.extension().string()));
   return tmp;
 }
 
@@ -110,7 +110,9 @@ void WriteFileAtomically(const fs::path& path, const std::function<void(const fs
     write(tmp);
     if (!fs::exists(tmp)) throw Error(Format(path.string(), ": writer produced no file"));
     fs::rename(tmp, path, ec);
-    if (ec) throw Error(Format(path.string(), ": cannot rename from ", tmp.string(), " (", ec.message(), ")"));
+    if (ec)
+      throw Error(
+          Format(path.string(), ": cannot rename from ", tmp.string(), " (", ec.message(), ")"));
   } catch (...) {
     fs::remove(tmp, ec);
     throw;
@@ -146,9 +148,10 @@ uint64_t ContentFingerprint(const fs::path& path) {
   std::vector<std::pair<std::string, fs::path>> files;
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
-    for (auto it = fs::recursive_directory_iterator(path, ec); !ec && it != fs::recursive_directory_iterator();
-         it.increment(ec)) {
-      if (it->is_regular_file(ec)) files.emplace_back(fs::relative(it->path(), path).generic_string(), it->path());
+    for (auto it = fs::recursive_directory_iterator(path, ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+      if (it->is_regular_file(ec))
+        files.emplace_back(fs::relative(it->path(), path).generic_string(), it->path());
     }
     if (ec) throw Error(Format(path.string(), ": cannot list the folder (", ec.message(), ")"));
     std::sort(files.begin(), files.end());

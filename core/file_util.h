@@ -41,7 +41,8 @@ void WriteFileAtomically(const std::filesystem::path& path,
 void WriteTextFileAtomically(const std::filesystem::path& path, const std::string& text);
 
 // The temporary name WriteFileAtomically uses for `path`, keeping its extension so that writers
-// which choose the format by extension (OpenCV, OpenMesh) still work: "a/mesh.ply" -> "a/mesh.tmp-<pid>.ply".
+// which choose the format by extension (OpenCV, OpenMesh) still work: "a/mesh.ply" ->
+// "a/mesh.tmp-<pid>.ply".
 std::filesystem::path TemporaryPathFor(const std::filesystem::path& path);
 
 // Resolves a path found inside a list file: relative paths are relative to the list's folder.

@@ -56,12 +56,17 @@ struct SourceOptions {
 
   template <typename V>
   void Visit(V&& v) {
-    v("intrinsics", intrinsics, "", "intrinsics file or name (tum1|tum2|tum3|primesense); empty = the source's own");
-    v("depth_scale", depth_scale, "units/m", "integer depth units per meter (0 = format default: TUM 5000, Redwood 1000)");
-    v("depth_encoding", depth_encoding, "", "integer depth to meters: scaled, nyu-disparity or sun");
+    v("intrinsics", intrinsics, "",
+      "intrinsics file or name (tum1|tum2|tum3|primesense); empty = the source's own");
+    v("depth_scale", depth_scale, "units/m",
+      "integer depth units per meter (0 = format default: TUM 5000, Redwood 1000)");
+    v("depth_encoding", depth_encoding, "",
+      "integer depth to meters: scaled, nyu-disparity or sun");
     v("camera_response", camera_response, "", "8-bit colour to linear: srgb, linear or gamma:G");
-    v("associations", associations, "", "TUM associations file (t_rgb rgb t_depth depth); empty = match rgb.txt/depth.txt by time");
-    v("max_time_difference", max_time_difference, "s", "largest rgb-depth and frame-pose time difference");
+    v("associations", associations, "",
+      "TUM associations file (t_rgb rgb t_depth depth); empty = match rgb.txt/depth.txt by time");
+    v("max_time_difference", max_time_difference, "s",
+      "largest rgb-depth and frame-pose time difference");
     v("trajectory", trajectory, "", "poses file overriding the folder's own (TUM or Redwood .log)");
     v("first_frame", first_frame, "", "index of the first frame to read");
     v("max_frames", max_frames, "", "read at most this many frames (0 = all)");

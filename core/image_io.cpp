@@ -1,15 +1,16 @@
 #include "core/image_io.h"
 
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <map>
-#include <OpenEXR/ImfChannelList.h>
-#include <OpenEXR/ImfFrameBuffer.h>
-#include <OpenEXR/ImfHeader.h>
-#include <OpenEXR/ImfInputFile.h>
 #include <opencv2/core.hpp>
 #include <opencv2/core/utils/logger.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -44,11 +45,13 @@ constexpr long long kMaxImagePixels = 1LL << 25;
 
 void CheckDeclaredSize(const fs::path& path, long long width, long long height) {
   if (width < 1 || height < 1) {
-    throw Error(Format(path.string(), ": cannot decode image (declares ", width, "x", height, " pixels)"));
+    throw Error(
+        Format(path.string(), ": cannot decode image (declares ", width, "x", height, " pixels)"));
   }
   if (width > kMaxImageSide || height > kMaxImageSide || width * height > kMaxImagePixels) {
-    throw Error(Format(path.string(), ": image of ", width, "x", height, " pixels is larger than genscene reads (at most ",
-                       kMaxImageSide, " per side and ", kMaxImagePixels, " pixels)"));
+    throw Error(Format(path.string(), ": image of ", width, "x", height,
+                       " pixels is larger than genscene reads (at most ", kMaxImageSide,
+                       " per side and ", kMaxImagePixels, " pixels)"));
   }
 }
 
@@ -67,7 +70,8 @@ void CheckPngStructure(const fs::path& path) {
     const size_t length = *LoadBE32(bytes, pos);
     const std::string type = bytes.substr(pos + 4, 4);
     if (length > bytes.size() - pos - 12) break;
-    if (type == "IHDR" && length >= 8) CheckDeclaredSize(path, *LoadBE32(bytes, pos + 8), *LoadBE32(bytes, pos + 12));
+    if (type == "IHDR" && length >= 8)
+      CheckDeclaredSize(path, *LoadBE32(bytes, pos + 8), *LoadBE32(bytes, pos + 12));
     if (type == "IEND") return;
     pos += 12 + length;
   }
@@ -97,13 +101,18 @@ struct ExrChannels {
 size_t ExrValueSize(const std::string& type, const std::string& bytes, size_t at, uint32_t declared,
                     ExrChannels* channels) {
   static const std::map<std::string, size_t> kFixed = {
-      {"box2i", 16}, {"box2f", 16}, {"chromaticities", 32}, {"compression", 1}, {"double", 8},
-      {"envmap", 1}, {"float", 4}, {"int", 4}, {"keycode", 28}, {"lineOrder", 1}, {"m33f", 36},
-      {"m33d", 72}, {"m44f", 64}, {"m44d", 128}, {"rational", 8}, {"tiledesc", 9}, {"timecode", 8},
-      {"v2i", 8}, {"v2f", 8}, {"v2d", 16}, {"v3i", 12}, {"v3f", 12}, {"v3d", 24}, {"deepImageState", 1}};
+      {"box2i", 16},      {"box2f", 16},   {"chromaticities", 32},
+      {"compression", 1}, {"double", 8},   {"envmap", 1},
+      {"float", 4},       {"int", 4},      {"keycode", 28},
+      {"lineOrder", 1},   {"m33f", 36},    {"m33d", 72},
+      {"m44f", 64},       {"m44d", 128},   {"rational", 8},
+      {"tiledesc", 9},    {"timecode", 8}, {"v2i", 8},
+      {"v2f", 8},         {"v2d", 16},     {"v3i", 12},
+      {"v3f", 12},        {"v3d", 24},     {"deepImageState", 1}};
   constexpr size_t kBad = SIZE_MAX;
   if (auto it = kFixed.find(type); it != kFixed.end()) return it->second;
-  if (type == "chlist") {  // { name\0, int32 type, uint8 linear, 3 reserved, int32 xs, int32 ys }* \0
+  if (type ==
+      "chlist") {  // { name\0, int32 type, uint8 linear, 3 reserved, int32 xs, int32 ys }* \0
     size_t p = at;
     int channels_read = 0;
     for (int guard = 0; guard <= 1024; ++guard) {
@@ -142,7 +151,8 @@ void CheckExrStructure(const fs::path& path) {
   std::ifstream in(path, std::ios::binary);
   const std::string bytes((std::istreambuf_iterator<char>(in)), {});
   const auto fail = [&] {
-    throw Error(Format(path.string(), ": cannot decode image (corrupt, truncated or unsupported format)"));
+    throw Error(
+        Format(path.string(), ": cannot decode image (corrupt, truncated or unsupported format)"));
   };
   const auto u32 = [&](size_t at) {
     const std::optional<uint32_t> v = LoadLE32(bytes, at);
@@ -194,8 +204,9 @@ void CheckExrStructure(const fs::path& path) {
       // misread size said: 1.7 GB, found by fuzz_exr). So the declared size must be the layout's.
       if (ExrValueSize(type, bytes, pos, size, &channels) != size) fail();
       if (name == "dataWindow" && size == 16) {
-        const long long window[4] = {static_cast<int32_t>(u32(pos)), static_cast<int32_t>(u32(pos + 4)),
-                                     static_cast<int32_t>(u32(pos + 8)), static_cast<int32_t>(u32(pos + 12))};
+        const long long window[4] = {
+            static_cast<int32_t>(u32(pos)), static_cast<int32_t>(u32(pos + 4)),
+            static_cast<int32_t>(u32(pos + 8)), static_cast<int32_t>(u32(pos + 12))};
         if (header == 0) {  // checked after the walk
           x_min = window[0], y_min = window[1], x_max = window[2], y_max = window[3];
           has_data_window = true;
@@ -203,7 +214,8 @@ void CheckExrStructure(const fs::path& path) {
           CheckDeclaredSize(path, window[2] - window[0] + 1, window[3] - window[1] + 1);
         }
       }
-      if (header == 0 && name == "compression" && size == 1) compression = static_cast<unsigned char>(bytes[pos]);
+      if (header == 0 && name == "compression" && size == 1)
+        compression = static_cast<unsigned char>(bytes[pos]);
       pos += size;
     }
   }
@@ -212,13 +224,15 @@ void CheckExrStructure(const fs::path& path) {
   if (!has_data_window) fail();
   CheckDeclaredSize(path, x_max - x_min + 1, y_max - y_min + 1);
   if (channels.count > 16) {
-    throw Error(Format(path.string(), ": EXR with ", channels.count, " channels (genscene reads at most 16)"));
+    throw Error(Format(path.string(), ": EXR with ", channels.count,
+                       " channels (genscene reads at most 16)"));
   }
   // OpenCV's EXR decoder overruns its buffers on subsampled channels (heap corruption, found by
   // fuzz_exr: a channel with x sampling 8); depth and colour images are never subsampled.
   if (!channels.subsampled.empty()) {
-    throw Error(Format(path.string(), ": EXR channel \"", channels.subsampled, "\" is subsampled (", channels.x_sampling,
-                       "x", channels.y_sampling, "); genscene reads only full-resolution channels"));
+    throw Error(Format(path.string(), ": EXR channel \"", channels.subsampled, "\" is subsampled (",
+                       channels.x_sampling, "x", channels.y_sampling,
+                       "); genscene reads only full-resolution channels"));
   }
   if (flags & (0x200u | 0x800u | 0x1000u)) return;  // tiled, multi-part, deep
   static const int kLinesPerChunk[] = {1, 1, 1, 16, 32, 16, 32, 32, 32, 256};
@@ -240,7 +254,8 @@ void CheckExrStructure(const fs::path& path) {
 // replicates a 1-channel image to 3 channels, as cv::IMREAD_COLOR does.
 cv::Mat ReadExr(const fs::path& path, bool color) {
   const auto corrupt = [&] {
-    return Error(Format(path.string(), ": cannot decode image (corrupt, truncated or unsupported format)"));
+    return Error(
+        Format(path.string(), ": cannot decode image (corrupt, truncated or unsupported format)"));
   };
   cv::Mat mat;
   try {
@@ -268,7 +283,8 @@ cv::Mat ReadExr(const fs::path& path, bool color) {
     Imf::FrameBuffer buffer;
     const size_t x_stride = sizeof(float) * count, y_stride = x_stride * width;
     for (int c = 0; c < count; ++c) {
-      buffer.insert(read[c], Imf::Slice::Make(Imf::FLOAT, mat.ptr<float>() + c, window, x_stride, y_stride));
+      buffer.insert(read[c],
+                    Imf::Slice::Make(Imf::FLOAT, mat.ptr<float>() + c, window, x_stride, y_stride));
     }
     file.setFrameBuffer(buffer);
     file.readPixels(window.min.y, window.max.y);
@@ -305,7 +321,8 @@ cv::Mat ReadWithOpenCv(const fs::path& path, int flags) {
     throw Error(Format(path.string(), ": cannot decode image (", e.err, ")"));
   }
   if (mat.empty()) {
-    throw Error(Format(path.string(), ": cannot decode image (corrupt, truncated or unsupported format)"));
+    throw Error(
+        Format(path.string(), ": cannot decode image (corrupt, truncated or unsupported format)"));
   }
   return mat;
 }
@@ -382,8 +399,8 @@ ImageRgb ReadColorImage(const fs::path& path, const CameraResponse& response) {
     }
   }
   if (bad > 0) {
-    throw Error(Format(path.string(), ": ", bad, " pixels have a NaN or infinite colour (first: ", first_value,
-                       " at pixel (", first_u, ", ", first_v, "))"));
+    throw Error(Format(path.string(), ": ", bad, " pixels have a NaN or infinite colour (first: ",
+                       first_value, " at pixel (", first_u, ", ", first_v, "))"));
   }
   return image;
 }

@@ -23,13 +23,15 @@ void WritePng(const std::filesystem::path& path, const ImageRgb& image,
 // How integer depth values map to meters.
 struct DepthEncoding {
   enum class Kind {
-    kScaled,         // unsigned 16-bit (PNG, PGM): meters = value / scale; 0 = invalid
-    kNyuDisparity,   // NYU Depth v2 raw Kinect disparity (PGM, bytes swapped): m = 351.3 / (1092.5 - d)
-    kSunRotated,     // SUN RGB-D: d = (d >> 3) | (d << 13) (16-bit rotate), then millimetres
+    kScaled,        // unsigned 16-bit (PNG, PGM): meters = value / scale; 0 = invalid
+    kNyuDisparity,  // NYU Depth v2 raw Kinect disparity (PGM, bytes swapped): m = 351.3 / (1092.5 -
+                    // d)
+    kSunRotated,    // SUN RGB-D: d = (d >> 3) | (d << 13) (16-bit rotate), then millimetres
   };
   Kind kind = Kind::kScaled;
   double scale = 5000.0;  // integer units per meter, kScaled only (TUM: 5000, millimetres: 1000)
-  int invalid_value = -1;  // kScaled: a raw value that also means "no measurement" (7-Scenes: 65535); -1 = none
+  int invalid_value =
+      -1;  // kScaled: a raw value that also means "no measurement" (7-Scenes: 65535); -1 = none
 };
 
 // Depth image in meters. Float images (EXR) are meters already; integer images are decoded with
@@ -40,7 +42,8 @@ ImageDepth ReadDepthImage(const std::filesystem::path& path,
 
 // Depth as 16-bit PNG, value = round(meters * scale); 0 stays 0. Throws when a value does not fit
 // in 16 bits at this scale (it would otherwise wrap silently).
-void WriteDepthPng(const std::filesystem::path& path, const ImageDepth& depth, double scale = 5000.0);
+void WriteDepthPng(const std::filesystem::path& path, const ImageDepth& depth,
+                   double scale = 5000.0);
 // Depth as single-channel 32-bit float EXR in meters (bit-exact round trip).
 void WriteDepthExr(const std::filesystem::path& path, const ImageDepth& depth);
 

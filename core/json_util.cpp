@@ -12,7 +12,8 @@
 
 namespace genscene::json_util {
 
-void CheckKeys(const json& j, std::initializer_list<const char*> allowed, const std::string& where) {
+void CheckKeys(const json& j, std::initializer_list<const char*> allowed,
+               const std::string& where) {
   if (!j.is_object()) throw Error(Format(where, ": must be a JSON object"));
   for (const auto& item : j.items()) {
     const std::string& key = item.key();
@@ -32,7 +33,8 @@ double JsonNumber(const json& j, const std::string& where) {
 int JsonInt(const json& j, const std::string& where) {
   if (!j.is_number_integer()) throw Error(Format(where, ": expected an integer, got ", j.dump()));
   const bool fits = j.is_number_unsigned()
-                        ? j.get<unsigned long long>() <= static_cast<unsigned long long>(std::numeric_limits<int>::max())
+                        ? j.get<unsigned long long>() <=
+                              static_cast<unsigned long long>(std::numeric_limits<int>::max())
                         : j.get<long long>() >= std::numeric_limits<int>::min() &&
                               j.get<long long>() <= std::numeric_limits<int>::max();
   if (!fits) throw Error(Format(where, ": ", j.dump(), " is out of range (not a 32-bit integer)"));

@@ -14,8 +14,8 @@ using namespace json_util;  // NOLINT: CheckKeys, JsonNumber, JsonVector, ... (c
 
 const std::array<Eigen::Vector3d, 6>& VoxelLightGrid::Directions() {
   static const std::array<Eigen::Vector3d, 6> d = {
-      Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(-1, 0, 0), Eigen::Vector3d(0, 1, 0),
-      Eigen::Vector3d(0, -1, 0), Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 0, -1)};
+      Eigen::Vector3d(1, 0, 0),  Eigen::Vector3d(-1, 0, 0), Eigen::Vector3d(0, 1, 0),
+      Eigen::Vector3d(0, -1, 0), Eigen::Vector3d(0, 0, 1),  Eigen::Vector3d(0, 0, -1)};
   return d;
 }
 
@@ -62,11 +62,13 @@ void VoxelLightGrid::Validate() const {
     }
     for (float w : weights[v]) {
       if (!std::isfinite(w) || w < 0.0f) {
-        throw Error(Format("voxel lights: voxel ", v, " has a directional weight ", w, ", must be >= 0"));
+        throw Error(
+            Format("voxel lights: voxel ", v, " has a directional weight ", w, ", must be >= 0"));
       }
     }
   }
-  if (!(cube_size > 0.0)) throw Error(Format("voxel lights: cube_size ", cube_size, " must be > 0"));
+  if (!(cube_size > 0.0))
+    throw Error(Format("voxel lights: cube_size ", cube_size, " must be > 0"));
   if (!(active_fraction >= 0.0 && active_fraction <= 1.0)) {
     throw Error(Format("voxel lights: active_fraction ", active_fraction, " is not in [0, 1]"));
   }
@@ -111,7 +113,10 @@ std::vector<int> VoxelLightGrid::ActiveVoxels(double fraction) const {
 }
 
 VoxelLightGrid VoxelLightGridFromJson(const json& j, const std::string& where) {
-  CheckKeys(j, {"bounds_min", "bounds_max", "dims", "cube_size", "active_fraction", "intensity", "weights"}, where);
+  CheckKeys(
+      j,
+      {"bounds_min", "bounds_max", "dims", "cube_size", "active_fraction", "intensity", "weights"},
+      where);
   for (const char* key : {"bounds_min", "bounds_max", "dims", "intensity", "weights"}) {
     if (!j.contains(key)) throw Error(Format(where, ": missing \"", key, "\""));
   }
@@ -126,7 +131,8 @@ VoxelLightGrid VoxelLightGridFromJson(const json& j, const std::string& where) {
   }
   g.dims = dims.cast<int>();
   if (j.contains("cube_size")) g.cube_size = JsonNumber(j["cube_size"], where + ".cube_size");
-  if (j.contains("active_fraction")) g.active_fraction = JsonNumber(j["active_fraction"], where + ".active_fraction");
+  if (j.contains("active_fraction"))
+    g.active_fraction = JsonNumber(j["active_fraction"], where + ".active_fraction");
   for (const json& v : JsonArray(j["intensity"], where + ".intensity")) {
     g.intensity.push_back(JsonVector<3>(v, where + ".intensity").cast<float>());
   }
@@ -156,7 +162,8 @@ json VoxelLightGridToJson(const VoxelLightGrid& g) {
           {"weights", weights}};
 }
 
-void WriteLightsJson(const std::filesystem::path& path, const VoxelLightGrid& grid, const std::string& estimate_json) {
+void WriteLightsJson(const std::filesystem::path& path, const VoxelLightGrid& grid,
+                     const std::string& estimate_json) {
   grid.Validate();
   json j;
   j["genscene_lights"] = 1;

@@ -8,8 +8,8 @@
 //       "bounds_min": [x, y, z], "bounds_max": [x, y, z],   meters, world frame
 //       "dims": [nx, ny, nz],                              voxels per axis
 //       "cube_size": s,                                     side of the exported emitting cube, m
-//       "intensity": [[r, g, b], ...],                      L per voxel (W/sr), x fastest, then y, z
-//       "weights": [[l+x, l-x, l+y, l-y, l+z, l-z], ...]    six lambdas per voxel, in [0, 1]
+//       "intensity": [[r, g, b], ...],                      L per voxel (W/sr), x fastest, then y,
+//       z "weights": [[l+x, l-x, l+y, l-y, l+z, l-z], ...]    six lambdas per voxel, in [0, 1]
 //     },
 //     "estimate": { ... }                                   free-form: how the estimate was made
 //   }
@@ -41,9 +41,9 @@ namespace genscene {
 struct VoxelLightGrid {
   Eigen::AlignedBox3d bounds;
   Eigen::Vector3i dims = Eigen::Vector3i::Constant(7);
-  std::vector<Eigen::Vector3f> intensity;        // L per voxel, x fastest, then y, then z
-  std::vector<std::array<float, 6>> weights;     // lambda per voxel
-  double cube_size = 0.01;                       // side of the exported emitting cube, meters
+  std::vector<Eigen::Vector3f> intensity;     // L per voxel, x fastest, then y, then z
+  std::vector<std::array<float, 6>> weights;  // lambda per voxel
+  double cube_size = 0.01;                    // side of the exported emitting cube, meters
   // Share of the largest voxel power from which a voxel counts as an active light (the estimate's
   // own threshold, kept with the lights so that every stage and the viewer count alike).
   double active_fraction = 1e-3;

@@ -13,8 +13,8 @@ struct TriangleMesh {
   std::vector<Eigen::Vector3f> vertices;       // world frame, meters
   std::vector<Eigen::Vector3f> normals;        // empty, or one unit normal per vertex
   std::vector<Eigen::Vector3f> vertex_colors;  // empty, or one linear RGB per vertex
-  std::vector<Eigen::Vector3i> faces;          // vertex indices, counter-clockwise seen from the front
-  std::vector<Eigen::Vector3f> face_colors;    // empty, or one linear RGB per face (e.g. albedo)
+  std::vector<Eigen::Vector3i> faces;  // vertex indices, counter-clockwise seen from the front
+  std::vector<Eigen::Vector3f> face_colors;  // empty, or one linear RGB per face (e.g. albedo)
 
   bool empty() const { return faces.empty(); }
 

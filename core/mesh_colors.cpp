@@ -15,7 +15,9 @@ namespace genscene {
 
 namespace {
 
-bool IsPowerOfTwo(int r) { return r > 0 && (r & (r - 1)) == 0; }
+bool IsPowerOfTwo(int r) {
+  return r > 0 && (r & (r - 1)) == 0;
+}
 
 int Log2(int r) {
   int l = 0;
@@ -28,8 +30,9 @@ int Log2(int r) {
 uint64_t MeshFingerprint(const TriangleMesh& mesh) {
   uint64_t h = kFnv1aOffset;
   auto mix = [&h](uint32_t value) {
-    const unsigned char bytes[4] = {static_cast<unsigned char>(value), static_cast<unsigned char>(value >> 8),
-                                    static_cast<unsigned char>(value >> 16), static_cast<unsigned char>(value >> 24)};
+    const unsigned char bytes[4] = {
+        static_cast<unsigned char>(value), static_cast<unsigned char>(value >> 8),
+        static_cast<unsigned char>(value >> 16), static_cast<unsigned char>(value >> 24)};
     h = Fnv1a64(bytes, 4, h);
   };
   mix(static_cast<uint32_t>(mesh.vertices.size()));
@@ -56,8 +59,8 @@ MeshColors::MeshColors(const TriangleMesh& mesh, const std::vector<int>& face_re
   for (int f = 0; f < nf; ++f) {
     const int r = face_resolution_[f];
     if (!IsPowerOfTwo(r) || r > kMaxResolution) {
-      throw Error(Format("Mesh Colors: face ", f, " has resolution ", r, " (must be a power of two in [1, ",
-                         kMaxResolution, "])"));
+      throw Error(Format("Mesh Colors: face ", f, " has resolution ", r,
+                         " (must be a power of two in [1, ", kMaxResolution, "])"));
     }
     const Eigen::Vector3i& v = faces_[f];
     for (int k = 0; k < 3; ++k) {
@@ -95,7 +98,8 @@ MeshColors::MeshColors(const TriangleMesh& mesh, const std::vector<int>& face_re
     offset += MeshColorsInteriorCount(face_resolution_[f]);
   }
   if (offset > 0xffffffffull) {
-    throw Error(Format("Mesh Colors: ", offset, " samples exceed the 32-bit sample index; use a coarser texel spacing"));
+    throw Error(Format("Mesh Colors: ", offset,
+                       " samples exceed the 32-bit sample index; use a coarser texel spacing"));
   }
   colors_.assign(offset, Eigen::Vector3f::Zero());
 }
@@ -170,7 +174,7 @@ void MeshColors::SampleFacePoint(size_t sample, int* face, double* b1, double* b
       int side = 0;
       while (face_edges_[3 * f + side] != e) ++side;
       double t = static_cast<double>(site.a) / edge_resolution_[e];  // from edges_[e][0]
-      if (v[side] != edges_[e][0]) t = 1.0 - t;                     // from v[side]
+      if (v[side] != edges_[e][0]) t = 1.0 - t;                      // from v[side]
       *face = f;
       if (side == 0) *b1 = t, *b2 = 0.0;
       if (side == 1) *b1 = 1.0 - t, *b2 = t;
@@ -219,7 +223,9 @@ LatticeCell LocateInLattice(int r, float b1, float b2) {
   // The upside-down sub-triangle exists only below the lattice's last diagonal; on that diagonal a
   // point past it (by rounding, or by the rescaling above) is projected back onto it.
   if (fx + fy > 1.0f && i + j < r - 1) {
-    cell = {{i + 1, i, i + 1}, {j + 1, j + 1, j}, {fx + fy - 1.0f, std::max(0.0f, 1.0f - fx), std::max(0.0f, 1.0f - fy)}};
+    cell = {{i + 1, i, i + 1},
+            {j + 1, j + 1, j},
+            {fx + fy - 1.0f, std::max(0.0f, 1.0f - fx), std::max(0.0f, 1.0f - fy)}};
   } else {
     if (fx + fy > 1.0f) {
       const float s = fx + fy;
@@ -313,7 +319,8 @@ std::vector<std::pair<uint32_t, uint32_t>> MeshColors::SampleNeighbours() const 
 
 TriangleMesh MeshColors::ToSubdividedMesh(const TriangleMesh& mesh) const {
   if (MeshFingerprint(mesh) != fingerprint_) {
-    throw Error("Mesh Colors: ToSubdividedMesh called with a mesh other than the one of the layout");
+    throw Error(
+        "Mesh Colors: ToSubdividedMesh called with a mesh other than the one of the layout");
   }
   TriangleMesh out;
   out.vertices = InterpolateVertexAttribute(mesh.vertices);
@@ -348,7 +355,8 @@ int ResolutionForSpacing(double longest_edge, double spacing, int max_resolution
   return r;
 }
 
-std::vector<int> ChooseFaceResolutions(const TriangleMesh& mesh, double spacing, int max_resolution) {
+std::vector<int> ChooseFaceResolutions(const TriangleMesh& mesh, double spacing,
+                                       int max_resolution) {
   if (!(spacing > 0.0) || !std::isfinite(spacing)) {
     throw Error(Format("texel spacing = ", spacing, " m must be positive"));
   }
@@ -361,8 +369,8 @@ std::vector<int> ChooseFaceResolutions(const TriangleMesh& mesh, double spacing,
     const Eigen::Vector3i& v = mesh.faces[f];
     double longest = 0.0;
     for (int k = 0; k < 3; ++k) {
-      longest = std::max(longest,
-                         (mesh.vertices[v[k]] - mesh.vertices[v[(k + 1) % 3]]).cast<double>().norm());
+      longest = std::max(
+          longest, (mesh.vertices[v[k]] - mesh.vertices[v[(k + 1) % 3]]).cast<double>().norm());
     }
     out[f] = ResolutionForSpacing(longest, spacing, max_resolution);
   }
@@ -378,7 +386,8 @@ constexpr char kMagic[8] = {'G', 'S', 'M', 'C', 'O', 'L', '0', '1'};
 
 void WriteMeshColors(const std::filesystem::path& path, const MeshColors& colors) {
   std::string out;
-  out.reserve(64 + colors.num_faces() + colors.SampleCount() * (12 + (colors.labels().empty() ? 0 : 4)));
+  out.reserve(64 + colors.num_faces() +
+              colors.SampleCount() * (12 + (colors.labels().empty() ? 0 : 4)));
   out.append(kMagic, sizeof(kMagic));
   PutBinary(out, static_cast<uint32_t>(colors.num_vertices()));
   PutBinary(out, static_cast<uint32_t>(colors.num_faces()));
@@ -414,8 +423,9 @@ MeshColors ReadMeshColors(const std::filesystem::path& path, const TriangleMesh&
   const auto nf = reader.Get<uint32_t>("face count");
   const auto fingerprint = reader.Get<uint64_t>("mesh fingerprint");
   if (nv != mesh.vertices.size() || nf != mesh.faces.size()) {
-    throw Error(Format(where, ": made for a mesh of ", nv, " vertices and ", nf, " faces, but the mesh has ",
-                       mesh.vertices.size(), " and ", mesh.faces.size()));
+    throw Error(Format(where, ": made for a mesh of ", nv, " vertices and ", nf,
+                       " faces, but the mesh has ", mesh.vertices.size(), " and ",
+                       mesh.faces.size()));
   }
   if (fingerprint != MeshFingerprint(mesh)) {
     throw Error(Format(where, ": made for another mesh (same counts, different faces)"));
@@ -432,7 +442,8 @@ MeshColors ReadMeshColors(const std::filesystem::path& path, const TriangleMesh&
   MeshColors colors(mesh, resolution);
   const auto count = reader.Get<uint64_t>("sample count");
   if (count != colors.SampleCount()) {
-    throw Error(Format(where, ": declares ", count, " samples but its resolutions give ", colors.SampleCount()));
+    throw Error(Format(where, ": declares ", count, " samples but its resolutions give ",
+                       colors.SampleCount()));
   }
   const auto labelled = reader.Get<uint8_t>("label flag");
   const size_t need = count * 12 + (labelled ? count * 4 : 0);

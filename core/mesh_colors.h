@@ -59,7 +59,9 @@ class MeshColors {
 
   size_t SampleCount() const { return colors_.size(); }
   size_t VertexSampleCount() const { return static_cast<size_t>(num_vertices_); }
-  size_t EdgeSampleCount() const { return face_offset_.empty() ? 0 : face_offset_.front() - num_vertices_; }
+  size_t EdgeSampleCount() const {
+    return face_offset_.empty() ? 0 : face_offset_.front() - num_vertices_;
+  }
   size_t FaceSampleCount() const { return SampleCount() - VertexSampleCount() - EdgeSampleCount(); }
 
   // Global index of the sample at lattice point (i, j) of `face` (0 <= i, j; i + j <= R).
@@ -106,11 +108,11 @@ class MeshColors {
   std::vector<int> face_resolution_;
   std::vector<Eigen::Vector2i> edges_;
   std::vector<int> edge_resolution_;
-  std::vector<int> face_edges_;         // 3 per face
-  std::vector<size_t> edge_offset_;     // first sample of each edge
-  std::vector<size_t> face_offset_;     // first interior sample of each face
-  std::vector<int> edge_face_;          // the finest face containing each edge
-  std::vector<int> vertex_face_;        // one face containing each vertex (-1: isolated)
+  std::vector<int> face_edges_;      // 3 per face
+  std::vector<size_t> edge_offset_;  // first sample of each edge
+  std::vector<size_t> face_offset_;  // first interior sample of each face
+  std::vector<int> edge_face_;       // the finest face containing each edge
+  std::vector<int> vertex_face_;     // one face containing each vertex (-1: isolated)
   std::vector<Eigen::Vector3f> colors_;
   std::vector<int32_t> labels_;
   uint64_t fingerprint_ = 0;
@@ -135,7 +137,9 @@ LatticeCell LocateInLattice(int r, float b1, float b2);
 
 // Sample counts for a face of resolution R: (R+1)(R+2)/2 in all, of which 3 at vertices,
 // 3(R-1) on edges and (R-1)(R-2)/2 inside.
-constexpr size_t MeshColorsInteriorCount(int r) { return r < 2 ? 0 : size_t(r - 1) * size_t(r - 2) / 2; }
+constexpr size_t MeshColorsInteriorCount(int r) {
+  return r < 2 ? 0 : size_t(r - 1) * size_t(r - 2) / 2;
+}
 
 uint64_t MeshFingerprint(const TriangleMesh& mesh);
 
@@ -144,7 +148,8 @@ int ResolutionForSpacing(double longest_edge, double spacing, int max_resolution
 
 // Per-face resolution for a target sample spacing in meters: ResolutionForSpacing of each face's
 // longest edge.
-std::vector<int> ChooseFaceResolutions(const TriangleMesh& mesh, double spacing, int max_resolution);
+std::vector<int> ChooseFaceResolutions(const TriangleMesh& mesh, double spacing,
+                                       int max_resolution);
 
 // .mcol: "GSMCOL01", u32 vertex count, u32 face count, u64 mesh fingerprint, one u8 log2(R) per
 // face, u64 sample count, u8 has-labels, float32 RGB per sample, then int32 per sample when

@@ -37,6 +37,7 @@ struct SurfaceError {
 };
 
 // Distances of every vertex of `mesh` to `truth` (the reconstruction's accuracy).
-SurfaceError MeasureSurfaceError(const TriangleMesh& mesh, const TriangleMesh& truth, double max_distance = 0.1);
+SurfaceError MeasureSurfaceError(const TriangleMesh& mesh, const TriangleMesh& truth,
+                                 double max_distance = 0.1);
 
 }  // namespace genscene

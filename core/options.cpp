@@ -7,7 +7,8 @@
 
 namespace genscene {
 
-void RequireOneOf(const char* key, const std::string& value, const std::vector<std::string>& allowed) {
+void RequireOneOf(const char* key, const std::string& value,
+                  const std::vector<std::string>& allowed) {
   for (const auto& a : allowed) {
     if (a == value) return;
   }
@@ -25,9 +26,9 @@ std::string FlagName(const std::string& key) {
 }
 
 const std::vector<std::string>& AllConfigSections() {
-  static const std::vector<std::string> sections = {
-      "source", "synth", "fusion", "meshing", "texturing", "albedo", "lights", "refine", "render",
-      "viewer", "run", "evaluate"};
+  static const std::vector<std::string> sections = {"source",    "synth",  "fusion", "meshing",
+                                                    "texturing", "albedo", "lights", "refine",
+                                                    "render",    "viewer", "run",    "evaluate"};
   return sections;
 }
 
@@ -62,7 +63,8 @@ const nlohmann::json* ConfigFile::Find(const std::string& section, const std::st
 namespace {
 
 [[noreturn]] void TypeError(const std::filesystem::path& path, const std::string& section,
-                            const std::string& key, const char* expected, const nlohmann::json& got) {
+                            const std::string& key, const char* expected,
+                            const nlohmann::json& got) {
   throw Error(Format(path.string(), ": key '", section, ".", key, "' must be ", expected, ", got ",
                      got.dump()));
 }
@@ -92,7 +94,8 @@ void ConfigFile::SetValue(const std::string& section, const std::string& key, in
 void ConfigFile::SetValue(const std::string& section, const std::string& key, long long* value) {
   if (const auto* j = Find(section, key)) {
     if (!j->is_number_integer()) TypeError(path_, section, key, "an integer", *j);
-    if (j->is_number_unsigned() && j->get<unsigned long long>() > static_cast<unsigned long long>(LLONG_MAX)) {
+    if (j->is_number_unsigned() &&
+        j->get<unsigned long long>() > static_cast<unsigned long long>(LLONG_MAX)) {
       TypeError(path_, section, key, "a 64-bit signed integer", *j);
     }
     *value = j->get<long long>();

@@ -7,8 +7,8 @@
 //   struct FooOptions {
 //     double voxel_size = 0.01;  // edge of a voxel, meters
 //     static constexpr const char* kSection = "foo";
-//     template <typename V> void Visit(V&& v) { v("voxel_size", voxel_size, "m", "edge of a voxel"); }
-//     void Validate() const { RequireRange("voxel_size", voxel_size, 1e-4, 1.0); }
+//     template <typename V> void Visit(V&& v) { v("voxel_size", voxel_size, "m", "edge of a
+//     voxel"); } void Validate() const { RequireRange("voxel_size", voxel_size, 1e-4, 1.0); }
 //   };
 #pragma once
 
@@ -33,7 +33,8 @@ void RequireRange(const char* key, const T& value, const T& lo, const T& hi) {
 }
 
 // Throws unless value is one of `allowed`.
-void RequireOneOf(const char* key, const std::string& value, const std::vector<std::string>& allowed);
+void RequireOneOf(const char* key, const std::string& value,
+                  const std::vector<std::string>& allowed);
 
 // "voxel_size" -> "--voxel-size".
 std::string FlagName(const std::string& key);

@@ -10,7 +10,8 @@ namespace genscene {
 template <typename Options>
 nlohmann::json OptionsToJson(Options options) {  // a copy: Visit is not const
   nlohmann::json j = nlohmann::json::object();
-  options.Visit([&](const char* key, const auto& value, const char*, const char*) { j[key] = value; });
+  options.Visit(
+      [&](const char* key, const auto& value, const char*, const char*) { j[key] = value; });
   return j;
 }
 

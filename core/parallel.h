@@ -37,8 +37,8 @@ T DeterministicReduce(size_t n, size_t chunk, const T& identity, const MapChunk&
   const size_t chunks = (n + chunk - 1) / chunk;
   std::vector<T> partial(chunks, identity);
   ParallelFor(
-      0, chunks,
-      [&](size_t c) { partial[c] = map_chunk(c * chunk, std::min(n, (c + 1) * chunk)); }, 1);
+      0, chunks, [&](size_t c) { partial[c] = map_chunk(c * chunk, std::min(n, (c + 1) * chunk)); },
+      1);
   T result = identity;
   for (const T& p : partial) result = combine(result, p);
   return result;

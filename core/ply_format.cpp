@@ -480,12 +480,12 @@ int64_t DecodeLittleEndianInteger(const unsigned char* bytes, int size, bool is_
 
 }  // namespace
 
-
 // OpenMesh parses ASCII values with istream >>, which fails on "nan", "inf" or a stray letter and
 // then misreads the rest of the file (or loops); every value is checked here first: integer
 // properties need an integer, float properties a finite number.
 static void CheckAsciiNumber(const std::string& token, bool is_float, const std::string& name,
-                      const PlyElement& element, uint64_t record, const std::string& property) {
+                             const PlyElement& element, uint64_t record,
+                             const std::string& property) {
   const char* end = token.data() + token.size();
   bool ok = false;
   if (is_float) {
@@ -498,8 +498,8 @@ static void CheckAsciiNumber(const std::string& token, bool is_float, const std:
     ok = ec == std::errc() && ptr == end;
   }
   if (!ok) {
-    throw Error(Format(name, ": ", element.name, " ", record, ": value '", token, "' of property ", property,
-                       " is not ", is_float ? "a finite number" : "an integer"));
+    throw Error(Format(name, ": ", element.name, " ", record, ": value '", token, "' of property ",
+                       property, " is not ", is_float ? "a finite number" : "an integer"));
   }
 }
 
@@ -508,7 +508,7 @@ void WalkData(const fs::path& path, const PlyHeader& header, const PlyLayout& la
   struct Field {
     bool list = false;
     bool is_float = false;  // a float/double scalar, or list entries of that type
-    int size = 0;  // binary: a scalar's size, or a list entry's size
+    int size = 0;           // binary: a scalar's size, or a list entry's size
     int count_size = 0;
     bool count_signed = false;
     bool face_indices = false;

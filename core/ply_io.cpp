@@ -214,7 +214,8 @@ class CollectingImporter final : public OpenMesh::IO::BaseImporter {
     for (size_t i = 0; i < indices.size() && problem_.empty(); ++i) {
       const int index = indices[i].idx();
       if (index < 0 || static_cast<size_t>(index) >= file_vertices_) {
-        Note(Format("face ", polygon, " uses vertex ", index, " but the file has ", file_vertices_, " vertices"));
+        Note(Format("face ", polygon, " uses vertex ", index, " but the file has ", file_vertices_,
+                    " vertices"));
       }
     }
     // After a problem the file is refused: count the polygon, build nothing (a corrupt ASCII file

@@ -6,9 +6,11 @@
 namespace genscene {
 
 void RgbdFrame::Validate() const {
-  const std::string name =
-      !depth_path.empty() ? depth_path : !color_path.empty() ? color_path : Format("frame at t=", timestamp);
-  if (color.empty() && depth.empty()) throw Error(Format(name, ": frame has neither colour nor depth"));
+  const std::string name = !depth_path.empty()   ? depth_path
+                           : !color_path.empty() ? color_path
+                                                 : Format("frame at t=", timestamp);
+  if (color.empty() && depth.empty())
+    throw Error(Format(name, ": frame has neither colour nor depth"));
   intrinsics.Validate(name);
   if (!depth.empty() && !depth.SameSize(intrinsics.width, intrinsics.height)) {
     throw Error(Format(depth_path, ": depth ", depth.width(), "x", depth.height(),

@@ -24,7 +24,9 @@ class CounterRng {
   // Uniform in [0, 1), 24 random bits.
   float Uniform() { return static_cast<float>(NextU64() >> 40) * (1.0f / 16777216.0f); }
   // Uniform in [0, 1), 53 random bits.
-  double UniformDouble() { return static_cast<double>(NextU64() >> 11) * (1.0 / 9007199254740992.0); }
+  double UniformDouble() {
+    return static_cast<double>(NextU64() >> 11) * (1.0 / 9007199254740992.0);
+  }
   // Uniform integer in [0, n), n > 0 (Lemire's multiply-shift; bias below 2^-32 for n < 2^32).
   uint32_t UniformInt(uint32_t n) {
     return static_cast<uint32_t>(((NextU64() >> 32) * static_cast<uint64_t>(n)) >> 32);

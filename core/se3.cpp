@@ -6,7 +6,8 @@
 
 namespace genscene {
 
-Eigen::Isometry3d PoseFromTranslationQuaternion(const Eigen::Vector3d& t, const Eigen::Quaterniond& q) {
+Eigen::Isometry3d PoseFromTranslationQuaternion(const Eigen::Vector3d& t,
+                                                const Eigen::Quaterniond& q) {
   const double norm = q.norm();
   if (!std::isfinite(norm) || norm < 1e-9 || !t.allFinite()) {
     throw Error(Format("invalid pose: translation (", t.transpose(), "), quaternion (", q.x(), " ",
@@ -18,13 +19,15 @@ Eigen::Isometry3d PoseFromTranslationQuaternion(const Eigen::Vector3d& t, const 
   return pose;
 }
 
-void ToTranslationQuaternion(const Eigen::Isometry3d& pose, Eigen::Vector3d* t, Eigen::Quaterniond* q) {
+void ToTranslationQuaternion(const Eigen::Isometry3d& pose, Eigen::Vector3d* t,
+                             Eigen::Quaterniond* q) {
   *t = pose.translation();
   *q = Eigen::Quaterniond(pose.rotation()).normalized();
   if (q->w() < 0.0) q->coeffs() *= -1.0;
 }
 
-Eigen::Isometry3d InterpolatePose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double alpha) {
+Eigen::Isometry3d InterpolatePose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,
+                                  double alpha) {
   const Eigen::Quaterniond qa(a.rotation());
   const Eigen::Quaterniond qb(b.rotation());
   Eigen::Isometry3d out = Eigen::Isometry3d::Identity();

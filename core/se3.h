@@ -11,13 +11,16 @@ using Vector6d = Eigen::Matrix<double, 6, 1>;
 
 // Builds a rigid transform from a translation and a (not necessarily normalised) quaternion.
 // Throws Error when the quaternion is not finite or has norm below 1e-9.
-Eigen::Isometry3d PoseFromTranslationQuaternion(const Eigen::Vector3d& t, const Eigen::Quaterniond& q);
+Eigen::Isometry3d PoseFromTranslationQuaternion(const Eigen::Vector3d& t,
+                                                const Eigen::Quaterniond& q);
 
 // The translation and unit quaternion of a rigid transform, with qw >= 0 (TUM's habit).
-void ToTranslationQuaternion(const Eigen::Isometry3d& pose, Eigen::Vector3d* t, Eigen::Quaterniond* q);
+void ToTranslationQuaternion(const Eigen::Isometry3d& pose, Eigen::Vector3d* t,
+                             Eigen::Quaterniond* q);
 
 // Pose between a (alpha = 0) and b (alpha = 1): translation linear, rotation slerp.
-Eigen::Isometry3d InterpolatePose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double alpha);
+Eigen::Isometry3d InterpolatePose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,
+                                  double alpha);
 
 // Rotation angle of a transform in radians, in [0, pi].
 double RotationAngle(const Eigen::Isometry3d& pose);

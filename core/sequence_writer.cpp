@@ -1,8 +1,9 @@
 #include "core/sequence_writer.h"
 
+#include <unistd.h>
+
 #include <cstdio>
 #include <sstream>
-#include <unistd.h>
 
 #include "core/camera.h"
 #include "core/check.h"
@@ -31,7 +32,8 @@ void WriteTumSequence(const fs::path& dir, const std::vector<RgbdFrame>& frames,
   if (frames.empty()) throw Error(Format(dir.string(), ": no frames to write"));
   std::error_code ec;
   if (fs::exists(dir, ec) && !fs::exists(dir / kMarker, ec)) {
-    throw Error(Format(dir.string(), ": exists and was not written by genscene; refusing to replace it"));
+    throw Error(
+        Format(dir.string(), ": exists and was not written by genscene; refusing to replace it"));
   }
   const fs::path tmp = dir.string() + Format(".tmp-", ::getpid());
   fs::remove_all(tmp, ec);
@@ -47,8 +49,8 @@ void WriteTumSequence(const fs::path& dir, const std::vector<RgbdFrame>& frames,
     for (const RgbdFrame& frame : frames) {
       frame.Validate();
       if (frame.intrinsics.ToString() != k.ToString()) {
-        throw Error(Format(dir.string(), ": frames have different intrinsics (", k.ToString(), " vs ",
-                           frame.intrinsics.ToString(), ")"));
+        throw Error(Format(dir.string(), ": frames have different intrinsics (", k.ToString(),
+                           " vs ", frame.intrinsics.ToString(), ")"));
       }
       const std::string stamp = StampName(frame.timestamp);
       if (!frame.color.empty()) {

@@ -13,9 +13,9 @@
 namespace genscene {
 
 struct TumWriteOptions {
-  double depth_scale = 5000.0;            // 16-bit depth units per meter (TUM: 5000)
-  CameraResponse response;                // encoding of the 8-bit colour PNGs (sRGB)
-  bool linear_exr = false;                // also write rgb as linear EXR (listed in rgb_linear.txt)
+  double depth_scale = 5000.0;  // 16-bit depth units per meter (TUM: 5000)
+  CameraResponse response;      // encoding of the 8-bit colour PNGs (sRGB)
+  bool linear_exr = false;      // also write rgb as linear EXR (listed in rgb_linear.txt)
   // Called with the temporary folder before it is renamed, to add files that must appear
   // together with the sequence (e.g. a ground-truth mesh).
   std::function<void(const std::filesystem::path& tmp_dir)> extra_files;

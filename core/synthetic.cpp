@@ -122,7 +122,8 @@ std::array<Eigen::Vector3d, 4> BoxFace(const Eigen::AlignedBox3d& box, int axis,
 void AddIcosphere(TriangleMesh& mesh, const SyntheticScene::Sphere& s, int subdivisions) {
   const UnitIcosphere unit = MakeUnitIcosphere(subdivisions);
   const int base = static_cast<int>(mesh.vertices.size());
-  for (const auto& x : unit.vertices) mesh.vertices.push_back((s.center + s.radius * x).cast<float>());
+  for (const auto& x : unit.vertices)
+    mesh.vertices.push_back((s.center + s.radius * x).cast<float>());
   for (const auto& t : unit.faces) {
     mesh.faces.push_back(t + Eigen::Vector3i::Constant(base));
     mesh.face_colors.push_back(s.albedo);
@@ -155,12 +156,14 @@ TriangleMesh SyntheticScene::ToMesh(int sphere_subdivisions) const {
 SyntheticScene MakeStripedWallScene() {
   SyntheticScene scene;
   SyntheticScene::Box wall;
-  wall.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-1.5, 1.0, 0.0), Eigen::Vector3d(1.5, 1.05, 2.0));
+  wall.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-1.5, 1.0, 0.0), Eigen::Vector3d(1.5, 1.05, 2.0));
   wall.albedo = Eigen::Vector3f(0.1f, 0.3f, 0.8f);
   wall.albedo2 = Eigen::Vector3f(0.9f, 0.7f, 0.2f);
   wall.stripe_period = 0.5;
   SyntheticScene::Box occluder;
-  occluder.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.3, 0.4, 0.6), Eigen::Vector3d(0.3, 0.6, 1.4));
+  occluder.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.3, 0.4, 0.6), Eigen::Vector3d(0.3, 0.6, 1.4));
   occluder.albedo = Eigen::Vector3f(0.9f, 0.05f, 0.05f);
   scene.boxes = {wall, occluder};
   scene.ambient = 1.0;
@@ -169,13 +172,16 @@ SyntheticScene MakeStripedWallScene() {
 
 SyntheticScene MakeCornellScene() {
   SyntheticScene scene;
-  const Eigen::Vector3f white(0.73f, 0.73f, 0.73f), red(0.63f, 0.065f, 0.05f), green(0.14f, 0.45f, 0.091f);
+  const Eigen::Vector3f white(0.73f, 0.73f, 0.73f), red(0.63f, 0.065f, 0.05f),
+      green(0.14f, 0.45f, 0.091f);
   SyntheticScene::Room room;
   room.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, 0), Eigen::Vector3d(1, 1, 2));
   room.albedo = {red, green, white, white, white, white};
   scene.room = room;
-  scene.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(0.1, 0.0, 0.0), Eigen::Vector3d(0.6, 0.5, 1.0)), white});
-  scene.spheres.push_back({Eigen::Vector3d(-0.4, -0.2, 0.35), 0.35, Eigen::Vector3f(0.8f, 0.75f, 0.3f)});
+  scene.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(0.1, 0.0, 0.0), Eigen::Vector3d(0.6, 0.5, 1.0)), white});
+  scene.spheres.push_back(
+      {Eigen::Vector3d(-0.4, -0.2, 0.35), 0.35, Eigen::Vector3f(0.8f, 0.75f, 0.3f)});
   scene.light_position = Eigen::Vector3d(0.0, 0.0, 1.9);
   return scene;
 }
@@ -199,7 +205,8 @@ RgbdFrame RenderSyntheticFrame(const SyntheticScene& scene, const CameraIntrinsi
       frame.depth(u, v) = static_cast<float>(hit->t);  // t along a z = 1 direction is planar depth
       const Eigen::Vector3d p = origin + hit->t * dir;
       const double cosine = std::max(0.0, hit->normal.dot((scene.light_position - p).normalized()));
-      frame.color(u, v) = hit->albedo * static_cast<float>(scene.ambient + (1.0 - scene.ambient) * cosine);
+      frame.color(u, v) =
+          hit->albedo * static_cast<float>(scene.ambient + (1.0 - scene.ambient) * cosine);
     }
   }
   return frame;
@@ -226,8 +233,9 @@ Trajectory MakeOrbitTrajectory(const Eigen::Vector3d& target, double radius, dou
   for (int i = 0; i < frames; ++i) {
     const double s = frames == 1 ? 0.0 : static_cast<double>(i) / (frames - 1) - 0.5;
     const double angle = -M_PI / 2.0 + s * arc_degrees * M_PI / 180.0;  // centred on -y
-    const Eigen::Vector3d eye = target + Eigen::Vector3d(radius * std::cos(angle),
-                                                         radius * std::sin(angle), height - target.z());
+    const Eigen::Vector3d eye =
+        target +
+        Eigen::Vector3d(radius * std::cos(angle), radius * std::sin(angle), height - target.z());
     trajectory.Add(i / 30.0, LookAt(eye, target));
   }
   return trajectory;
@@ -245,13 +253,14 @@ Trajectory MakeHandheldTrajectory(const Eigen::Vector3d& target, double radius, 
     const double s = frames == 1 ? 0.0 : static_cast<double>(i) / (frames - 1);
     auto wave = [&](int k) { return std::sin(2.0 * M_PI * frequency[k] * s + phase[k]); };
     const StampedPose& p = orbit.poses()[i];
-    const Eigen::Vector3d eye = p.world_from_camera.translation() + 0.03 * radius * Eigen::Vector3d(wave(0), wave(1), 0.5 * wave(2));
-    const Eigen::Vector3d look = target + 0.05 * radius * Eigen::Vector3d(wave(3), wave(4), 0.5 * wave(5));
+    const Eigen::Vector3d eye = p.world_from_camera.translation() +
+                                0.03 * radius * Eigen::Vector3d(wave(0), wave(1), 0.5 * wave(2));
+    const Eigen::Vector3d look =
+        target + 0.05 * radius * Eigen::Vector3d(wave(3), wave(4), 0.5 * wave(5));
     out.Add(p.timestamp, LookAt(eye, look));
   }
   return out;
 }
-
 
 void AddKinectDepthNoise(ImageDepth& depth, uint64_t seed, uint64_t frame_index) {
   constexpr double kFocalTimesBaseline = 580.0 * 0.075;  // f b, pixel meters
@@ -263,7 +272,8 @@ void AddKinectDepthNoise(ImageDepth& depth, uint64_t seed, uint64_t frame_index)
     CounterRng rng(seed, frame_index, i);
     const int u = static_cast<int>(i % w), v = static_cast<int>(i / w);
     bool edge = false;
-    for (const auto& [du, dv] : {std::pair{1, 0}, std::pair{-1, 0}, std::pair{0, 1}, std::pair{0, -1}}) {
+    for (const auto& [du, dv] :
+         {std::pair{1, 0}, std::pair{-1, 0}, std::pair{0, 1}, std::pair{0, -1}}) {
       const int x = u + du, y = v + dv;
       if (x < 0 || y < 0 || x >= w || y >= h) continue;
       const float n = clean(x, y);
@@ -277,7 +287,8 @@ void AddKinectDepthNoise(ImageDepth& depth, uint64_t seed, uint64_t frame_index)
       return;
     }
     const double disparity = std::round(8.0 * kFocalTimesBaseline / noisy) / 8.0;
-    depth.pixels()[i] = disparity > 0.0 ? static_cast<float>(kFocalTimesBaseline / disparity) : 0.0f;
+    depth.pixels()[i] =
+        disparity > 0.0 ? static_cast<float>(kFocalTimesBaseline / disparity) : 0.0f;
   });
 }
 

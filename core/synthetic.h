@@ -31,7 +31,8 @@ struct SyntheticScene {
     double stripe_period = 0.0;  // meters; 0 = plain albedo
     Eigen::Vector3f AlbedoAt(const Eigen::Vector3d& p) const;
   };
-  struct Room {  // axis-aligned; seen from inside; albedo per wall: -x +x -y +y -z(floor) +z(ceiling)
+  struct Room {  // axis-aligned; seen from inside; albedo per wall: -x +x -y +y -z(floor)
+                 // +z(ceiling)
     Eigen::AlignedBox3d bounds;
     std::array<Eigen::Vector3f, 6> albedo;
     bool open_front = false;  // no -y wall (a Cornell box seen from outside its open side)

@@ -37,8 +37,9 @@ std::optional<StampedPose> Trajectory::Nearest(double t, double max_difference) 
 }
 
 std::optional<Eigen::Isometry3d> Trajectory::Interpolate(double t, double max_gap) const {
-  auto after = std::lower_bound(poses_.begin(), poses_.end(), t,
-                                [](const StampedPose& p, double time) { return p.timestamp < time; });
+  auto after =
+      std::lower_bound(poses_.begin(), poses_.end(), t,
+                       [](const StampedPose& p, double time) { return p.timestamp < time; });
   if (after == poses_.end()) return std::nullopt;
   if (after->timestamp == t) return after->world_from_camera;
   if (after == poses_.begin()) return std::nullopt;
@@ -62,14 +63,15 @@ Trajectory ReadTumTrajectory(const std::filesystem::path& path) {
     for (int i = 0; i < 8; ++i) v[i] = ParseDouble(tokens[i], where);
     if (!std::isfinite(v[0])) throw Error(Format(where, ": timestamp is not finite"));
     try {
-      poses.push_back({v[0], PoseFromTranslationQuaternion({v[1], v[2], v[3]},
-                                                           Eigen::Quaterniond(v[7], v[4], v[5], v[6]))});
+      poses.push_back({v[0], PoseFromTranslationQuaternion(
+                                 {v[1], v[2], v[3]}, Eigen::Quaterniond(v[7], v[4], v[5], v[6]))});
     } catch (const Error& e) {
       throw Error(Format(where, ": ", e.what()));
     }
   }
-  std::stable_sort(poses.begin(), poses.end(),
-                   [](const StampedPose& a, const StampedPose& b) { return a.timestamp < b.timestamp; });
+  std::stable_sort(poses.begin(), poses.end(), [](const StampedPose& a, const StampedPose& b) {
+    return a.timestamp < b.timestamp;
+  });
   for (size_t i = 1; i < poses.size(); ++i) {
     if (poses[i].timestamp == poses[i - 1].timestamp) {
       throw Error(Format(path.string(), ": timestamp ", poses[i].timestamp, " appears twice"));
@@ -110,7 +112,8 @@ Trajectory ReadRedwoodLog(const std::filesystem::path& path) {
     for (int r = 0; r < 4; ++r) {
       const std::string where = Format(path.string(), ":", lines[i + 1 + r].number);
       const auto row = SplitWhitespace(lines[i + 1 + r].text);
-      if (row.size() != 4) throw Error(Format(where, ": expected 4 matrix values, got ", row.size()));
+      if (row.size() != 4)
+        throw Error(Format(where, ": expected 4 matrix values, got ", row.size()));
       for (int c = 0; c < 4; ++c) m(r, c) = ParseDouble(row[c], where);
     }
     if (!IsValidRigidTransform(m)) {

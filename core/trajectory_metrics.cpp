@@ -18,8 +18,9 @@ AteResult ComputeAte(const Trajectory& estimated, const Trajectory& ground_truth
   const auto& gt = ground_truth.poses();
   for (size_t i = 0; i < est.size(); ++i) {
     const double t = est[i].timestamp;
-    const auto first = std::lower_bound(gt.begin(), gt.end(), t - max_time_difference,
-                                        [](const StampedPose& p, double x) { return p.timestamp < x; });
+    const auto first =
+        std::lower_bound(gt.begin(), gt.end(), t - max_time_difference,
+                         [](const StampedPose& p, double x) { return p.timestamp < x; });
     for (auto it = first; it != gt.end() && it->timestamp <= t + max_time_difference; ++it) {
       candidates.emplace_back(std::abs(it->timestamp - t), i, static_cast<size_t>(it - gt.begin()));
     }
@@ -44,8 +45,10 @@ AteResult ComputeAte(const Trajectory& estimated, const Trajectory& ground_truth
   const Eigen::Vector3d gt_ref = gt[pairs[0].second].world_from_camera.translation();
   Eigen::Matrix3Xd src(3, pairs.size()), dst(3, pairs.size());
   for (size_t k = 0; k < pairs.size(); ++k) {
-    src.col(static_cast<Eigen::Index>(k)) = est[pairs[k].first].world_from_camera.translation() - est_ref;
-    dst.col(static_cast<Eigen::Index>(k)) = gt[pairs[k].second].world_from_camera.translation() - gt_ref;
+    src.col(static_cast<Eigen::Index>(k)) =
+        est[pairs[k].first].world_from_camera.translation() - est_ref;
+    dst.col(static_cast<Eigen::Index>(k)) =
+        gt[pairs[k].second].world_from_camera.translation() - gt_ref;
   }
   const Eigen::Matrix4d m = Eigen::umeyama(src, dst, /*with_scaling=*/false);
   Eigen::Isometry3d local = Eigen::Isometry3d::Identity();
@@ -53,7 +56,9 @@ AteResult ComputeAte(const Trajectory& estimated, const Trajectory& ground_truth
   std::vector<double> errors(pairs.size());
   double sum = 0.0, sum_sq = 0.0;
   for (size_t k = 0; k < pairs.size(); ++k) {
-    errors[k] = (local * src.col(static_cast<Eigen::Index>(k)) - dst.col(static_cast<Eigen::Index>(k))).norm();
+    errors[k] =
+        (local * src.col(static_cast<Eigen::Index>(k)) - dst.col(static_cast<Eigen::Index>(k)))
+            .norm();
     sum += errors[k];
     sum_sq += errors[k] * errors[k];
   }
@@ -62,7 +67,8 @@ AteResult ComputeAte(const Trajectory& estimated, const Trajectory& ground_truth
   result.rmse = std::sqrt(sum_sq / static_cast<double>(pairs.size()));
   result.mean = sum / static_cast<double>(pairs.size());
   result.max = *std::max_element(errors.begin(), errors.end());
-  std::nth_element(errors.begin(), errors.begin() + static_cast<long>(errors.size() / 2), errors.end());
+  std::nth_element(errors.begin(), errors.begin() + static_cast<long>(errors.size() / 2),
+                   errors.end());
   result.median = errors[errors.size() / 2];
   // gt = gt_ref + L (est - est_ref)  =>  alignment = T(gt_ref) L T(-est_ref).
   result.alignment = Eigen::Translation3d(gt_ref) * local * Eigen::Translation3d(-est_ref);

@@ -12,8 +12,8 @@
 namespace genscene {
 
 struct AteResult {
-  size_t pairs = 0;      // associated poses
-  double rmse = 0.0;     // metres
+  size_t pairs = 0;   // associated poses
+  double rmse = 0.0;  // metres
   double mean = 0.0;
   double median = 0.0;
   double max = 0.0;

@@ -22,7 +22,9 @@ void TsdfVolumeParams::Validate() const {
 // ---------------------------------------------------------------------------------------------
 // BlockHashTable
 
-BlockHashTable::BlockHashTable() { slots_.resize(1024); }
+BlockHashTable::BlockHashTable() {
+  slots_.resize(1024);
+}
 
 size_t BlockHashTable::HashOf(const Eigen::Vector3i& key) {
   // The spatial hash of Teschner et al. 2003 (three large primes, xor), on unsigned values.
@@ -79,16 +81,18 @@ void BlockHashTable::Clear() {
 // ---------------------------------------------------------------------------------------------
 // TsdfVolume
 
-TsdfVolume::TsdfVolume(const TsdfVolumeParams& params) : params_(params) { params_.Validate(); }
+TsdfVolume::TsdfVolume(const TsdfVolumeParams& params) : params_(params) {
+  params_.Validate();
+}
 
 int32_t TsdfVolume::AllocateBlock(const Eigen::Vector3i& key) {
   if (auto found = table_.Find(key)) return *found;
   if (params_.memory_cap_bytes > 0 &&
       allocated_bytes() + sizeof(TsdfBlock) > params_.memory_cap_bytes) {
     throw Error(Format("TSDF volume: memory cap of ", params_.memory_cap_bytes / 1e6,
-                       " MB reached with ", blocks_.size(), " blocks of ", kTsdfBlockSide, "^3 voxels (",
-                       sizeof(TsdfBlock), " bytes each) at voxel size ", params_.voxel_size,
-                       " m; use a larger voxel size or raise the memory cap"));
+                       " MB reached with ", blocks_.size(), " blocks of ", kTsdfBlockSide,
+                       "^3 voxels (", sizeof(TsdfBlock), " bytes each) at voxel size ",
+                       params_.voxel_size, " m; use a larger voxel size or raise the memory cap"));
   }
   if (blocks_.size() >= static_cast<size_t>(INT32_MAX)) throw Error("TSDF volume: too many blocks");
   const auto index = static_cast<int32_t>(blocks_.size());
@@ -112,7 +116,8 @@ std::optional<Corner> Locate(const TsdfVolume& volume, const Eigen::Vector3i& v)
   const auto index = volume.FindBlock(b);
   if (!index) return std::nullopt;
   const Eigen::Vector3i local = v - kTsdfBlockSide * b;
-  return Corner{&volume.block(static_cast<size_t>(*index)), TsdfBlock::Index(local.x(), local.y(), local.z())};
+  return Corner{&volume.block(static_cast<size_t>(*index)),
+                TsdfBlock::Index(local.x(), local.y(), local.z())};
 }
 
 }  // namespace
@@ -260,8 +265,9 @@ TsdfVolume ReadTsdfVolume(const std::filesystem::path& path, double memory_cap_b
   }
   const auto count = reader.Get<uint64_t>("block count");
   if (count > reader.remaining() / kBlockBytes || count * kBlockBytes != reader.remaining()) {
-    throw Error(Format(where, ": TSDF volume declares ", count, " blocks (", count * 1.0 * kBlockBytes,
-                       " bytes) but holds ", reader.remaining(), " bytes of blocks"));
+    throw Error(Format(where, ": TSDF volume declares ", count, " blocks (",
+                       count * 1.0 * kBlockBytes, " bytes) but holds ", reader.remaining(),
+                       " bytes of blocks"));
   }
   TsdfVolume volume(params);
   for (uint64_t b = 0; b < count; ++b) {

@@ -126,7 +126,9 @@ class TsdfVolume {
   static Eigen::Vector3i BlockOf(const Eigen::Vector3i& v) {
     return Eigen::Vector3i(FloorDiv(v.x()), FloorDiv(v.y()), FloorDiv(v.z()));
   }
-  static int FloorDiv(int a) { return a >= 0 ? a / kTsdfBlockSide : -((-a + kTsdfBlockSide - 1) / kTsdfBlockSide); }
+  static int FloorDiv(int a) {
+    return a >= 0 ? a / kTsdfBlockSide : -((-a + kTsdfBlockSide - 1) / kTsdfBlockSide);
+  }
 
   // Trilinear interpolation of the sdf at continuous lattice coordinates; nullopt when one of the
   // eight surrounding voxels is unallocated or unobserved (weight 0).

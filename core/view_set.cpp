@@ -10,7 +10,8 @@ namespace fs = std::filesystem;
 
 std::vector<PosedView> ReadViewSet(const fs::path& dir) {
   std::error_code ec;
-  if (!fs::is_directory(dir, ec)) throw Error(Format(dir.string(), ": not a folder (expected a view set)"));
+  if (!fs::is_directory(dir, ec))
+    throw Error(Format(dir.string(), ": not a folder (expected a view set)"));
   const CameraIntrinsics intrinsics = ReadIntrinsicsFile(dir / "intrinsics.txt");
   const Trajectory poses = ReadTumTrajectory(dir / "groundtruth.txt");
   if (poses.empty()) throw Error(Format((dir / "groundtruth.txt").string(), ": no poses"));
@@ -26,7 +27,8 @@ std::vector<PosedView> ReadViewSet(const fs::path& dir) {
       views.push_back({intrinsics, pose->world_from_camera, t});
     }
   } else {
-    for (const StampedPose& p : poses.poses()) views.push_back({intrinsics, p.world_from_camera, p.timestamp});
+    for (const StampedPose& p : poses.poses())
+      views.push_back({intrinsics, p.world_from_camera, p.timestamp});
   }
   if (views.empty()) throw Error(Format(dir.string(), ": view set has no views"));
   return views;

@@ -12,7 +12,8 @@ Workspace::Workspace(fs::path root) : root_(std::move(root)) {
     throw Error(Format(root_.string(), ": workspace exists and is not a folder"));
   }
   fs::create_directories(root_, ec);
-  if (ec) throw Error(Format(root_.string(), ": cannot create workspace folder (", ec.message(), ")"));
+  if (ec)
+    throw Error(Format(root_.string(), ": cannot create workspace folder (", ec.message(), ")"));
 }
 
 }  // namespace genscene

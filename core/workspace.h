@@ -19,7 +19,9 @@ class Workspace {
   const std::filesystem::path& root() const { return root_; }
 
   // The files of the stage contracts.
-  std::filesystem::path Input() const { return root_ / "input"; }  // synthesised or converted sequence
+  std::filesystem::path Input() const {
+    return root_ / "input";
+  }  // synthesised or converted sequence
   std::filesystem::path Trajectory() const { return root_ / "trajectory.txt"; }
   std::filesystem::path Tsdf() const { return root_ / "tsdf.gsv"; }
   std::filesystem::path Keyframes() const { return root_ / "keyframes"; }

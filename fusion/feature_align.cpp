@@ -25,7 +25,8 @@ cv::Mat GrayImage(const ImageRgb& color) {
   return gray;
 }
 
-void Detect(const cv::Mat& gray, int max_features, std::vector<cv::KeyPoint>* keypoints, cv::Mat* descriptors) {
+void Detect(const cv::Mat& gray, int max_features, std::vector<cv::KeyPoint>* keypoints,
+            cv::Mat* descriptors) {
   cv::Ptr<cv::ORB> orb = cv::ORB::create(max_features);
   orb->detectAndCompute(gray, cv::noArray(), *keypoints, *descriptors);
 }
@@ -38,7 +39,8 @@ std::vector<cv::DMatch> MutualRatioMatches(const cv::Mat& a, const cv::Mat& b, d
   matcher.knnMatch(b, a, ba, 2);
   std::vector<int> best_ba(static_cast<size_t>(b.rows), -1);
   for (const auto& m : ba) {
-    if (m.size() == 2 && m[0].distance < ratio * m[1].distance) best_ba[static_cast<size_t>(m[0].queryIdx)] = m[0].trainIdx;
+    if (m.size() == 2 && m[0].distance < ratio * m[1].distance)
+      best_ba[static_cast<size_t>(m[0].queryIdx)] = m[0].trainIdx;
   }
   std::vector<cv::DMatch> out;
   for (const auto& m : ab) {
@@ -66,13 +68,14 @@ void FeatureAlignOptions::Validate() const {
   RequireRange("feature_reprojection_error", reprojection_error, 0.1, 100.0);
 }
 
-std::optional<Eigen::Isometry3d> AlignByFeatures(const ImageRgb& reference_color, const ImageDepth& reference_depth,
-                                                 const ImageRgb& live_color, const CameraIntrinsics& k,
-                                                 const FeatureAlignOptions& options, FeatureAlignReport* report) {
+std::optional<Eigen::Isometry3d> AlignByFeatures(
+    const ImageRgb& reference_color, const ImageDepth& reference_depth, const ImageRgb& live_color,
+    const CameraIntrinsics& k, const FeatureAlignOptions& options, FeatureAlignReport* report) {
   FeatureAlignReport local;
   FeatureAlignReport& r = report ? *report : local;
   r = FeatureAlignReport();
-  if (reference_color.empty() || live_color.empty() || !reference_color.SameSize(reference_depth)) return std::nullopt;
+  if (reference_color.empty() || live_color.empty() || !reference_color.SameSize(reference_depth))
+    return std::nullopt;
 
   std::vector<cv::KeyPoint> ref_points, live_points;
   cv::Mat ref_descriptors, live_descriptors;
@@ -92,7 +95,8 @@ std::optional<Eigen::Isometry3d> AlignByFeatures(const ImageRgb& reference_color
     const float z = DepthAt(reference_depth, p);
     if (!(z > 0.0f)) continue;
     const Eigen::Vector3d x = k.Unproject(p.x, p.y, z);
-    object.emplace_back(static_cast<float>(x.x()), static_cast<float>(x.y()), static_cast<float>(x.z()));
+    object.emplace_back(static_cast<float>(x.x()), static_cast<float>(x.y()),
+                        static_cast<float>(x.z()));
     image.push_back(live_points[static_cast<size_t>(m.trainIdx)].pt);
   }
   r.matches = static_cast<int>(object.size());
@@ -101,9 +105,10 @@ std::optional<Eigen::Isometry3d> AlignByFeatures(const ImageRgb& reference_color
   const cv::Matx33d camera(k.fx, 0.0, k.cx, 0.0, k.fy, k.cy, 0.0, 0.0, 1.0);
   cv::Mat rvec, tvec;
   std::vector<int> inliers;
-  const bool found = cv::solvePnPRansac(object, image, camera, cv::noArray(), rvec, tvec, /*useExtrinsicGuess=*/false,
-                                        /*iterationsCount=*/500, static_cast<float>(options.reprojection_error),
-                                        /*confidence=*/0.999, inliers, cv::SOLVEPNP_EPNP);
+  const bool found = cv::solvePnPRansac(
+      object, image, camera, cv::noArray(), rvec, tvec, /*useExtrinsicGuess=*/false,
+      /*iterationsCount=*/500, static_cast<float>(options.reprojection_error),
+      /*confidence=*/0.999, inliers, cv::SOLVEPNP_EPNP);
   r.inliers = static_cast<int>(inliers.size());
   if (!found || inliers.size() < static_cast<size_t>(options.min_inliers)) return std::nullopt;
   // Refine on the inliers (Levenberg-Marquardt on the reprojection error).

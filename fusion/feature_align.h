@@ -39,8 +39,10 @@ struct FeatureAlignReport {
 // reference_from_live: the live camera in the reference camera's frame, or nothing when the
 // images share too few features. Colour is linear RGB; `reference_depth` planar metres (0 =
 // none), the same size; both frames seen through `intrinsics`.
-std::optional<Eigen::Isometry3d> AlignByFeatures(const ImageRgb& reference_color, const ImageDepth& reference_depth,
-                                                 const ImageRgb& live_color, const CameraIntrinsics& intrinsics,
+std::optional<Eigen::Isometry3d> AlignByFeatures(const ImageRgb& reference_color,
+                                                 const ImageDepth& reference_depth,
+                                                 const ImageRgb& live_color,
+                                                 const CameraIntrinsics& intrinsics,
                                                  const FeatureAlignOptions& options,
                                                  FeatureAlignReport* report = nullptr);
 

@@ -72,7 +72,8 @@ NormalEquations Accumulate(const PyramidLevel& live, const RaycastResult& model,
           // residual r, a zero) that the compiler turns into SIMD; the rows' sums are added in
           // double. A row is at most a few hundred terms (measured on the synthetic room: ATE 0.514
           // against 0.513 cm with double sums).
-          Eigen::Matrix<float, 8, 6> sums = Eigen::Matrix<float, 8, 6>::Zero();  // column a: w j_a (j, r, 0)
+          Eigen::Matrix<float, 8, 6> sums =
+              Eigen::Matrix<float, 8, 6>::Zero();  // column a: w j_a (j, r, 0)
           float squared_residuals = 0.0f, squared_ranges = 0.0f;
           for (int u = 0; u < w; ++u) {
             const Eigen::Vector3f& p = live.vertices(u, v);
@@ -153,7 +154,8 @@ IcpReport TrackFrameToModel(const std::vector<PyramidLevel>& live, const Raycast
                             Eigen::Isometry3d* model_from_live) {
   GS_CHECK(!live.empty());
   GS_CHECK(model.points.SameSize(model_intrinsics.width, model_intrinsics.height));
-  const int per_level[3] = {options.iterations_fine, options.iterations_middle, options.iterations_coarse};
+  const int per_level[3] = {options.iterations_fine, options.iterations_middle,
+                            options.iterations_coarse};
   IcpReport report;
   Eigen::Isometry3d pose = *model_from_live;
   // The full-resolution sums of the final pose, when the last iteration left it (nearly) there.
@@ -161,7 +163,8 @@ IcpReport TrackFrameToModel(const std::vector<PyramidLevel>& live, const Raycast
   for (int level = static_cast<int>(live.size()) - 1; level >= 0; --level) {
     const int iterations = per_level[std::min(level, 2)];
     for (int it = 0; it < iterations; ++it) {
-      NormalEquations ne = Accumulate(live[static_cast<size_t>(level)], model, model_intrinsics, pose, options);
+      NormalEquations ne =
+          Accumulate(live[static_cast<size_t>(level)], model, model_intrinsics, pose, options);
       // The level stops when too few inliers or no constrained direction leave no step, or when
       // the step was below min_step.
       bool stop = ne.inliers < 6;
@@ -187,7 +190,8 @@ IcpReport TrackFrameToModel(const std::vector<PyramidLevel>& live, const Raycast
       final_ne ? *final_ne : Accumulate(live[0], model, model_intrinsics, pose, options);
   report.valid_pixels = ne.valid;
   report.inliers = ne.inliers;
-  report.inlier_ratio = ne.valid > 0 ? static_cast<double>(ne.inliers) / static_cast<double>(ne.valid) : 0.0;
+  report.inlier_ratio =
+      ne.valid > 0 ? static_cast<double>(ne.inliers) / static_cast<double>(ne.valid) : 0.0;
   if (ne.inliers >= 6) {
     report.rms_residual = std::sqrt(ne.squared_residuals / static_cast<double>(ne.inliers));
     const Step step = SolveConstrained(ne, options.degenerate_eigen_ratio);

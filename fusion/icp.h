@@ -17,12 +17,12 @@
 namespace genscene::fusion {
 
 struct IcpOptions {
-  int iterations_fine = 10;     // Gauss-Newton iterations at full resolution (KinectFusion: 10)
-  int iterations_middle = 5;    // at half resolution (5)
-  int iterations_coarse = 4;    // at quarter resolution (4)
-  double max_distance = 0.1;    // m; correspondences farther apart are rejected
-  double max_angle = 30.0;      // degrees between normals; larger is rejected
-  double huber_delta = 0.01;    // m; robust (Huber) weight beyond this point-to-plane residual
+  int iterations_fine = 10;   // Gauss-Newton iterations at full resolution (KinectFusion: 10)
+  int iterations_middle = 5;  // at half resolution (5)
+  int iterations_coarse = 4;  // at quarter resolution (4)
+  double max_distance = 0.1;  // m; correspondences farther apart are rejected
+  double max_angle = 30.0;    // degrees between normals; larger is rejected
+  double huber_delta = 0.01;  // m; robust (Huber) weight beyond this point-to-plane residual
   // A level's iterations stop once a step moves the pose less than this (|xi|: metres and
   // radians). On the 150-frame synthetic room (Kinect-like noise) 1e-5 took 14 instead of 19
   // steps a frame (tracking 17.6 -> 10.7 ms) for the same ATE (5.13 mm); 1e-7 ran every
@@ -34,23 +34,24 @@ struct IcpOptions {
   // the raycast normals); the weakest direction of the small Cornell room at 160x120 is 1.3e-3,
   // of TUM fr1/desk 7.3e-3. The default sits between, a factor ~2 from each.
   double degenerate_eigen_ratio = 7e-4;
-  double min_inlier_ratio = 0.3;  // fraction of valid live pixels with a correspondence; below = lost
-  double max_rms_residual = 0.02; // m; above = lost
-  double max_translation = 0.3;   // m between consecutive frames; above = lost (a jump)
-  double max_rotation = 30.0;     // degrees between consecutive frames; above = lost
+  double min_inlier_ratio =
+      0.3;  // fraction of valid live pixels with a correspondence; below = lost
+  double max_rms_residual = 0.02;  // m; above = lost
+  double max_translation = 0.3;    // m between consecutive frames; above = lost (a jump)
+  double max_rotation = 30.0;      // degrees between consecutive frames; above = lost
 
   void Validate() const;
 };
 
 struct IcpReport {
-  int iterations = 0;          // Gauss-Newton steps taken over all levels
-  size_t valid_pixels = 0;     // live pixels with a vertex and a normal, full resolution
-  size_t inliers = 0;          // of which with an accepted correspondence (last iteration)
-  double inlier_ratio = 0.0;   // inliers / valid_pixels
-  double rms_residual = 0.0;   // m, point-to-plane, over the inliers
-  double condition = 0.0;      // largest / smallest eigenvalue of J^T J (rotation scaled to metres)
+  int iterations = 0;         // Gauss-Newton steps taken over all levels
+  size_t valid_pixels = 0;    // live pixels with a vertex and a normal, full resolution
+  size_t inliers = 0;         // of which with an accepted correspondence (last iteration)
+  double inlier_ratio = 0.0;  // inliers / valid_pixels
+  double rms_residual = 0.0;  // m, point-to-plane, over the inliers
+  double condition = 0.0;     // largest / smallest eigenvalue of J^T J (rotation scaled to metres)
   int constrained_directions = 0;  // of 6
-  bool degenerate = false;     // some direction was unconstrained
+  bool degenerate = false;         // some direction was unconstrained
 };
 
 // Refines `model_from_live` (the live camera in the frame of the camera the model was raycast

@@ -62,7 +62,8 @@ struct IntegrationOptions {
 
 // Keys of the blocks the truncation band of `depth` passes through, sorted and unique (so the
 // allocation order does not depend on the thread count). Pixels are sampled every `pixel_stride`.
-std::vector<Eigen::Vector3i> BlocksInTruncationBand(const TsdfVolume& volume, const ImageDepth& depth,
+std::vector<Eigen::Vector3i> BlocksInTruncationBand(const TsdfVolume& volume,
+                                                    const ImageDepth& depth,
                                                     const CameraIntrinsics& intrinsics,
                                                     const Eigen::Isometry3d& world_from_camera,
                                                     int pixel_stride = 1);

@@ -18,11 +18,13 @@ void KeyframeOptions::Validate() const {
   RequireRange("min_keyframes", min_keyframes, 1, 100);
   RequireRange("max_keyframes", max_keyframes, 1, 100000);
   if (min_keyframes > max_keyframes) {
-    throw Error(Format("option min_keyframes = ", min_keyframes, " exceeds max_keyframes = ", max_keyframes));
+    throw Error(Format("option min_keyframes = ", min_keyframes,
+                       " exceeds max_keyframes = ", max_keyframes));
   }
 }
 
-bool KeyframeSelector::MovedEnough(const Eigen::Isometry3d& from, const Eigen::Isometry3d& to) const {
+bool KeyframeSelector::MovedEnough(const Eigen::Isometry3d& from,
+                                   const Eigen::Isometry3d& to) const {
   const Eigen::Isometry3d motion = from.inverse() * to;
   return motion.translation().norm() >= options_.translation ||
          RotationAngle(motion) * 180.0 / M_PI >= options_.rotation;
@@ -52,8 +54,10 @@ double KeyframeSelector::NewSurfaceFraction(const RgbdFrame& frame) const {
         const Eigen::Vector3d q = keyframe_from_frame[i] * p;
         const auto px = seen_by[i]->intrinsics.Project(q);
         if (!px) continue;
-        const int ku = static_cast<int>(std::lround(px->x())), kv = static_cast<int>(std::lround(px->y()));
-        if (ku < 0 || kv < 0 || ku >= seen_by[i]->depth.width() || kv >= seen_by[i]->depth.height()) continue;
+        const int ku = static_cast<int>(std::lround(px->x())),
+                  kv = static_cast<int>(std::lround(px->y()));
+        if (ku < 0 || kv < 0 || ku >= seen_by[i]->depth.width() || kv >= seen_by[i]->depth.height())
+          continue;
         const float kz = seen_by[i]->depth(ku, kv);
         seen = kz > 0.0f && std::abs(kz - q.z()) < std::max(0.03, 0.05 * q.z());
       }
@@ -73,8 +77,10 @@ void KeyframeSelector::Offer(const RgbdFrame& frame) {
   if (window_left_ > 0 && MovedEnough(*window_start_, *frame.world_from_camera)) Commit();
   if (window_left_ == 0) {
     bool due = keyframes_.empty() && !best_;
-    if (!due && !keyframes_.empty()) due = MovedEnough(*keyframes_.back().world_from_camera, *frame.world_from_camera);
-    if (!due && !keyframes_.empty() && options_.new_surface > 0.0) due = NewSurfaceFraction(frame) >= options_.new_surface;
+    if (!due && !keyframes_.empty())
+      due = MovedEnough(*keyframes_.back().world_from_camera, *frame.world_from_camera);
+    if (!due && !keyframes_.empty() && options_.new_surface > 0.0)
+      due = NewSurfaceFraction(frame) >= options_.new_surface;
     if (!due) return;
     window_left_ = options_.window;
     window_start_ = *frame.world_from_camera;
@@ -89,8 +95,10 @@ void KeyframeSelector::Offer(const RgbdFrame& frame) {
 }
 
 void KeyframeSelector::HoldCandidate(const RgbdFrame& frame, double sharpness) {
-  if (offered_ - 1 < candidates_.size() * candidate_stride_) return;  // not the next evenly spaced one
-  if (static_cast<int>(candidates_.size()) == kCandidates) {  // full: keep every other, twice the spacing
+  if (offered_ - 1 < candidates_.size() * candidate_stride_)
+    return;  // not the next evenly spaced one
+  if (static_cast<int>(candidates_.size()) ==
+      kCandidates) {  // full: keep every other, twice the spacing
     std::vector<Candidate> kept;
     for (size_t i = 0; i < candidates_.size(); i += 2) kept.push_back(std::move(candidates_[i]));
     candidates_ = std::move(kept);
@@ -116,7 +124,8 @@ void KeyframeSelector::TopUp() {
     for (size_t c = 0; c < candidates_.size(); ++c) {
       size_t d = std::numeric_limits<size_t>::max();
       for (size_t k : offered_index_) {
-        d = std::min(d, candidates_[c].offered > k ? candidates_[c].offered - k : k - candidates_[c].offered);
+        d = std::min(d, candidates_[c].offered > k ? candidates_[c].offered - k
+                                                   : k - candidates_[c].offered);
       }
       gap[c] = d;
       farthest = std::max(farthest, d);
@@ -125,10 +134,12 @@ void KeyframeSelector::TopUp() {
     int pick = -1;
     for (size_t c = 0; c < candidates_.size(); ++c) {
       if (gap[c] == 0 || gap[c] + candidate_stride_ <= farthest) continue;
-      if (pick < 0 || candidates_[c].sharpness > candidates_[pick].sharpness) pick = static_cast<int>(c);
+      if (pick < 0 || candidates_[c].sharpness > candidates_[pick].sharpness)
+        pick = static_cast<int>(c);
     }
     const Candidate& c = candidates_[pick];
-    const auto at = std::upper_bound(offered_index_.begin(), offered_index_.end(), c.offered) - offered_index_.begin();
+    const auto at = std::upper_bound(offered_index_.begin(), offered_index_.end(), c.offered) -
+                    offered_index_.begin();
     keyframes_.insert(keyframes_.begin() + at, c.frame);
     sharpness_.insert(sharpness_.begin() + at, c.sharpness);
     offered_index_.insert(offered_index_.begin() + at, c.offered);

@@ -1,12 +1,12 @@
 // Keyframe selection for texturing and the inverse stages. A keyframe is due when the camera has
 // moved or turned enough since the last one, or when enough of what it sees is surface no
 // keyframe has seen (close-range scanning adds new surface long before the camera has moved
-// 15 cm: at 0.3 m a 10 cm slide shows a third of a new view); of the next `window` tracked frames the sharpest
-// (variance of the Laplacian of luminance, Pech-Pacheco et al. 2000) is kept, so motion-blurred
-// frames lose. The window closes early at a frame that has itself moved or turned the due amount
-// from where the window opened, so a sparse recording (frames far apart) keeps every view instead
-// of the sharpest of five distant ones. A short recording whose motion never makes a second
-// keyframe due still gets min_keyframes views: an evenly spaced sample of the tracked frames
+// 15 cm: at 0.3 m a 10 cm slide shows a third of a new view); of the next `window` tracked frames
+// the sharpest (variance of the Laplacian of luminance, Pech-Pacheco et al. 2000) is kept, so
+// motion-blurred frames lose. The window closes early at a frame that has itself moved or turned
+// the due amount from where the window opened, so a sparse recording (frames far apart) keeps every
+// view instead of the sharpest of five distant ones. A short recording whose motion never makes a
+// second keyframe due still gets min_keyframes views: an evenly spaced sample of the tracked frames
 // (held while fewer than min_keyframes are chosen, at most kCandidates of them) fills in the
 // frames farthest in time from the chosen ones, the sharpest of near-equals first.
 #pragma once
@@ -26,9 +26,9 @@ struct KeyframeOptions {
   // Share of a frame's surface (its depth pixels, on a grid of about 40x30) that no keyframe saw
   // (none has a depth within 3 cm or 5 % at its projection) that makes a keyframe due; 0 = off.
   double new_surface = 0.3;
-  int window = 5;             // frames among which the sharpest becomes the keyframe
-  int min_keyframes = 3;      // at least this many keyframes when the recording has the frames
-  int max_keyframes = 500;    // hard limit; exceeding it is reported, never silent
+  int window = 5;           // frames among which the sharpest becomes the keyframe
+  int min_keyframes = 3;    // at least this many keyframes when the recording has the frames
+  int max_keyframes = 500;  // hard limit; exceeding it is reported, never silent
 
   void Validate() const;
 };

@@ -64,13 +64,20 @@ TsdfVolumeParams FusionOptions::VolumeParams(const Eigen::Vector3d& origin) cons
 
 const char* ToString(FrameStatus status) {
   switch (status) {
-    case FrameStatus::kInitial: return "initial";
-    case FrameStatus::kTracked: return "tracked";
-    case FrameStatus::kKnownPose: return "known_pose";
-    case FrameStatus::kDegenerate: return "degenerate";
-    case FrameStatus::kLost: return "lost";
-    case FrameStatus::kBlank: return "blank";
-    case FrameStatus::kHeldOut: return "held_out";
+    case FrameStatus::kInitial:
+      return "initial";
+    case FrameStatus::kTracked:
+      return "tracked";
+    case FrameStatus::kKnownPose:
+      return "known_pose";
+    case FrameStatus::kDegenerate:
+      return "degenerate";
+    case FrameStatus::kLost:
+      return "lost";
+    case FrameStatus::kBlank:
+      return "blank";
+    case FrameStatus::kHeldOut:
+      return "held_out";
   }
   return "?";
 }
@@ -110,7 +117,8 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   auto start = std::chrono::steady_clock::now();
   const ImageDepth depth = MaskInvalidDepth(frame.depth, options_.preprocess.min_depth,
                                             options_.preprocess.max_depth, &report.mask);
-  const double valid_fraction = static_cast<double>(report.mask.valid) / static_cast<double>(depth.size());
+  const double valid_fraction =
+      static_cast<double>(report.mask.valid) / static_cast<double>(depth.size());
   auto finish = [&](FrameReport r) {
     reports_.push_back(r);
     return r;
@@ -146,16 +154,20 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     // Predict no motion since the last pose: the last fused frame's, or a held-out frame's after it
     // (with a held-out frame between them, two frames' motion would start from the identity).
     Eigen::Isometry3d model_from_live =
-        held_out_pose_ ? Eigen::Isometry3d(last_good_.inverse() * *held_out_pose_) : Eigen::Isometry3d::Identity();
-    report.icp = TrackFrameToModel(pyramid, model_, model_intrinsics_, options_.icp, &model_from_live);
+        held_out_pose_ ? Eigen::Isometry3d(last_good_.inverse() * *held_out_pose_)
+                       : Eigen::Isometry3d::Identity();
+    report.icp =
+        TrackFrameToModel(pyramid, model_, model_intrinsics_, options_.icp, &model_from_live);
     report.seconds_track = SecondsSince(start);
     const double moved = model_from_live.translation().norm();
     const double turned = RotationAngle(model_from_live) * 180.0 / M_PI;
     const IcpReport& icp = report.icp;
     if (icp.inlier_ratio < options_.icp.min_inlier_ratio) {
-      report.reason = Format("inlier ratio ", icp.inlier_ratio, " < ", options_.icp.min_inlier_ratio);
+      report.reason =
+          Format("inlier ratio ", icp.inlier_ratio, " < ", options_.icp.min_inlier_ratio);
     } else if (icp.rms_residual > options_.icp.max_rms_residual) {
-      report.reason = Format("RMS residual ", icp.rms_residual, " m > ", options_.icp.max_rms_residual, " m");
+      report.reason =
+          Format("RMS residual ", icp.rms_residual, " m > ", options_.icp.max_rms_residual, " m");
     } else if (moved > options_.icp.max_translation || turned > options_.icp.max_rotation) {
       report.reason = Format("jump of ", moved, " m and ", turned, " deg from the last good pose");
     }
@@ -167,8 +179,9 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
       feature_pose = TrackFromFeatures(pyramid, frame, &report);
       report.seconds_track += SecondsSince(start);
       if (!feature_pose && !report.reason.empty()) {
-        report.reason += Format("; features: ", report.features.inliers, " of ", report.features.matches,
-                                " matches agree (", options_.features.min_inliers, " needed)");
+        report.reason +=
+            Format("; features: ", report.features.inliers, " of ", report.features.matches,
+                   " matches agree (", options_.features.min_inliers, " needed)");
       }
     }
     if (!report.reason.empty() && !feature_pose) {
@@ -185,8 +198,8 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
       // The pose is kept along the unconstrained directions; fusing would smear the model along
       // them if the camera did move that way, so the frame is not fused.
       report.status = FrameStatus::kDegenerate;
-      report.reason = Format("only ", icp.constrained_directions, " of 6 pose directions constrained (condition ",
-                             icp.condition, ")");
+      report.reason = Format("only ", icp.constrained_directions,
+                             " of 6 pose directions constrained (condition ", icp.condition, ")");
       report.world_from_camera = pose;
       last_good_ = pose;
       held_out_pose_.reset();
@@ -196,7 +209,8 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     report.status = FrameStatus::kTracked;
   }
   if (!started_) {
-    volume_ = TsdfVolume(options_.VolumeParams(SnappedOrigin(pose.translation(), options_.voxel_size)));
+    volume_ =
+        TsdfVolume(options_.VolumeParams(SnappedOrigin(pose.translation(), options_.voxel_size)));
     started_ = true;
   }
   start = std::chrono::steady_clock::now();
@@ -209,7 +223,8 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     report.seconds_raycast = SecondsSince(start);
     if (options_.feature_tracking && !frame.color.empty()) {
       last_fused_.color = frame.color;
-      last_fused_.depth = frame.depth;  // unmasked: features far beyond depth_max still fix the pose
+      last_fused_.depth =
+          frame.depth;  // unmasked: features far beyond depth_max still fix the pose
       last_fused_.world_from_camera = pose;
     }
   }
@@ -230,15 +245,17 @@ RaycastResult KinectFusion::RaycastModel(const Eigen::Isometry3d& pose) const {
   // in metres: +-2 at half resolution smoothed the model's normals and raised the room's ATE
   // from 0.52 to 0.66 cm).
   const int normal_step = std::max(1, 2 / options_.model_subsample);
-  return RaycastVolume(volume_, model_intrinsics_, pose, options_.preprocess.min_depth, options_.preprocess.max_depth,
+  return RaycastVolume(volume_, model_intrinsics_, pose, options_.preprocess.min_depth,
+                       options_.preprocess.max_depth,
                        /*with_color=*/false, normal_step);
 }
 
-std::optional<Eigen::Isometry3d> KinectFusion::TrackFromFeatures(const std::vector<PyramidLevel>& pyramid,
-                                                                 const RgbdFrame& frame, FrameReport* report) const {
+std::optional<Eigen::Isometry3d> KinectFusion::TrackFromFeatures(
+    const std::vector<PyramidLevel>& pyramid, const RgbdFrame& frame, FrameReport* report) const {
   if (frame.color.empty() || !last_fused_.world_from_camera) return std::nullopt;
-  const auto reference_from_live = AlignByFeatures(last_fused_.color, last_fused_.depth, frame.color, intrinsics_,
-                                                   options_.features, &report->features);
+  const auto reference_from_live =
+      AlignByFeatures(last_fused_.color, last_fused_.depth, frame.color, intrinsics_,
+                      options_.features, &report->features);
   if (!reference_from_live) return std::nullopt;
   const Eigen::Isometry3d start = *last_fused_.world_from_camera * *reference_from_live;
   // ICP against the model as seen from the features' pose: it must converge (the residual test)
@@ -247,19 +264,21 @@ std::optional<Eigen::Isometry3d> KinectFusion::TrackFromFeatures(const std::vect
   // (slambook joinMap: 5-10 % of frame 1's pixels); ICP's corrections of PnP poses there were
   // 1.5-12 cm and 0.2-1.6 deg, its wrong convergences 40 cm and 10 deg.
   Eigen::Isometry3d correction = Eigen::Isometry3d::Identity();
-  const IcpReport icp = TrackFrameToModel(pyramid, RaycastModel(start), model_intrinsics_, options_.icp, &correction);
+  const IcpReport icp =
+      TrackFrameToModel(pyramid, RaycastModel(start), model_intrinsics_, options_.icp, &correction);
   constexpr double kMinOverlap = 0.05;
   constexpr double kMaxCorrection = 0.15, kMaxCorrectionDeg = 5.0;  // m, degrees
   if (icp.inlier_ratio < kMinOverlap || icp.rms_residual > options_.icp.max_rms_residual ||
-      correction.translation().norm() > kMaxCorrection || RotationAngle(correction) * 180.0 / M_PI > kMaxCorrectionDeg) {
+      correction.translation().norm() > kMaxCorrection ||
+      RotationAngle(correction) * 180.0 / M_PI > kMaxCorrectionDeg) {
     return std::nullopt;
   }
   report->icp = icp;
   return start * correction;
 }
 
-FrameReport KinectFusion::HoldOut(const RgbdFrame& frame, const ImageDepth& depth, const Eigen::Isometry3d& pose,
-                                  FrameReport report) {
+FrameReport KinectFusion::HoldOut(const RgbdFrame& frame, const ImageDepth& depth,
+                                  const Eigen::Isometry3d& pose, FrameReport report) {
   report.status = FrameStatus::kHeldOut;
   report.world_from_camera = pose;
   held_out_pose_ = pose;
@@ -309,17 +328,20 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
   }
   const TsdfVolume& volume = fusion.volume();
   json summary = {{"frames", fusion.reports().size()},
-                        {"status_counts", counts},
-                        {"seconds", total_seconds},
-                        {"voxel_size_m", volume.voxel_size()},
-                        {"truncation_m", volume.truncation()},
-                        {"blocks", volume.num_blocks()},
-                        {"megabytes", volume.allocated_bytes() / 1e6},
-                        {"keyframes", fusion.keyframes().size()},
-                        {"held_out", fusion.held_out().size()}};
+                  {"status_counts", counts},
+                  {"seconds", total_seconds},
+                  {"voxel_size_m", volume.voxel_size()},
+                  {"truncation_m", volume.truncation()},
+                  {"blocks", volume.num_blocks()},
+                  {"megabytes", volume.allocated_bytes() / 1e6},
+                  {"keyframes", fusion.keyframes().size()},
+                  {"held_out", fusion.held_out().size()}};
   if (ate) {
-    summary["ate"] = {{"pairs", ate->pairs}, {"rmse_m", ate->rmse}, {"mean_m", ate->mean},
-                      {"median_m", ate->median}, {"max_m", ate->max}};
+    summary["ate"] = {{"pairs", ate->pairs},
+                      {"rmse_m", ate->rmse},
+                      {"mean_m", ate->mean},
+                      {"median_m", ate->median},
+                      {"max_m", ate->max}};
   }
   const json options = OptionsToJson(fusion.options());
 
@@ -327,12 +349,15 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
   WriteTsdfVolume(workspace.Tsdf(), volume);
   TumWriteOptions write;
   write.linear_exr = true;
-  if (!fusion.keyframes().empty()) WriteTumSequence(workspace.Keyframes(), fusion.keyframes(), write);
+  if (!fusion.keyframes().empty())
+    WriteTumSequence(workspace.Keyframes(), fusion.keyframes(), write);
   std::error_code ec;
-  std::filesystem::remove_all(workspace.HeldOut(), ec);  // an earlier run's held-out frames are not this run's
+  std::filesystem::remove_all(workspace.HeldOut(),
+                              ec);  // an earlier run's held-out frames are not this run's
   if (!fusion.held_out().empty()) WriteTumSequence(workspace.HeldOut(), fusion.held_out(), write);
-  WriteTextFileAtomically(workspace.FusionJson(),
-                          json({{"summary", summary}, {"options", options}, {"frames", frames}}).dump(1) + "\n");
+  WriteTextFileAtomically(
+      workspace.FusionJson(),
+      json({{"summary", summary}, {"options", options}, {"frames", frames}}).dump(1) + "\n");
 }
 
 }  // namespace genscene::fusion

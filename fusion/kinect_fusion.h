@@ -36,16 +36,16 @@ namespace genscene::fusion {
 struct FusionOptions {
   static constexpr const char* kSection = "fusion";
 
-  double voxel_size = 0.01;       // m between TSDF lattice points
-  double truncation = 0.04;       // m; TSDF truncation band (>= 2 voxels; KinectFusion-like 4)
-  double max_weight = 128.0;      // running-average weight limit (in measurements at 1 m)
-  double memory_cap = 4000.0;     // MB the TSDF may allocate; exceeding it is an error
-  std::string tracking = "icp";   // icp (estimate the poses) or known (fuse with the source's poses)
+  double voxel_size = 0.01;      // m between TSDF lattice points
+  double truncation = 0.04;      // m; TSDF truncation band (>= 2 voxels; KinectFusion-like 4)
+  double max_weight = 128.0;     // running-average weight limit (in measurements at 1 m)
+  double memory_cap = 4000.0;    // MB the TSDF may allocate; exceeding it is an error
+  std::string tracking = "icp";  // icp (estimate the poses) or known (fuse with the source's poses)
   double min_valid_fraction = 0.05;  // frames with fewer valid depth pixels are blank (skipped)
   // The model is raycast at 1/N of the depth's resolution for ICP (normals over the same
-  // baseline in metres). Measured on the synthetic room 150 frames: N = 2 gives ATE 0.521 cm against
-  // 0.515 at full resolution (320x240) and 0.337 against 0.338 (640x480), TUM fr1/desk 0.1773
-  // against 0.1774 cm, for a third of the raycast time; N = 3: 0.581 / 0.359 cm.
+  // baseline in metres). Measured on the synthetic room 150 frames: N = 2 gives ATE 0.521 cm
+  // against 0.515 at full resolution (320x240) and 0.337 against 0.338 (640x480), TUM fr1/desk
+  // 0.1773 against 0.1774 cm, for a third of the raycast time; N = 3: 0.581 / 0.359 cm.
   int model_subsample = 2;
   // Blocks are allocated along the truncation band of every Nth pixel in each direction; every
   // pixel still updates the voxels of the allocated blocks (integrate.h). A block that only a
@@ -84,15 +84,21 @@ struct FusionOptions {
     v("max_weight", max_weight, "", "limit of the per-voxel running-average weight");
     v("memory_cap", memory_cap, "MB", "memory the TSDF may allocate (error beyond)");
     v("tracking", tracking, "", "icp (estimate poses) or known (use the source's poses)");
-    v("min_valid_fraction", min_valid_fraction, "", "frames with fewer valid depth pixels are skipped as blank");
-    v("model_subsample", model_subsample, "", "raycast the model for tracking at 1/N of the depth's resolution (1 = full)");
-    v("allocation_stride", allocation_stride, "px", "allocate TSDF blocks along the band of every Nth pixel (1 = all, 0 = width / 160)");
-    v("weighting", weighting, "", "TSDF measurement weights: noise (1 / sigma(z)^2 of Kinect-like depth noise) or uniform");
+    v("min_valid_fraction", min_valid_fraction, "",
+      "frames with fewer valid depth pixels are skipped as blank");
+    v("model_subsample", model_subsample, "",
+      "raycast the model for tracking at 1/N of the depth's resolution (1 = full)");
+    v("allocation_stride", allocation_stride, "px",
+      "allocate TSDF blocks along the band of every Nth pixel (1 = all, 0 = width / 160)");
+    v("weighting", weighting, "",
+      "TSDF measurement weights: noise (1 / sigma(z)^2 of Kinect-like depth noise) or uniform");
     v("holdout", holdout, "frames",
-      "keep every Nth frame out of the model (tracked for its pose only) to judge the model on it (0 = none)");
+      "keep every Nth frame out of the model (tracked for its pose only) to judge the model on it "
+      "(0 = none)");
     v("depth_min", preprocess.min_depth, "m", "nearer depth is invalid");
     v("depth_max", preprocess.max_depth, "m", "farther depth is invalid");
-    v("bilateral_radius", preprocess.bilateral_radius, "px", "bilateral filter half-width for tracking (0 = off)");
+    v("bilateral_radius", preprocess.bilateral_radius, "px",
+      "bilateral filter half-width for tracking (0 = off)");
     v("bilateral_sigma_space", preprocess.bilateral_sigma_space, "px", "bilateral spatial sigma");
     v("bilateral_sigma_depth", preprocess.bilateral_sigma_depth, "m", "bilateral range sigma");
     v("icp_iterations_fine", icp.iterations_fine, "", "ICP iterations at full resolution");
@@ -101,8 +107,10 @@ struct FusionOptions {
     v("icp_max_distance", icp.max_distance, "m", "largest point distance of a correspondence");
     v("icp_max_angle", icp.max_angle, "deg", "largest normal angle of a correspondence");
     v("icp_huber_delta", icp.huber_delta, "m", "Huber threshold of the point-to-plane residual");
-    v("icp_min_step", icp.min_step, "m or rad", "a resolution level stops iterating when a pose update is smaller");
-    v("degenerate_eigen_ratio", icp.degenerate_eigen_ratio, "", "eigenvalue ratio below which a pose direction counts as unconstrained");
+    v("icp_min_step", icp.min_step, "m or rad",
+      "a resolution level stops iterating when a pose update is smaller");
+    v("degenerate_eigen_ratio", icp.degenerate_eigen_ratio, "",
+      "eigenvalue ratio below which a pose direction counts as unconstrained");
     v("min_inlier_ratio", icp.min_inlier_ratio, "", "tracking is lost below this inlier fraction");
     v("max_rms_residual", icp.max_rms_residual, "m", "tracking is lost above this RMS residual");
     v("max_translation", icp.max_translation, "m", "tracking is lost when a frame moves farther");
@@ -110,13 +118,18 @@ struct FusionOptions {
     v("feature_tracking", feature_tracking, "",
       "a frame ICP loses starts again from ORB features matched against the last fused frame");
     v("feature_max", features.max_features, "", "ORB keypoints per image for feature tracking");
-    v("feature_min_inliers", features.min_inliers, "", "feature matches consistent with one pose needed to start ICP from it");
-    v("keyframe_translation", keyframes.translation, "m", "camera motion that makes a new keyframe due");
-    v("keyframe_rotation", keyframes.rotation, "deg", "camera rotation that makes a new keyframe due");
+    v("feature_min_inliers", features.min_inliers, "",
+      "feature matches consistent with one pose needed to start ICP from it");
+    v("keyframe_translation", keyframes.translation, "m",
+      "camera motion that makes a new keyframe due");
+    v("keyframe_rotation", keyframes.rotation, "deg",
+      "camera rotation that makes a new keyframe due");
     v("keyframe_new_surface", keyframes.new_surface, "",
       "share of a frame's surface no keyframe saw that makes a new keyframe due (0 = off)");
-    v("keyframe_window", keyframes.window, "frames", "the sharpest of this many frames becomes the keyframe");
-    v("min_keyframes", keyframes.min_keyframes, "", "at least this many keyframes, spread over the recording, when it has the frames");
+    v("keyframe_window", keyframes.window, "frames",
+      "the sharpest of this many frames becomes the keyframe");
+    v("min_keyframes", keyframes.min_keyframes, "",
+      "at least this many keyframes, spread over the recording, when it has the frames");
     v("max_keyframes", keyframes.max_keyframes, "", "keyframe limit");
   }
   void Validate() const;
@@ -148,8 +161,11 @@ struct FrameReport {
   bool feature_start = false;   // tracked by ICP from the features' pose
   IntegrationStats integration;
   std::optional<Eigen::Isometry3d> world_from_camera;  // the estimate (none when lost/blank)
-  double seconds_preprocess = 0.0, seconds_track = 0.0, seconds_integrate = 0.0, seconds_raycast = 0.0;
-  double seconds() const { return seconds_preprocess + seconds_track + seconds_integrate + seconds_raycast; }
+  double seconds_preprocess = 0.0, seconds_track = 0.0, seconds_integrate = 0.0,
+         seconds_raycast = 0.0;
+  double seconds() const {
+    return seconds_preprocess + seconds_track + seconds_integrate + seconds_raycast;
+  }
 };
 
 class KinectFusion {
@@ -176,15 +192,18 @@ class KinectFusion {
 
  private:
   bool HeldOut(size_t index) const {
-    return options_.holdout > 0 && index % static_cast<size_t>(options_.holdout) == static_cast<size_t>(options_.holdout - 1);
+    return options_.holdout > 0 && index % static_cast<size_t>(options_.holdout) ==
+                                       static_cast<size_t>(options_.holdout - 1);
   }
   // Records a held-out frame at `pose` (kept while fewer than kMaxHeldOut are) and its report.
-  FrameReport HoldOut(const RgbdFrame& frame, const ImageDepth& depth, const Eigen::Isometry3d& pose, FrameReport report);
+  FrameReport HoldOut(const RgbdFrame& frame, const ImageDepth& depth,
+                      const Eigen::Isometry3d& pose, FrameReport report);
   // The model raycast at `pose` for tracking.
   RaycastResult RaycastModel(const Eigen::Isometry3d& pose) const;
   // Step 3b: the pose of a frame ICP lost, from features against the last fused frame refined by
   // ICP, when both agree; `report` gets the feature and ICP figures.
-  std::optional<Eigen::Isometry3d> TrackFromFeatures(const std::vector<PyramidLevel>& pyramid, const RgbdFrame& frame,
+  std::optional<Eigen::Isometry3d> TrackFromFeatures(const std::vector<PyramidLevel>& pyramid,
+                                                     const RgbdFrame& frame,
                                                      FrameReport* report) const;
 
   FusionOptions options_;
@@ -193,7 +212,8 @@ class KinectFusion {
   bool started_ = false;
   Eigen::Isometry3d last_good_ = Eigen::Isometry3d::Identity();  // pose the model was raycast at
   RaycastResult model_;
-  CameraIntrinsics model_intrinsics_;  // the model's raycast camera (intrinsics at 1/model_subsample)
+  CameraIntrinsics
+      model_intrinsics_;            // the model's raycast camera (intrinsics at 1/model_subsample)
   IntegrationOptions integration_;  // allocation stride (resolved by the image width) and weights
   Trajectory trajectory_;
   std::vector<FrameReport> reports_;

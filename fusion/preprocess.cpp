@@ -59,32 +59,37 @@ ImageDepth BilateralFilterDepth(const ImageDepth& depth, int radius, double sigm
   std::vector<float> range(kRangeSteps + 1);
   for (int i = 0; i <= kRangeSteps; ++i) {
     const double d = static_cast<double>(i) / range_scale;
-    range[static_cast<size_t>(i)] = static_cast<float>(std::exp(-0.5 * d * d / (sigma_depth * sigma_depth)));
+    range[static_cast<size_t>(i)] =
+        static_cast<float>(std::exp(-0.5 * d * d / (sigma_depth * sigma_depth)));
   }
-  ParallelFor(0, static_cast<size_t>(h), [&](size_t row) {
-    const int v = static_cast<int>(row);
-    for (int u = 0; u < w; ++u) {
-      const float z0 = depth(u, v);
-      if (z0 <= 0.0f) continue;
-      float sum = 0.0f, weight_sum = 0.0f;
-      for (int dv = -radius; dv <= radius; ++dv) {
-        const int vv = v + dv;
-        if (vv < 0 || vv >= h) continue;
-        const float* spatial_row = &spatial[static_cast<size_t>((dv + radius) * side + radius)];
-        for (int du = -radius; du <= radius; ++du) {
-          const int uu = u + du;
-          if (uu < 0 || uu >= w) continue;
-          const float z = depth(uu, vv);
-          const float diff = std::abs(z - z0);
-          if (z <= 0.0f || diff > max_diff) continue;
-          const float wgt = spatial_row[du] * range[static_cast<size_t>(diff * range_scale + 0.5f)];
-          sum += wgt * z;
-          weight_sum += wgt;
+  ParallelFor(
+      0, static_cast<size_t>(h),
+      [&](size_t row) {
+        const int v = static_cast<int>(row);
+        for (int u = 0; u < w; ++u) {
+          const float z0 = depth(u, v);
+          if (z0 <= 0.0f) continue;
+          float sum = 0.0f, weight_sum = 0.0f;
+          for (int dv = -radius; dv <= radius; ++dv) {
+            const int vv = v + dv;
+            if (vv < 0 || vv >= h) continue;
+            const float* spatial_row = &spatial[static_cast<size_t>((dv + radius) * side + radius)];
+            for (int du = -radius; du <= radius; ++du) {
+              const int uu = u + du;
+              if (uu < 0 || uu >= w) continue;
+              const float z = depth(uu, vv);
+              const float diff = std::abs(z - z0);
+              if (z <= 0.0f || diff > max_diff) continue;
+              const float wgt =
+                  spatial_row[du] * range[static_cast<size_t>(diff * range_scale + 0.5f)];
+              sum += wgt * z;
+              weight_sum += wgt;
+            }
+          }
+          out(u, v) = sum / weight_sum;  // the centre itself has weight 1
         }
-      }
-      out(u, v) = sum / weight_sum;  // the centre itself has weight 1
-    }
-  }, 8);
+      },
+      8);
   return out;
 }
 
@@ -92,22 +97,25 @@ ImageDepth DownsampleDepth(const ImageDepth& depth, double sigma_depth) {
   const int w = depth.width() / 2, h = depth.height() / 2;
   ImageDepth out(w, h);
   const float max_diff = static_cast<float>(3.0 * sigma_depth);
-  ParallelFor(0, static_cast<size_t>(h), [&](size_t row) {
-    const int v = static_cast<int>(row);
-    for (int u = 0; u < w; ++u) {
-      float reference = 0.0f, sum = 0.0f;
-      int count = 0;
-      for (int k = 0; k < 4; ++k) {
-        const float z = depth(2 * u + (k & 1), 2 * v + (k >> 1));
-        if (z <= 0.0f) continue;
-        if (reference == 0.0f) reference = z;
-        if (std::abs(z - reference) > max_diff) continue;
-        sum += z;
-        ++count;
-      }
-      if (count > 0) out(u, v) = sum / static_cast<float>(count);
-    }
-  }, 16);
+  ParallelFor(
+      0, static_cast<size_t>(h),
+      [&](size_t row) {
+        const int v = static_cast<int>(row);
+        for (int u = 0; u < w; ++u) {
+          float reference = 0.0f, sum = 0.0f;
+          int count = 0;
+          for (int k = 0; k < 4; ++k) {
+            const float z = depth(2 * u + (k & 1), 2 * v + (k >> 1));
+            if (z <= 0.0f) continue;
+            if (reference == 0.0f) reference = z;
+            if (std::abs(z - reference) > max_diff) continue;
+            sum += z;
+            ++count;
+          }
+          if (count > 0) out(u, v) = sum / static_cast<float>(count);
+        }
+      },
+      16);
   return out;
 }
 
@@ -115,13 +123,16 @@ PointImage ComputeVertexMap(const ImageDepth& depth, const CameraIntrinsics& k) 
   PointImage out(depth.width(), depth.height());
   const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy);
   const float cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
-  ParallelFor(0, static_cast<size_t>(depth.height()), [&](size_t row) {
-    const int v = static_cast<int>(row);
-    for (int u = 0; u < depth.width(); ++u) {
-      const float z = depth(u, v);
-      if (z > 0.0f) out(u, v) = Eigen::Vector3f((u - cx) / fx * z, (v - cy) / fy * z, z);
-    }
-  }, 16);
+  ParallelFor(
+      0, static_cast<size_t>(depth.height()),
+      [&](size_t row) {
+        const int v = static_cast<int>(row);
+        for (int u = 0; u < depth.width(); ++u) {
+          const float z = depth(u, v);
+          if (z > 0.0f) out(u, v) = Eigen::Vector3f((u - cx) / fx * z, (v - cy) / fy * z, z);
+        }
+      },
+      16);
   return out;
 }
 
@@ -131,30 +142,33 @@ PointImage ComputeNormalMap(const PointImage& vertices, double max_jump, int ste
   const float jump = static_cast<float>(max_jump);
   const int s = step;
   if (h <= 2 * s) return out;
-  ParallelFor(static_cast<size_t>(s), static_cast<size_t>(h - s), [&](size_t row) {
-    const int v = static_cast<int>(row);
-    for (int u = s; u + s < w; ++u) {
-      const Eigen::Vector3f& c = vertices(u, v);
-      if (c.z() <= 0.0f) continue;
-      const Eigen::Vector3f& l = vertices(u - s, v);
-      const Eigen::Vector3f& r = vertices(u + s, v);
-      const Eigen::Vector3f& t = vertices(u, v - s);
-      const Eigen::Vector3f& b = vertices(u, v + s);
-      if (l.z() <= 0.0f || r.z() <= 0.0f || t.z() <= 0.0f || b.z() <= 0.0f) continue;
-      // A jump larger than max_jump per metre of depth marks a discontinuity, not a surface.
-      const float limit = jump * c.z() * static_cast<float>(s);
-      if (std::abs(l.z() - c.z()) > limit || std::abs(r.z() - c.z()) > limit ||
-          std::abs(t.z() - c.z()) > limit || std::abs(b.z() - c.z()) > limit) {
-        continue;
-      }
-      Eigen::Vector3f n = (r - l).cross(b - t);
-      const float norm = n.norm();
-      if (!(norm > 0.0f)) continue;
-      n /= norm;
-      if (n.dot(c) > 0.0f) n = -n;  // face the camera
-      out(u, v) = n;
-    }
-  }, 8);
+  ParallelFor(
+      static_cast<size_t>(s), static_cast<size_t>(h - s),
+      [&](size_t row) {
+        const int v = static_cast<int>(row);
+        for (int u = s; u + s < w; ++u) {
+          const Eigen::Vector3f& c = vertices(u, v);
+          if (c.z() <= 0.0f) continue;
+          const Eigen::Vector3f& l = vertices(u - s, v);
+          const Eigen::Vector3f& r = vertices(u + s, v);
+          const Eigen::Vector3f& t = vertices(u, v - s);
+          const Eigen::Vector3f& b = vertices(u, v + s);
+          if (l.z() <= 0.0f || r.z() <= 0.0f || t.z() <= 0.0f || b.z() <= 0.0f) continue;
+          // A jump larger than max_jump per metre of depth marks a discontinuity, not a surface.
+          const float limit = jump * c.z() * static_cast<float>(s);
+          if (std::abs(l.z() - c.z()) > limit || std::abs(r.z() - c.z()) > limit ||
+              std::abs(t.z() - c.z()) > limit || std::abs(b.z() - c.z()) > limit) {
+            continue;
+          }
+          Eigen::Vector3f n = (r - l).cross(b - t);
+          const float norm = n.norm();
+          if (!(norm > 0.0f)) continue;
+          n /= norm;
+          if (n.dot(c) > 0.0f) n = -n;  // face the camera
+          out(u, v) = n;
+        }
+      },
+      8);
   return out;
 }
 
@@ -163,9 +177,9 @@ std::vector<PyramidLevel> BuildPyramid(const ImageDepth& masked_depth,
                                        const PreprocessOptions& options) {
   std::vector<PyramidLevel> levels(static_cast<size_t>(options.levels));
   levels[0].intrinsics = intrinsics;
-  levels[0].depth = BilateralFilterDepth(masked_depth, options.bilateral_radius,
-                                         options.bilateral_sigma_space,
-                                         options.bilateral_sigma_depth);
+  levels[0].depth =
+      BilateralFilterDepth(masked_depth, options.bilateral_radius, options.bilateral_sigma_space,
+                           options.bilateral_sigma_depth);
   for (size_t l = 1; l < levels.size(); ++l) {
     levels[l].intrinsics = levels[l - 1].intrinsics.Scaled(0.5);
     levels[l].depth = DownsampleDepth(levels[l - 1].depth, options.bilateral_sigma_depth);

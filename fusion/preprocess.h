@@ -16,12 +16,12 @@ namespace genscene::fusion {
 using PointImage = Image<Eigen::Vector3f>;  // camera-frame points or unit normals; zero = invalid
 
 struct PreprocessOptions {
-  double min_depth = 0.1;           // m; nearer measurements are invalid
-  double max_depth = 6.0;           // m; farther measurements are invalid (Kinect noise grows as z^2)
-  int bilateral_radius = 2;         // px; half-width of the bilateral window (0 = no filter)
-  double bilateral_sigma_space = 1.5;  // px; spatial Gaussian
-  double bilateral_sigma_depth = 0.03; // m; range Gaussian (KinectFusion: 0.03 m)
-  int levels = 3;                   // pyramid levels (each halves the resolution)
+  double min_depth = 0.1;    // m; nearer measurements are invalid
+  double max_depth = 6.0;    // m; farther measurements are invalid (Kinect noise grows as z^2)
+  int bilateral_radius = 2;  // px; half-width of the bilateral window (0 = no filter)
+  double bilateral_sigma_space = 1.5;   // px; spatial Gaussian
+  double bilateral_sigma_depth = 0.03;  // m; range Gaussian (KinectFusion: 0.03 m)
+  int levels = 3;                       // pyramid levels (each halves the resolution)
 
   void Validate() const;
 };

@@ -14,9 +14,9 @@ namespace {
 
 constexpr int kTile = 8;  // pixels per side of a depth-range tile
 
-// Block lookups of one image row's rays. Consecutive samples of a ray, and neighbouring rays, mostly
-// fall in blocks seen shortly before, and a trilinear sample near a block face straddles up to
-// 2x2x2 neighbouring blocks. Blocks are remembered in 64 slots chosen by their key modulo 4 on
+// Block lookups of one image row's rays. Consecutive samples of a ray, and neighbouring rays,
+// mostly fall in blocks seen shortly before, and a trilinear sample near a block face straddles up
+// to 2x2x2 neighbouring blocks. Blocks are remembered in 64 slots chosen by their key modulo 4 on
 // each axis, so any 4x4x4 neighbourhood of blocks is held without collisions. On the synthetic
 // room (150 frames, 320x240) this takes the hash look-ups from 7.5 to 2.3 a ray (one remembered
 // block: a sample straddling two blocks looked both up again and again).
@@ -67,7 +67,8 @@ class CachedVoxelAccess {
         const int dx = i & 1, dy = (i >> 1) & 1, dz = (i >> 2) & 1;
         const int bx = dx & sx, by = dy & sy, bz = dz & sz;  // the corner crosses into block +1
         const TsdfBlock* block = blocks[bx | (by << 1) | (bz << 2)];
-        const TsdfVoxel& v = block->voxels[TsdfBlock::Index((lx + dx) & 7, (ly + dy) & 7, (lz + dz) & 7)];
+        const TsdfVoxel& v =
+            block->voxels[TsdfBlock::Index((lx + dx) & 7, (ly + dy) & 7, (lz + dz) & 7)];
         weight = std::min(weight, v.weight);
         c[i] = v.sdf;
       }
@@ -111,13 +112,15 @@ TileRanges ComputeTileRanges(const TsdfVolume& volume, const CameraIntrinsics& k
   const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy);
   const float cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
   for (size_t i = 0; i < volume.num_blocks(); ++i) {
-    const Eigen::Vector3f corner0 = (a * (kTsdfBlockSide * volume.block_key(i)).cast<double>() + b).cast<float>();
+    const Eigen::Vector3f corner0 =
+        (a * (kTsdfBlockSide * volume.block_key(i)).cast<double>() + b).cast<float>();
     // Bounding box of the projected corners of the block, and its depth range.
     float z_near = std::numeric_limits<float>::infinity(), z_far = 0.0f;
     float u0 = z_near, v0 = z_near, u1 = -z_near, v1 = -z_near;
     bool straddles = false;
     for (int c = 0; c < 8; ++c) {
-      const Eigen::Vector3f p = corner0 + a_f * (kTsdfBlockSide * Eigen::Vector3f(c & 1, (c >> 1) & 1, (c >> 2) & 1));
+      const Eigen::Vector3f p =
+          corner0 + a_f * (kTsdfBlockSide * Eigen::Vector3f(c & 1, (c >> 1) & 1, (c >> 2) & 1));
       z_near = std::min(z_near, p.z());
       z_far = std::max(z_far, p.z());
       if (p.z() < min_depth) {
@@ -129,7 +132,8 @@ TileRanges ComputeTileRanges(const TsdfVolume& volume, const CameraIntrinsics& k
     }
     if (z_far < min_depth || z_near > max_depth) continue;
     // A block cut by the near plane may cover any part of the image.
-    if (straddles) u0 = v0 = 0.0f, u1 = static_cast<float>(k.width), v1 = static_cast<float>(k.height);
+    if (straddles)
+      u0 = v0 = 0.0f, u1 = static_cast<float>(k.width), v1 = static_cast<float>(k.height);
     z_near = std::max(z_near, min_depth);
     if (u1 < -0.5f || v1 < -0.5f || u0 > k.width - 0.5f || v0 > k.height - 0.5f) continue;
     const int tx0 = std::max(0, static_cast<int>(std::floor((u0 + 0.5f) / kTile)));
@@ -159,8 +163,8 @@ RaycastResult RaycastVolume(const TsdfVolume& volume, const CameraIntrinsics& k,
   out.points = PointImage(w, h);
   out.color = ImageRgb(w, h);
   const Eigen::Isometry3d camera_from_world = world_from_camera.inverse();
-  const TileRanges tiles = ComputeTileRanges(volume, k, camera_from_world,
-                                             static_cast<float>(min_depth), static_cast<float>(max_depth));
+  const TileRanges tiles = ComputeTileRanges(
+      volume, k, camera_from_world, static_cast<float>(min_depth), static_cast<float>(max_depth));
   const double vs = volume.voxel_size();
   // Lattice position along the ray of pixel (u, v) at planar depth z: o + z D(u, v).
   const Eigen::Vector3f o = volume.WorldToLattice(world_from_camera.translation()).cast<float>();
@@ -168,70 +172,80 @@ RaycastResult RaycastVolume(const TsdfVolume& volume, const CameraIntrinsics& k,
   const float inv_vs = static_cast<float>(1.0 / vs);
   const float trunc_voxels = static_cast<float>(volume.truncation() / vs);
 
-  ParallelFor(0, static_cast<size_t>(h), [&](size_t row) {
-    const int v = static_cast<int>(row);
-    CachedVoxelAccess access(volume);
-    for (int u = 0; u < w; ++u) {
-      const size_t tile = static_cast<size_t>((v / kTile) * tiles.tiles_x + u / kTile);
-      const float z_begin = tiles.near[tile], z_end = tiles.far[tile];
-      if (!(z_begin < z_end)) continue;
-      const Eigen::Vector3f ray(static_cast<float>((u - k.cx) / k.fx),
-                                static_cast<float>((v - k.cy) / k.fy), 1.0f);
-      const Eigen::Vector3f dir = rotation * ray;  // lattice units per metre of planar depth
-      // Planar depth per lattice unit along each axis (inf along an axis the ray does not move on).
-      const Eigen::Vector3f inv_dir(1.0f / dir.x(), 1.0f / dir.y(), 1.0f / dir.z());
-      const float voxel_step = 1.0f / dir.norm();  // planar depth of one voxel along the ray
-      const float unobserved_step = std::max(1.0f, 0.5f * trunc_voxels) * voxel_step;
-      float z = z_begin, prev_z = 0.0f, prev_sdf = 0.0f;
-      bool prev_valid = false;
-      float hit = 0.0f;
-      while (z < z_end) {
-        const Eigen::Vector3f p = o + z * dir;
-        const Eigen::Vector3i key(FloorToInt(p.x()) >> 3, FloorToInt(p.y()) >> 3, FloorToInt(p.z()) >> 3);
-        if (access.Block(key) == nullptr) {
-          // Skip to where the ray leaves this empty block.
-          float exit = std::numeric_limits<float>::infinity();
-          for (int i = 0; i < 3; ++i) {
-            if (dir[i] > 0.0f) exit = std::min(exit, (8.0f * (key[i] + 1) - p[i]) * inv_dir[i]);
-            if (dir[i] < 0.0f) exit = std::min(exit, (8.0f * key[i] - p[i]) * inv_dir[i]);
+  ParallelFor(
+      0, static_cast<size_t>(h),
+      [&](size_t row) {
+        const int v = static_cast<int>(row);
+        CachedVoxelAccess access(volume);
+        for (int u = 0; u < w; ++u) {
+          const size_t tile = static_cast<size_t>((v / kTile) * tiles.tiles_x + u / kTile);
+          const float z_begin = tiles.near[tile], z_end = tiles.far[tile];
+          if (!(z_begin < z_end)) continue;
+          const Eigen::Vector3f ray(static_cast<float>((u - k.cx) / k.fx),
+                                    static_cast<float>((v - k.cy) / k.fy), 1.0f);
+          const Eigen::Vector3f dir = rotation * ray;  // lattice units per metre of planar depth
+          // Planar depth per lattice unit along each axis (inf along an axis the ray does not move
+          // on).
+          const Eigen::Vector3f inv_dir(1.0f / dir.x(), 1.0f / dir.y(), 1.0f / dir.z());
+          const float voxel_step = 1.0f / dir.norm();  // planar depth of one voxel along the ray
+          const float unobserved_step = std::max(1.0f, 0.5f * trunc_voxels) * voxel_step;
+          float z = z_begin, prev_z = 0.0f, prev_sdf = 0.0f;
+          bool prev_valid = false;
+          float hit = 0.0f;
+          while (z < z_end) {
+            const Eigen::Vector3f p = o + z * dir;
+            const Eigen::Vector3i key(FloorToInt(p.x()) >> 3, FloorToInt(p.y()) >> 3,
+                                      FloorToInt(p.z()) >> 3);
+            if (access.Block(key) == nullptr) {
+              // Skip to where the ray leaves this empty block.
+              float exit = std::numeric_limits<float>::infinity();
+              for (int i = 0; i < 3; ++i) {
+                if (dir[i] > 0.0f) exit = std::min(exit, (8.0f * (key[i] + 1) - p[i]) * inv_dir[i]);
+                if (dir[i] < 0.0f) exit = std::min(exit, (8.0f * key[i] - p[i]) * inv_dir[i]);
+              }
+              z += std::max(exit, 0.0f) + 0.01f * voxel_step;
+              prev_valid = false;
+              continue;
+            }
+            float sdf;
+            if (!access.Sdf(p, &sdf)) {
+              // Unobserved voxels lie behind surfaces (or were never in view): the positive side of
+              // a band is a truncation wide, so half of it can be skipped without missing a
+              // crossing.
+              z += unobserved_step;
+              prev_valid = false;
+              continue;
+            }
+            if (prev_valid && prev_sdf > 0.0f && sdf <= 0.0f) {
+              hit = prev_z + (z - prev_z) * prev_sdf / (prev_sdf - sdf);
+              break;
+            }
+            prev_valid = true;
+            prev_sdf = sdf;
+            prev_z = z;
+            // Step by the distance to the surface (the TSDF under-estimates it), at least one
+            // voxel.
+            z += std::max(1.0f, 0.8f * sdf * inv_vs) * voxel_step;
           }
-          z += std::max(exit, 0.0f) + 0.01f * voxel_step;
-          prev_valid = false;
-          continue;
+          if (hit <= 0.0f) continue;
+          out.depth(u, v) = hit;
+          out.points(u, v) = ray * hit;
         }
-        float sdf;
-        if (!access.Sdf(p, &sdf)) {
-          // Unobserved voxels lie behind surfaces (or were never in view): the positive side of a
-          // band is a truncation wide, so half of it can be skipped without missing a crossing.
-          z += unobserved_step;
-          prev_valid = false;
-          continue;
-        }
-        if (prev_valid && prev_sdf > 0.0f && sdf <= 0.0f) {
-          hit = prev_z + (z - prev_z) * prev_sdf / (prev_sdf - sdf);
-          break;
-        }
-        prev_valid = true;
-        prev_sdf = sdf;
-        prev_z = z;
-        // Step by the distance to the surface (the TSDF under-estimates it), at least one voxel.
-        z += std::max(1.0f, 0.8f * sdf * inv_vs) * voxel_step;
-      }
-      if (hit <= 0.0f) continue;
-      out.depth(u, v) = hit;
-      out.points(u, v) = ray * hit;
-    }
-  }, 4);
+      },
+      4);
   out.normals = ComputeNormalMap(out.points, 0.1, normal_step);
   if (!with_color) return out;
-  ParallelFor(0, static_cast<size_t>(h), [&](size_t row) {
-    const int v = static_cast<int>(row);
-    for (int u = 0; u < w; ++u) {
-      if (out.depth(u, v) <= 0.0f) continue;
-      const Eigen::Vector3f p = o + rotation * out.points(u, v);
-      if (auto c = volume.InterpolateColor(p)) out.color(u, v) = *c;
-    }
-  }, 8);
+  ParallelFor(
+      0, static_cast<size_t>(h),
+      [&](size_t row) {
+        const int v = static_cast<int>(row);
+        for (int u = 0; u < w; ++u) {
+          if (out.depth(u, v) <= 0.0f) continue;
+          const Eigen::Vector3f p = o + rotation * out.points(u, v);
+          if (auto c = volume.InterpolateColor(p)) out.color(u, v) = *c;
+        }
+      },
+      8);
   return out;
 }
 

@@ -7,8 +7,8 @@
 #include "core/options.h"
 #include "fuzz/fuzz_util.h"
 #include "inverse/lights/light_estimation.h"
-#include "render/path_tracer.h"
 #include "inverse/refine/vertex_refinement.h"
+#include "render/path_tracer.h"
 
 using namespace genscene;
 

@@ -24,10 +24,11 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
     m.vertex_colors.assign(4, Eigen::Vector3f(0.5f, 0.25f, 1.0f));
     m.face_colors.assign(4, Eigen::Vector3f(0.1f, 0.2f, 0.3f));
     WritePly(dir / "coloured.ply", m);
-    WriteTextFileAtomically(dir / "ascii.ply",
-                            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
-                            "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
-                            "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    WriteTextFileAtomically(
+        dir / "ascii.ply",
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+        "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   });
   return 0;
 }

@@ -3,8 +3,8 @@
 // to the scratch file, so that fuzzed variants of the seed reach past the mesh references.
 #include "fuzz/fuzz_util.h"
 #include "render/formats/mitsuba_xml.h"
-#include "render/procedural.h"
 #include "render/formats/scene_io.h"
+#include "render/procedural.h"
 
 using namespace genscene;
 using namespace genscene::render;
@@ -28,7 +28,8 @@ void WriteScene(const std::filesystem::path& path) {
   floor.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f(0.7f, 0.6f, 0.5f));
   SceneMesh lamp;
   lamp.name = "lamp";
-  lamp.mesh.vertices = {{-0.2f, -0.2f, 1.5f}, {-0.2f, 0.2f, 1.5f}, {0.2f, 0.2f, 1.5f}, {0.2f, -0.2f, 1.5f}};
+  lamp.mesh.vertices = {
+      {-0.2f, -0.2f, 1.5f}, {-0.2f, 0.2f, 1.5f}, {0.2f, 0.2f, 1.5f}, {0.2f, -0.2f, 1.5f}};
   lamp.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
   lamp.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Zero());
   lamp.emission = Eigen::Vector3f(4.0f, 4.0f, 3.0f);

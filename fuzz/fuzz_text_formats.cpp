@@ -17,10 +17,12 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr const char* kTrajectory = "1.0 0 0 0 0 0 0 1\n2.5 0.1 0.2 0.3 0 0 0.7071068 0.7071068\n";
-constexpr const char* kLog = "0 0 2\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n1 1 2\n1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+constexpr const char* kLog =
+    "0 0 2\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n1 1 2\n1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
 constexpr const char* kIntrinsics = "525 525 319.5 239.5 640 480\n";
 constexpr const char* kOpen3d =
-    "{\"width\": 640, \"height\": 480, \"intrinsic_matrix\": [525, 0, 0, 0, 525, 0, 319.5, 239.5, 1]}";
+    "{\"width\": 640, \"height\": 480, \"intrinsic_matrix\": [525, 0, 0, 0, 525, 0, 319.5, 239.5, "
+    "1]}";
 constexpr const char* kRgbList = "# colour\n1.0 rgb/1.png\n2.5 rgb/2.png\n";
 constexpr const char* kDepthList = "# depth\n1.01 depth/1.png\n2.49 depth/2.png\n";
 
@@ -55,10 +57,20 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   ++data;
   --size;
   switch (kind) {
-    case 0: GENSCENE_FUZZ_EXPECT_ERROR_OK(ReadTumTrajectory(fuzz::Scratch("trajectory.txt", data, size))); break;
-    case 1: GENSCENE_FUZZ_EXPECT_ERROR_OK(ReadRedwoodLog(fuzz::Scratch("trajectory.log", data, size))); break;
-    case 2: GENSCENE_FUZZ_EXPECT_ERROR_OK(ReadIntrinsicsFile(fuzz::Scratch("intrinsics.txt", data, size))); break;
-    case 3: GENSCENE_FUZZ_EXPECT_ERROR_OK(ReadIntrinsicsFile(fuzz::Scratch("intrinsics.json", data, size))); break;
+    case 0:
+      GENSCENE_FUZZ_EXPECT_ERROR_OK(ReadTumTrajectory(fuzz::Scratch("trajectory.txt", data, size)));
+      break;
+    case 1:
+      GENSCENE_FUZZ_EXPECT_ERROR_OK(ReadRedwoodLog(fuzz::Scratch("trajectory.log", data, size)));
+      break;
+    case 2:
+      GENSCENE_FUZZ_EXPECT_ERROR_OK(
+          ReadIntrinsicsFile(fuzz::Scratch("intrinsics.txt", data, size)));
+      break;
+    case 3:
+      GENSCENE_FUZZ_EXPECT_ERROR_OK(
+          ReadIntrinsicsFile(fuzz::Scratch("intrinsics.json", data, size)));
+      break;
     case 4:
       fuzz::Scratch("views/rgb.txt", data, size);
       GENSCENE_FUZZ_EXPECT_ERROR_OK(ReadViewSet(fuzz::ScratchDir() / "views"));
@@ -67,7 +79,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       fuzz::Scratch("tum/depth.txt", data, size);
       SourceOptions options;
       options.intrinsics = "tum1";
-      GENSCENE_FUZZ_EXPECT_ERROR_OK(OpenFrameSource((fuzz::ScratchDir() / "tum").string(), options));
+      GENSCENE_FUZZ_EXPECT_ERROR_OK(
+          OpenFrameSource((fuzz::ScratchDir() / "tum").string(), options));
     }
   }
   return 0;

@@ -151,7 +151,8 @@ const std::array<uint16_t, 256>& CrossedEdges() {
     for (int index = 0; index < 256; ++index) {
       for (int e = 0; e < 12; ++e) {
         const int c0 = CornerIndex(EdgeStart(e)), c1 = c0 + (1 << EdgeAxis(e));
-        if (((index >> c0) & 1) != ((index >> c1) & 1)) crossed[index] |= static_cast<uint16_t>(1u << e);
+        if (((index >> c0) & 1) != ((index >> c1) & 1))
+          crossed[index] |= static_cast<uint16_t>(1u << e);
       }
     }
     return crossed;

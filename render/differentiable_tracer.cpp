@@ -13,7 +13,9 @@ namespace {
 constexpr double kPi = M_PI;
 
 // As path_tracer.cpp: ray origins move off the surface by an amount that grows with |p|.
-double OffsetScale(const Eigen::Vector3d& p) { return 2e-5 * (1.0 + p.cwiseAbs().maxCoeff()); }
+double OffsetScale(const Eigen::Vector3d& p) {
+  return 2e-5 * (1.0 + p.cwiseAbs().maxCoeff());
+}
 
 SparseDual PowerHeuristic(const SparseDual& pdf_a, const SparseDual& pdf_b) {
   const SparseDual a = pdf_a * pdf_a, b = pdf_b * pdf_b;
@@ -61,7 +63,8 @@ struct DifferentiablePathTracer::Hit {
   double b1 = 0.0, b2 = 0.0;  // barycentric values (for the albedo)
 };
 
-DifferentiablePathTracer::DifferentiablePathTracer(const Scene& scene, const std::vector<bool>& refined)
+DifferentiablePathTracer::DifferentiablePathTracer(const Scene& scene,
+                                                   const std::vector<bool>& refined)
     : scene_(scene), tracer_(std::make_unique<RayTracer>()) {
   scene_.Validate();
   GS_CHECK_EQ(refined.size(), scene_.meshes.size());
@@ -97,7 +100,8 @@ Eigen::VectorXd DifferentiablePathTracer::Positions() const {
   Eigen::VectorXd x(3 * vertex_count_);
   for (size_t m = 0; m < positions_.size(); ++m) {
     if (first_vertex_[m] < 0) continue;
-    for (size_t v = 0; v < positions_[m].size(); ++v) x.segment<3>(3 * (first_vertex_[m] + v)) = positions_[m][v];
+    for (size_t v = 0; v < positions_[m].size(); ++v)
+      x.segment<3>(3 * (first_vertex_[m] + v)) = positions_[m][v];
   }
   return x;
 }
@@ -137,13 +141,14 @@ void DifferentiablePathTracer::UpdateNormals(bool derivatives) {
 
 DualVec3 DifferentiablePathTracer::Vertex(int mesh, int v, bool derivatives) const {
   const Eigen::Vector3d& p = positions_[mesh][v];
-  return derivatives && first_vertex_[mesh] >= 0 ? DualVec3::Variable(p, first_vertex_[mesh] + v) : DualVec3(p);
+  return derivatives && first_vertex_[mesh] >= 0 ? DualVec3::Variable(p, first_vertex_[mesh] + v)
+                                                 : DualVec3(p);
 }
 
-std::optional<DifferentiablePathTracer::Hit> DifferentiablePathTracer::Intersect(const DualVec3& origin,
-                                                                                 const DualVec3& direction,
-                                                                                 bool derivatives) const {
-  const auto found = tracer_->Intersect(origin.value().cast<float>(), direction.value().cast<float>());
+std::optional<DifferentiablePathTracer::Hit> DifferentiablePathTracer::Intersect(
+    const DualVec3& origin, const DualVec3& direction, bool derivatives) const {
+  const auto found =
+      tracer_->Intersect(origin.value().cast<float>(), direction.value().cast<float>());
   if (!found) return std::nullopt;
   const SceneMesh& m = scene_.meshes[found->mesh];
   const Eigen::Vector3i& f = m.mesh.faces[found->face];
@@ -174,7 +179,8 @@ std::optional<DifferentiablePathTracer::Hit> DifferentiablePathTracer::Intersect
 
   const DualVec3 scaled_normal = Cross(e1, e2);
   h.area = 0.5 * scaled_normal.value().norm();
-  h.ng = h.area > 0.0 ? Normalized(scaled_normal) : DualVec3(Eigen::Vector3d(-direction.value().normalized()));
+  h.ng = h.area > 0.0 ? Normalized(scaled_normal)
+                      : DualVec3(Eigen::Vector3d(-direction.value().normalized()));
   h.ns = h.ng;
   if (m.smooth_shading) {
     const bool dual = derivatives && first_vertex_[found->mesh] >= 0;
@@ -188,9 +194,10 @@ std::optional<DifferentiablePathTracer::Hit> DifferentiablePathTracer::Intersect
   return h;
 }
 
-DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
-                                           const RenderOptions& options, CounterRng& rng, bool derivatives,
-                                           RayCounts* counts) const {
+DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
+                                           const Eigen::Vector3d& direction,
+                                           const RenderOptions& options, CounterRng& rng,
+                                           bool derivatives, RayCounts* counts) const {
   if (derivatives && !normal_derivatives_) {
     throw Error("DifferentiablePathTracer: derivatives asked after SetPositions without them");
   }
@@ -200,7 +207,9 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin, const 
   DualVec3 ray_o(origin), ray_d(Eigen::Vector3d(direction.normalized()));
   SparseDual bsdf_pdf;
   std::optional<Hit> previous;
-  const auto allowed = [&](int segments) { return options.max_depth < 0 || segments <= options.max_depth; };
+  const auto allowed = [&](int segments) {
+    return options.max_depth < 0 || segments <= options.max_depth;
+  };
   // radiance += rgb (*) scalar, the only way radiance grows: every term is a constant colour
   // times a function of the geometry.
   const auto add = [&](const Eigen::Vector3d& rgb, const SparseDual& scalar) {
@@ -235,7 +244,9 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin, const 
     }
     if (!allowed(depth + 1)) break;
     const Eigen::Vector3d albedo =
-        mesh.albedo.Eval(mesh.mesh, hit->face, static_cast<float>(hit->b1), static_cast<float>(hit->b2)).cast<double>();
+        mesh.albedo
+            .Eval(mesh.mesh, hit->face, static_cast<float>(hit->b1), static_cast<float>(hit->b2))
+            .cast<double>();
     if (albedo.maxCoeff() <= 0.0) break;
 
     // Lambertian surfaces reflect on both sides: orient the normals towards the incoming ray.
@@ -296,8 +307,8 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin, const 
         const SparseDual cos_s = Dot(at.ns, wi);
         if (usable && cos_s.value() > 0.0 && at.ng.value().dot(wi.value()) > 0.0) {
           ++local.occluded;
-          if (!tracer_->Occluded(origin_offset.value().cast<float>(), wi.value().cast<float>(), 0.0f,
-                                 static_cast<float>(distance.value()) * (1.0f - 1e-4f))) {
+          if (!tracer_->Occluded(origin_offset.value().cast<float>(), wi.value().cast<float>(),
+                                 0.0f, static_cast<float>(distance.value()) * (1.0f - 1e-4f))) {
             const bool delta = e.kind != LightSampler::Kind::kTriangle;
             const SparseDual weight = delta ? SparseDual(1.0) : PowerHeuristic(pdf, cos_s / kPi);
             add(beta.cwiseProduct(albedo).cwiseProduct(rgb), cos_s / kPi * factor * weight / pdf);
@@ -327,14 +338,16 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin, const 
   return radiance;
 }
 
-DualRgb DifferentiablePathTracer::Pixel(const View& view, int u, int v, const RenderOptions& options, uint64_t seed,
+DualRgb DifferentiablePathTracer::Pixel(const View& view, int u, int v,
+                                        const RenderOptions& options, uint64_t seed,
                                         bool derivatives, RayCounts* counts) const {
   const CameraIntrinsics& k = view.intrinsics;
   const Eigen::Matrix3d rotation = view.world_from_camera.rotation();
   const Eigen::Vector3d eye = view.world_from_camera.translation();
   const size_t pixel = static_cast<size_t>(v) * k.width + u;
   const bool box = options.filter == "box";
-  if (options.filter == "gaussian") throw Error("vertex refinement: the gaussian pixel filter is not supported (box or center)");
+  if (options.filter == "gaussian")
+    throw Error("vertex refinement: the gaussian pixel filter is not supported (box or center)");
   DualRgb sum;
   for (int s = 0; s < options.spp; ++s) {
     CounterRng rng(seed, pixel, static_cast<uint64_t>(s));

@@ -47,28 +47,30 @@ class DifferentiablePathTracer {
 
   // One path sample along a camera ray, as PathTracer::Radiance. Without `derivatives` only the
   // values are computed (same path, same value).
-  DualRgb Radiance(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, const RenderOptions& options,
-                   CounterRng& rng, bool derivatives, RayCounts* counts = nullptr) const;
+  DualRgb Radiance(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                   const RenderOptions& options, CounterRng& rng, bool derivatives,
+                   RayCounts* counts = nullptr) const;
   // Pixel (u, v) of `view`: the mean of options.spp samples drawn as PathTracer::Render draws
   // them (box filter, centre or gaussian), keyed by (seed, pixel, sample).
-  DualRgb Pixel(const View& view, int u, int v, const RenderOptions& options, uint64_t seed, bool derivatives,
-                RayCounts* counts = nullptr) const;
+  DualRgb Pixel(const View& view, int u, int v, const RenderOptions& options, uint64_t seed,
+                bool derivatives, RayCounts* counts = nullptr) const;
 
  private:
   struct Hit;
   DualVec3 Vertex(int mesh, int v, bool derivatives) const;
-  std::optional<Hit> Intersect(const DualVec3& origin, const DualVec3& direction, bool derivatives) const;
+  std::optional<Hit> Intersect(const DualVec3& origin, const DualVec3& direction,
+                               bool derivatives) const;
   void UpdateNormals(bool derivatives);
 
   Scene scene_;
   std::unique_ptr<RayTracer> tracer_;
   std::unique_ptr<LightSampler> lights_;
-  std::vector<int> first_vertex_;                    // per mesh: first parameter vertex or -1
+  std::vector<int> first_vertex_;  // per mesh: first parameter vertex or -1
   int vertex_count_ = 0;
-  std::vector<std::vector<Eigen::Vector3d>> positions_;   // per mesh, double precision
-  std::vector<std::vector<DualVec3>> dual_normals_;       // per smooth refined mesh: unit normals
-  std::vector<std::vector<Eigen::Vector3d>> normals_;     // per smooth mesh: unit normal values
-  bool normal_derivatives_ = true;                        // dual_normals_ match the positions
+  std::vector<std::vector<Eigen::Vector3d>> positions_;  // per mesh, double precision
+  std::vector<std::vector<DualVec3>> dual_normals_;      // per smooth refined mesh: unit normals
+  std::vector<std::vector<Eigen::Vector3d>> normals_;    // per smooth mesh: unit normal values
+  bool normal_derivatives_ = true;                       // dual_normals_ match the positions
 };
 
 }  // namespace genscene::render

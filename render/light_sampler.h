@@ -15,10 +15,12 @@ namespace genscene::render {
 // The point of face `face` that an area-light sample (u1, u2) picks, uniform over the triangle:
 // barycentrics (1 - sqrt(u1), sqrt(u1) (1 - u2), sqrt(u1) u2). Both tracers draw it this way, so
 // that they sample the same light points with the same random numbers.
-inline Eigen::Vector3f UniformPointOnTriangle(const TriangleMesh& mesh, int face, float u1, float u2) {
+inline Eigen::Vector3f UniformPointOnTriangle(const TriangleMesh& mesh, int face, float u1,
+                                              float u2) {
   const Eigen::Vector3i& f = mesh.faces[face];
   const float su = std::sqrt(u1);
-  return (1.0f - su) * mesh.vertices[f[0]] + su * (1.0f - u2) * mesh.vertices[f[1]] + su * u2 * mesh.vertices[f[2]];
+  return (1.0f - su) * mesh.vertices[f[0]] + su * (1.0f - u2) * mesh.vertices[f[1]] +
+         su * u2 * mesh.vertices[f[2]];
 }
 
 class LightSampler {

@@ -15,7 +15,9 @@ namespace {
 
 // Offset of a ray origin along the geometric normal, scaled with the magnitude of the position
 // so that it stays above float round-off in large scenes (Mitsuba scenes in centimetres).
-float OffsetScale(const Eigen::Vector3f& p) { return 2e-5f * (1.0f + p.cwiseAbs().maxCoeff()); }
+float OffsetScale(const Eigen::Vector3f& p) {
+  return 2e-5f * (1.0f + p.cwiseAbs().maxCoeff());
+}
 
 // Power heuristic (beta = 2) of Veach's multiple importance sampling.
 float PowerHeuristic(float pdf_a, float pdf_b) {
@@ -26,7 +28,8 @@ float PowerHeuristic(float pdf_a, float pdf_b) {
 // Cosine-weighted direction around unit n (pdf = cos / pi).
 Eigen::Vector3f SampleCosine(const Eigen::Vector3f& n, float u1, float u2) {
   const float r = std::sqrt(u1), phi = 2.0f * static_cast<float>(M_PI) * u2;
-  const float x = r * std::cos(phi), y = r * std::sin(phi), z = std::sqrt(std::max(0.0f, 1.0f - u1));
+  const float x = r * std::cos(phi), y = r * std::sin(phi),
+              z = std::sqrt(std::max(0.0f, 1.0f - u1));
   // Orthonormal basis (Duff et al. 2017).
   const float sign = std::copysign(1.0f, n.z());
   const float a = -1.0f / (sign + n.z()), b = n.x() * n.y() * a;
@@ -53,7 +56,8 @@ double SampleGaussianFilter(double stddev, CounterRng& rng) {
 
 void RenderOptions::Validate() const {
   RequireRange("spp", spp, 1, 1 << 20);
-  if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
+  if (max_depth == 0 || max_depth < -1)
+    throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
   RequireRange("rr_depth", rr_depth, 1, 1 << 20);
   RequireOneOf("filter", filter, {"box", "center", "gaussian"});
   RequireRange("filter_stddev", filter_stddev, 0.05, 10.0);
@@ -61,22 +65,22 @@ void RenderOptions::Validate() const {
 
 // A surface point as the path tracer uses it.
 struct PathTracer::SurfacePoint {
-  Eigen::Vector3f p;       // position
-  Eigen::Vector3f ng;      // unit geometric normal of the counter-clockwise face (not flipped)
-  Eigen::Vector3f ns;      // unit shading normal, on the same side as ng
-  float t = 0.0f;          // ray distance to it
+  Eigen::Vector3f p;   // position
+  Eigen::Vector3f ng;  // unit geometric normal of the counter-clockwise face (not flipped)
+  Eigen::Vector3f ns;  // unit shading normal, on the same side as ng
+  float t = 0.0f;      // ray distance to it
   int mesh = -1, face = -1;
   float b1 = 0.0f, b2 = 0.0f;
-  float area = 0.0f;       // area of the face
+  float area = 0.0f;  // area of the face
 };
 
 // One light sample as seen from a surface point.
 struct PathTracer::LightSample {
-  Eigen::Vector3f wi;      // unit direction from the surface point to the light
-  float distance = 0.0f;   // to the sampled light point
-  Eigen::Vector3f value;   // area lights: emitted radiance; point/voxel lights: intensity / r^2
-  float pdf = 0.0f;        // area lights: solid angle pdf; point/voxel lights: selection probability
-  bool is_delta = false;   // point and voxel lights cannot be hit by BSDF sampling
+  Eigen::Vector3f wi;     // unit direction from the surface point to the light
+  float distance = 0.0f;  // to the sampled light point
+  Eigen::Vector3f value;  // area lights: emitted radiance; point/voxel lights: intensity / r^2
+  float pdf = 0.0f;       // area lights: solid angle pdf; point/voxel lights: selection probability
+  bool is_delta = false;  // point and voxel lights cannot be hit by BSDF sampling
 };
 
 PathTracer::PathTracer(const Scene& scene) : scene_(scene), tracer_(std::make_unique<RayTracer>()) {
@@ -107,7 +111,8 @@ std::optional<PathTracer::SurfacePoint> PathTracer::Hit(const Eigen::Vector3f& o
   s.area = 0.5f * n.norm();
   // Zero-area triangles have no interior for Embree to hit and no power to sample; should round-off
   // still report one, it faces the ray.
-  s.ng = s.area > 0.0f ? Eigen::Vector3f(n / (2.0f * s.area)) : Eigen::Vector3f(-direction.normalized());
+  s.ng = s.area > 0.0f ? Eigen::Vector3f(n / (2.0f * s.area))
+                       : Eigen::Vector3f(-direction.normalized());
   s.ns = s.ng;
   if (m.smooth_shading) {
     const auto& vn = m.mesh.normals;
@@ -118,7 +123,8 @@ std::optional<PathTracer::SurfacePoint> PathTracer::Hit(const Eigen::Vector3f& o
   return s;
 }
 
-std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoint& at, CounterRng& rng) const {
+std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoint& at,
+                                                               CounterRng& rng) const {
   if (lights_->empty()) return std::nullopt;
   const size_t i = lights_->Choose(rng.UniformDouble());
   const float pmf = lights_->pmf(i);
@@ -178,15 +184,18 @@ float PathTracer::AreaLightPdf(const SurfacePoint& from, const SurfacePoint& on_
   return cos_light > 0.0f ? pmf * d2 / (on_light.area * cos_light) : 0.0f;
 }
 
-Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
-                                     const RenderOptions& options, CounterRng& rng, RayCounts* counts) const {
+Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
+                                     const Eigen::Vector3f& direction, const RenderOptions& options,
+                                     CounterRng& rng, RayCounts* counts) const {
   RayCounts local;
   Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
   Eigen::Vector3f beta = Eigen::Vector3f::Ones();  // path throughput
   Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
-  float bsdf_pdf = 0.0f;                            // solid-angle pdf of the last BSDF sample
+  float bsdf_pdf = 0.0f;  // solid-angle pdf of the last BSDF sample
   std::optional<SurfacePoint> previous;
-  const auto allowed = [&](int segments) { return options.max_depth < 0 || segments <= options.max_depth; };
+  const auto allowed = [&](int segments) {
+    return options.max_depth < 0 || segments <= options.max_depth;
+  };
 
   for (int depth = 1;; ++depth) {  // depth = segments of the path so far, ending at `hit`
     ++local.intersect;
@@ -289,12 +298,15 @@ int VoxelSplitting::Choose(double u) const {
 
 void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
                                    const VoxelLightGrid& grid, const VoxelSplitting& splitting,
-                                   const RenderOptions& options, CounterRng& rng, const VoxelCoefficientSink& sink,
-                                   RayCounts* counts, float first_vertex_weight) const {
+                                   const RenderOptions& options, CounterRng& rng,
+                                   const VoxelCoefficientSink& sink, RayCounts* counts,
+                                   float first_vertex_weight) const {
   RayCounts local;
   Eigen::Vector3f beta = Eigen::Vector3f::Ones();
   Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
-  const auto allowed = [&](int segments) { return options.max_depth < 0 || segments <= options.max_depth; };
+  const auto allowed = [&](int segments) {
+    return options.max_depth < 0 || segments <= options.max_depth;
+  };
   const VoxelSplitting* prepared = &splitting;
   VoxelSplitting local_splitting;
   if (static_cast<int>(splitting.centres.size()) != grid.VoxelCount()) {
@@ -313,7 +325,8 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
     std::vector<uint8_t> blocked;
   };
   thread_local Scratch scratch;
-  const size_t most = std::max(prepared->connected.size(), static_cast<size_t>(std::max(splitting.samples, 0)));
+  const size_t most =
+      std::max(prepared->connected.size(), static_cast<size_t>(std::max(splitting.samples, 0)));
   if (scratch.voxel.size() < most) {
     for (auto* v : {&scratch.voxel, &scratch.out_voxel}) v->resize(most);
     for (auto* v : {&scratch.weight, &scratch.cos_over_d2, &scratch.t_max}) v->resize(most);
@@ -334,7 +347,8 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
     const Eigen::Vector3f f_beta = beta.cwiseProduct(albedo) / static_cast<float>(M_PI);
 
     // Shadow rays to the chosen voxels (as SampleLight + next-event estimation in Radiance()):
-    // gathered first, traced together in packets from this vertex, then emitted in the gathered order.
+    // gathered first, traced together in packets from this vertex, then emitted in the gathered
+    // order.
     int n = 0;
     const auto consider = [&](int j, float weight) {
       const Eigen::Vector3f to_light = centres[j] - at.p;
@@ -398,10 +412,12 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
 std::optional<RayHit> PathTracer::PixelCentreHit(const View& view, int u, int v) const {
   const Eigen::Matrix3f rotation = view.world_from_camera.rotation().cast<float>();
   const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
-  return tracer_->Intersect(eye, rotation * view.intrinsics.RayDirection(u, v).cast<float>().normalized());
+  return tracer_->Intersect(
+      eye, rotation * view.intrinsics.RayDirection(u, v).cast<float>().normalized());
 }
 
-RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, uint64_t seed) const {
+RenderOutput PathTracer::Render(const View& view, const RenderOptions& options,
+                                uint64_t seed) const {
   options.Validate();
   const CameraIntrinsics& k = view.intrinsics;
   k.Validate("render view");
@@ -415,38 +431,41 @@ RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, 
   const bool box = options.filter == "box", gaussian = options.filter == "gaussian";
   std::vector<RayCounts> pixel_rays(static_cast<size_t>(k.width) * k.height);
 
-  ParallelFor(0, static_cast<size_t>(k.width) * k.height, [&](size_t pixel) {
-    const int u = static_cast<int>(pixel % k.width), v = static_cast<int>(pixel / k.width);
-    // Geometry buffers from the pixel-centre ray.
-    const Eigen::Vector3f centre_dir = k.RayDirection(u, v).cast<float>().normalized();
-    if (const auto hit = Hit(eye, rotation * centre_dir)) {
-      out.depth(u, v) = hit->t * centre_dir.z();
-      out.normal(u, v) = hit->ns.dot(rotation * centre_dir) > 0.0f ? -hit->ns : hit->ns;
-      out.object(u, v) = hit->mesh;
-    }
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (int s = 0; s < options.spp; ++s) {
-      CounterRng rng(seed, pixel, static_cast<uint64_t>(s));
-      // Pixel (u, v) covers [u - 0.5, u + 0.5) x [v - 0.5, v + 0.5) (DESIGN.md §1).
-      double x = box ? u - 0.5 + rng.UniformDouble() : u;
-      double y = box ? v - 0.5 + rng.UniformDouble() : v;
-      if (gaussian) {
-        // Like Mitsuba without sample_border, only positions inside the image contribute.
-        do {
-          x = u + SampleGaussianFilter(options.filter_stddev, rng);
-          y = v + SampleGaussianFilter(options.filter_stddev, rng);
-        } while (x < -0.5 || y < -0.5 || x >= k.width - 0.5 || y >= k.height - 0.5);
-      }
-      const Eigen::Vector3f dir = rotation * k.RayDirection(x, y).cast<float>().normalized();
-      const Eigen::Vector3f l = Radiance(eye, dir, options, rng, &pixel_rays[pixel]);
-      if (!l.allFinite()) {
-        throw Error(Format("rendering failed at pixel (", u, ", ", v, ") sample ", s, ": radiance (",
-                           l.transpose(), ") is not finite (seed ", seed, ")"));
-      }
-      sum += l.cast<double>();
-    }
-    out.radiance(u, v) = (sum / options.spp).cast<float>();
-  }, 16);
+  ParallelFor(
+      0, static_cast<size_t>(k.width) * k.height,
+      [&](size_t pixel) {
+        const int u = static_cast<int>(pixel % k.width), v = static_cast<int>(pixel / k.width);
+        // Geometry buffers from the pixel-centre ray.
+        const Eigen::Vector3f centre_dir = k.RayDirection(u, v).cast<float>().normalized();
+        if (const auto hit = Hit(eye, rotation * centre_dir)) {
+          out.depth(u, v) = hit->t * centre_dir.z();
+          out.normal(u, v) = hit->ns.dot(rotation * centre_dir) > 0.0f ? -hit->ns : hit->ns;
+          out.object(u, v) = hit->mesh;
+        }
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        for (int s = 0; s < options.spp; ++s) {
+          CounterRng rng(seed, pixel, static_cast<uint64_t>(s));
+          // Pixel (u, v) covers [u - 0.5, u + 0.5) x [v - 0.5, v + 0.5) (DESIGN.md §1).
+          double x = box ? u - 0.5 + rng.UniformDouble() : u;
+          double y = box ? v - 0.5 + rng.UniformDouble() : v;
+          if (gaussian) {
+            // Like Mitsuba without sample_border, only positions inside the image contribute.
+            do {
+              x = u + SampleGaussianFilter(options.filter_stddev, rng);
+              y = v + SampleGaussianFilter(options.filter_stddev, rng);
+            } while (x < -0.5 || y < -0.5 || x >= k.width - 0.5 || y >= k.height - 0.5);
+          }
+          const Eigen::Vector3f dir = rotation * k.RayDirection(x, y).cast<float>().normalized();
+          const Eigen::Vector3f l = Radiance(eye, dir, options, rng, &pixel_rays[pixel]);
+          if (!l.allFinite()) {
+            throw Error(Format("rendering failed at pixel (", u, ", ", v, ") sample ", s,
+                               ": radiance (", l.transpose(), ") is not finite (seed ", seed, ")"));
+          }
+          sum += l.cast<double>();
+        }
+        out.radiance(u, v) = (sum / options.spp).cast<float>();
+      },
+      16);
   for (const RayCounts& r : pixel_rays) {
     out.rays.intersect += r.intersect;
     out.rays.occluded += r.occluded;
@@ -456,19 +475,21 @@ RenderOutput PathTracer::Render(const View& view, const RenderOptions& options, 
 
 double RenderHalves::NoiseRms() const {
   double noise = 0.0;
-  for (size_t i = 0; i < a.size(); ++i) noise += 0.25 * (a.data()[i] - b.data()[i]).cast<double>().squaredNorm();
+  for (size_t i = 0; i < a.size(); ++i)
+    noise += 0.25 * (a.data()[i] - b.data()[i]).cast<double>().squaredNorm();
   return a.size() == 0 ? 0.0 : std::sqrt(noise / (3.0 * static_cast<double>(a.size())));
 }
 
-RenderHalves RenderInHalves(const PathTracer& tracer, const View& view, const RenderOptions& options, uint64_t seed_a,
-                            uint64_t seed_b) {
+RenderHalves RenderInHalves(const PathTracer& tracer, const View& view,
+                            const RenderOptions& options, uint64_t seed_a, uint64_t seed_b) {
   RenderOptions half = options;
   half.spp = std::max(1, options.spp / 2);
   RenderHalves out;
   out.a = tracer.Render(view, half, seed_a).radiance;
   out.b = tracer.Render(view, half, seed_b).radiance;
   out.mean = ImageRgb(out.a.width(), out.a.height());
-  for (size_t i = 0; i < out.a.size(); ++i) out.mean.data()[i] = 0.5f * (out.a.data()[i] + out.b.data()[i]);
+  for (size_t i = 0; i < out.a.size(); ++i)
+    out.mean.data()[i] = 0.5f * (out.a.data()[i] + out.b.data()[i]);
   return out;
 }
 

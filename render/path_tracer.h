@@ -25,7 +25,7 @@ class LightSampler;
 struct RenderOptions {
   static constexpr const char* kSection = "render";
 
-  int spp = 64;                // samples per pixel
+  int spp = 64;  // samples per pixel
   // Longest path in segments, as Mitsuba's max_depth: 1 = emitters seen directly, 2 = direct
   // illumination, -1 = unlimited (ended by Russian roulette). Cycles' "max bounces B" is B + 2.
   int max_depth = -1;
@@ -41,7 +41,8 @@ struct RenderOptions {
     v("spp", spp, "", "samples per pixel");
     v("max_depth", max_depth, "segments", "longest path (Mitsuba convention; -1 = unlimited)");
     v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
-    v("filter", filter, "", "pixel filter: box (pixel footprint), center (pixel-centre rays) or gaussian");
+    v("filter", filter, "",
+      "pixel filter: box (pixel footprint), center (pixel-centre rays) or gaussian");
     v("filter_stddev", filter_stddev, "px", "standard deviation of the gaussian filter");
     v("hide_emitters", hide_emitters, "", "camera rays that hit an emitter return black");
   }
@@ -57,11 +58,11 @@ struct RayCounts {
 
 // What a render produces; depth, normal and object come from the pixel-centre ray.
 struct RenderOutput {
-  ImageRgb radiance;     // linear RGB, mean over the samples
-  ImageDepth depth;      // planar z in meters, 0 where the ray escapes
-  ImageRgb normal;       // world-space shading normal facing the camera, 0 where the ray escapes
-  Image<int> object;     // mesh index, -1 where the ray escapes
-  RayCounts rays;        // traced for the radiance (not for the geometry buffers)
+  ImageRgb radiance;  // linear RGB, mean over the samples
+  ImageDepth depth;   // planar z in meters, 0 where the ray escapes
+  ImageRgb normal;    // world-space shading normal facing the camera, 0 where the ray escapes
+  Image<int> object;  // mesh index, -1 where the ray escapes
+  RayCounts rays;     // traced for the radiance (not for the geometry buffers)
 };
 
 // Which voxel lights a path vertex connects to when light estimation splits. Vertices up
@@ -97,7 +98,9 @@ struct VoxelConnections {
   const Eigen::Vector3f* base = nullptr;
 };
 // The face k on `axis` that a connection with direction component w_axis lights (w_axis != 0).
-inline int VoxelFace(int axis, float w_axis) { return 2 * axis + (w_axis < 0.0f ? 1 : 0); }
+inline int VoxelFace(int axis, float w_axis) {
+  return 2 * axis + (w_axis < 0.0f ? 1 : 0);
+}
 using VoxelCoefficientSink = std::function<void(const VoxelConnections& connections)>;
 
 class PathTracer {
@@ -112,7 +115,8 @@ class PathTracer {
   // Radiance along one camera ray (one path sample), for tests and the inverse stages.
   // Adds the rays it traces to `counts` when given.
   Eigen::Vector3f Radiance(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
-                           const RenderOptions& options, CounterRng& rng, RayCounts* counts = nullptr) const;
+                           const RenderOptions& options, CounterRng& rng,
+                           RayCounts* counts = nullptr) const;
 
   // Light estimation's walk: the same camera path as Radiance() (BSDF sampling,
   // Russian roulette, max_depth), but at every vertex it connects to the voxels of `splitting`
@@ -125,8 +129,9 @@ class PathTracer {
   // of paths.
   void VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
                          const VoxelLightGrid& grid, const VoxelSplitting& splitting,
-                         const RenderOptions& options, CounterRng& rng, const VoxelCoefficientSink& sink,
-                         RayCounts* counts = nullptr, float first_vertex_weight = 1.0f) const;
+                         const RenderOptions& options, CounterRng& rng,
+                         const VoxelCoefficientSink& sink, RayCounts* counts = nullptr,
+                         float first_vertex_weight = 1.0f) const;
 
   // The first surface the ray through the centre of pixel (u, v) of `view` meets: the ray of the
   // geometry buffers, of the pixel masks and of every first-hit lookup (albedo, texture).
@@ -139,7 +144,8 @@ class PathTracer {
   struct SurfacePoint;
   struct LightSample;
 
-  std::optional<SurfacePoint> Hit(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction) const;
+  std::optional<SurfacePoint> Hit(const Eigen::Vector3f& origin,
+                                  const Eigen::Vector3f& direction) const;
   std::optional<LightSample> SampleLight(const SurfacePoint& at, CounterRng& rng) const;
   // Solid-angle pdf with which SampleLight picks the point `p` of emitting face (mesh, face).
   float AreaLightPdf(const SurfacePoint& from, const SurfacePoint& on_light) const;
@@ -159,7 +165,7 @@ struct RenderHalves {
   double NoiseRms() const;
 };
 // `options.spp` is the total (each half gets max(1, spp / 2)).
-RenderHalves RenderInHalves(const PathTracer& tracer, const View& view, const RenderOptions& options, uint64_t seed_a,
-                            uint64_t seed_b);
+RenderHalves RenderInHalves(const PathTracer& tracer, const View& view,
+                            const RenderOptions& options, uint64_t seed_a, uint64_t seed_b);
 
 }  // namespace genscene::render

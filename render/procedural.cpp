@@ -17,11 +17,13 @@ SceneMesh FromSynthetic(const std::string& name, const SyntheticScene& synthetic
 }
 
 // A horizontal square light of side `side` centred at `center`, facing down.
-SceneMesh CeilingLight(const std::string& name, const Eigen::Vector3f& center, float side, const Eigen::Vector3f& radiance) {
+SceneMesh CeilingLight(const std::string& name, const Eigen::Vector3f& center, float side,
+                       const Eigen::Vector3f& radiance) {
   SceneMesh light;
   light.name = name;
   const float h = 0.5f * side;
-  for (const auto& [x, y] : {std::pair{-h, -h}, std::pair{h, -h}, std::pair{h, h}, std::pair{-h, h}}) {
+  for (const auto& [x, y] :
+       {std::pair{-h, -h}, std::pair{h, -h}, std::pair{h, h}, std::pair{-h, h}}) {
     light.mesh.vertices.push_back(center + Eigen::Vector3f(x, y, 0.0f));
   }
   light.mesh.faces = {{0, 2, 1}, {0, 3, 2}};  // clockwise seen from above: the front faces down
@@ -55,10 +57,12 @@ std::vector<View> CornellLightViews(int width, int height) {
 
 IcosphereBox MakeIcosphereBox(bool smooth_shading) {
   IcosphereBox box;
-  const Eigen::Vector3f white(0.725f, 0.71f, 0.68f), red(0.63f, 0.065f, 0.05f), green(0.14f, 0.45f, 0.091f);
+  const Eigen::Vector3f white(0.725f, 0.71f, 0.68f), red(0.63f, 0.065f, 0.05f),
+      green(0.14f, 0.45f, 0.091f);
   // Quad with corners a, b, c, d counter-clockwise seen from the inside of the box.
   const auto wall = [&](const std::string& name, const Eigen::Vector3f& a, const Eigen::Vector3f& b,
-                        const Eigen::Vector3f& c, const Eigen::Vector3f& d, const Eigen::Vector3f& albedo) {
+                        const Eigen::Vector3f& c, const Eigen::Vector3f& d,
+                        const Eigen::Vector3f& albedo) {
     SceneMesh m;
     m.name = name;
     m.mesh.vertices = {a, b, c, d};
@@ -72,12 +76,14 @@ IcosphereBox MakeIcosphereBox(bool smooth_shading) {
   wall("back", {-h, h, 0}, {h, h, 0}, {h, h, 1}, {-h, h, 1}, white);
   wall("red", {-h, -h, 0}, {-h, h, 0}, {-h, h, 1}, {-h, -h, 1}, red);
   wall("green", {h, -h, 0}, {h, -h, 1}, {h, h, 1}, {h, h, 0}, green);
-  box.scene.meshes.push_back(CeilingLight("light", {0.0f, 0.0f, 0.998f}, 0.25f, {30.0f, 24.0f, 18.0f}));
+  box.scene.meshes.push_back(
+      CeilingLight("light", {0.0f, 0.0f, 0.998f}, 0.25f, {30.0f, 24.0f, 18.0f}));
 
   SceneMesh sphere;
   sphere.name = "icosphere";
   const UnitIcosphere unit = MakeUnitIcosphere(1);
-  for (const Eigen::Vector3d& v : unit.vertices) sphere.mesh.vertices.push_back((box.center + box.radius * v).cast<float>());
+  for (const Eigen::Vector3d& v : unit.vertices)
+    sphere.mesh.vertices.push_back((box.center + box.radius * v).cast<float>());
   sphere.mesh.faces = unit.faces;
   sphere.mesh.ComputeVertexNormals();
   sphere.smooth_shading = smooth_shading;
@@ -94,8 +100,8 @@ IcosphereBox MakeIcosphereBox(bool smooth_shading) {
   return box;
 }
 
-SpikeAndDent PerturbFacingVertices(const TriangleMesh& mesh, const Eigen::Vector3d& center, double radius,
-                                   const Eigen::Vector3d& eye, double size) {
+SpikeAndDent PerturbFacingVertices(const TriangleMesh& mesh, const Eigen::Vector3d& center,
+                                   double radius, const Eigen::Vector3d& eye, double size) {
   SpikeAndDent out;
   out.positions.resize(3 * mesh.vertices.size());
   std::vector<std::pair<double, int>> facing;  // (-cos of the angle to the eye, vertex)
@@ -113,7 +119,9 @@ SpikeAndDent PerturbFacingVertices(const TriangleMesh& mesh, const Eigen::Vector
       break;
     }
   }
-  const auto outwards = [&](int v) { return Eigen::Vector3d((out.positions.segment<3>(3 * v) - center).normalized()); };
+  const auto outwards = [&](int v) {
+    return Eigen::Vector3d((out.positions.segment<3>(3 * v) - center).normalized());
+  };
   out.positions.segment<3>(3 * out.spike) += size * outwards(out.spike);
   out.positions.segment<3>(3 * out.dent) -= size * outwards(out.dent);
   return out;
@@ -121,26 +129,41 @@ SpikeAndDent PerturbFacingVertices(const TriangleMesh& mesh, const Eigen::Vector
 
 Scene MakeRoomScene() {
   SyntheticScene room;
-  const Eigen::Vector3f wall(0.78f, 0.76f, 0.72f), floor(0.35f, 0.3f, 0.27f), wood(0.45f, 0.3f, 0.18f);
+  const Eigen::Vector3f wall(0.78f, 0.76f, 0.72f), floor(0.35f, 0.3f, 0.27f),
+      wood(0.45f, 0.3f, 0.18f);
   room.room = SyntheticScene::Room{};
-  room.room->bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-2.5, -2.0, 0.0), Eigen::Vector3d(2.5, 2.0, 2.6));
-  room.room->albedo = {wall, Eigen::Vector3f(0.55f, 0.65f, 0.75f), wall, wall, floor, Eigen::Vector3f::Constant(0.85f)};
+  room.room->bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-2.5, -2.0, 0.0), Eigen::Vector3d(2.5, 2.0, 2.6));
+  room.room->albedo = {wall,  Eigen::Vector3f(0.55f, 0.65f, 0.75f), wall, wall,
+                       floor, Eigen::Vector3f::Constant(0.85f)};
   // Table: top and four legs.
-  room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-0.6, -0.4, 0.72), Eigen::Vector3d(0.6, 0.4, 0.76)), wood});
+  room.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(-0.6, -0.4, 0.72), Eigen::Vector3d(0.6, 0.4, 0.76)),
+       wood});
   for (double x : {-0.55, 0.5}) {
     for (double y : {-0.35, 0.3}) {
-      room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(x, y, 0.0), Eigen::Vector3d(x + 0.05, y + 0.05, 0.72)), wood});
+      room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(x, y, 0.0),
+                                                Eigen::Vector3d(x + 0.05, y + 0.05, 0.72)),
+                            wood});
     }
   }
   // Sofa against the +y wall, cabinet against the -x wall.
   const Eigen::Vector3f fabric(0.2f, 0.3f, 0.55f);
-  room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-1.2, 1.2, 0.0), Eigen::Vector3d(1.2, 2.0, 0.45)), fabric});
-  room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-1.2, 1.7, 0.45), Eigen::Vector3d(1.2, 2.0, 0.9)), fabric});
-  room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-2.5, -1.0, 0.0), Eigen::Vector3d(-2.0, 0.2, 1.0)), wood});
-  room.spheres.push_back({Eigen::Vector3d(0.9, -1.0, 0.2), 0.2, Eigen::Vector3f(0.8f, 0.2f, 0.15f)});
+  room.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(-1.2, 1.2, 0.0), Eigen::Vector3d(1.2, 2.0, 0.45)),
+       fabric});
+  room.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(-1.2, 1.7, 0.45), Eigen::Vector3d(1.2, 2.0, 0.9)),
+       fabric});
+  room.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(-2.5, -1.0, 0.0), Eigen::Vector3d(-2.0, 0.2, 1.0)),
+       wood});
+  room.spheres.push_back(
+      {Eigen::Vector3d(0.9, -1.0, 0.2), 0.2, Eigen::Vector3f(0.8f, 0.2f, 0.15f)});
   Scene scene;
   scene.meshes.push_back(FromSynthetic("room", room));
-  scene.meshes.push_back(CeilingLight("ceiling_panel", {0.0f, 0.0f, 2.58f}, 0.8f, {9.0f, 9.0f, 8.5f}));
+  scene.meshes.push_back(
+      CeilingLight("ceiling_panel", {0.0f, 0.0f, 2.58f}, 0.8f, {9.0f, 9.0f, 8.5f}));
   scene.meshes.push_back(CeilingLight("lamp", {-2.25f, -0.4f, 1.3f}, 0.15f, {40.0f, 28.0f, 14.0f}));
   // The lamp shade faces down onto the cabinet; a small upward panel lights the ceiling above it.
   SceneMesh up = CeilingLight("lamp_up", {-2.25f, -0.4f, 1.31f}, 0.15f, {20.0f, 14.0f, 7.0f});

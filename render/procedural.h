@@ -42,7 +42,7 @@ struct SpikeAndDent {
   Eigen::VectorXd positions;
   int spike = -1, dent = -1;
 };
-SpikeAndDent PerturbFacingVertices(const TriangleMesh& mesh, const Eigen::Vector3d& center, double radius,
-                                   const Eigen::Vector3d& eye, double size);
+SpikeAndDent PerturbFacingVertices(const TriangleMesh& mesh, const Eigen::Vector3d& center,
+                                   double radius, const Eigen::Vector3d& eye, double size);
 
 }  // namespace genscene::render

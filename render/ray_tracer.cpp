@@ -24,7 +24,8 @@ struct ErrorState {
 void OnEmbreeError(void* user, RTCError code, const char* text) {
   auto* state = static_cast<ErrorState*>(user);
   std::lock_guard<std::mutex> lock(state->mutex);
-  if (state->message.empty()) state->message = Format("Embree error ", static_cast<int>(code), ": ", text ? text : "");
+  if (state->message.empty())
+    state->message = Format("Embree error ", static_cast<int>(code), ": ", text ? text : "");
 }
 
 }  // namespace
@@ -50,7 +51,8 @@ struct RayTracer::Impl {
 
 RayTracer::RayTracer() : impl_(std::make_unique<Impl>()) {
   impl_->device = rtcNewDevice(nullptr);
-  if (!impl_->device) throw Error(Format("cannot create the Embree device (error ", rtcGetDeviceError(nullptr), ")"));
+  if (!impl_->device)
+    throw Error(Format("cannot create the Embree device (error ", rtcGetDeviceError(nullptr), ")"));
   rtcSetDeviceErrorFunction(impl_->device, OnEmbreeError, &impl_->errors);
   impl_->scene = rtcNewScene(impl_->device);
   // Robust mode: no missed hits on shared edges, at a small cost in speed.
@@ -68,10 +70,12 @@ RayTracer::~RayTracer() {
 int RayTracer::AddMesh(const TriangleMesh& mesh, bool dynamic) {
   mesh.Validate("RayTracer::AddMesh");
   RTCGeometry geometry = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-  auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), mesh.vertices.size()));
-  auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-      geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), mesh.faces.size()));
+  auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0,
+                                                               RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                                               mesh.vertices.size()));
+  auto* indices = static_cast<unsigned*>(
+      rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                              3 * sizeof(unsigned), mesh.faces.size()));
   impl_->ThrowIfError("RayTracer::AddMesh");
   for (size_t i = 0; i < mesh.vertices.size(); ++i) {
     std::memcpy(vertices + 3 * i, mesh.vertices[i].data(), 3 * sizeof(float));
@@ -100,12 +104,14 @@ void RayTracer::Commit() {
 
 void RayTracer::UpdateVertices(int mesh, const std::vector<Eigen::Vector3f>& vertices) {
   GS_CHECK(mesh >= 0 && mesh < MeshCount());
-  if (!impl_->dynamic[mesh]) throw Error(Format("RayTracer: mesh ", mesh, " was not added as dynamic"));
+  if (!impl_->dynamic[mesh])
+    throw Error(Format("RayTracer: mesh ", mesh, " was not added as dynamic"));
   GS_CHECK_EQ(vertices.size(), impl_->vertex_counts[mesh]);
   RTCGeometry geometry = impl_->geometries[mesh];
   auto* buffer = static_cast<float*>(rtcGetGeometryBufferData(geometry, RTC_BUFFER_TYPE_VERTEX, 0));
   for (size_t i = 0; i < vertices.size(); ++i) {
-    if (!vertices[i].allFinite()) throw Error(Format("RayTracer: vertex ", i, " of mesh ", mesh, " is not finite"));
+    if (!vertices[i].allFinite())
+      throw Error(Format("RayTracer: vertex ", i, " of mesh ", mesh, " is not finite"));
     std::memcpy(buffer + 3 * i, vertices[i].data(), 3 * sizeof(float));
   }
   rtcUpdateGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0);
@@ -115,7 +121,8 @@ void RayTracer::UpdateVertices(int mesh, const std::vector<Eigen::Vector3f>& ver
 
 namespace {
 
-void FillRay(RTCRay& ray, const Eigen::Vector3f& o, const Eigen::Vector3f& d, float t_min, float t_max) {
+void FillRay(RTCRay& ray, const Eigen::Vector3f& o, const Eigen::Vector3f& d, float t_min,
+             float t_max) {
   ray.org_x = o.x();
   ray.org_y = o.y();
   ray.org_z = o.z();
@@ -132,8 +139,9 @@ void FillRay(RTCRay& ray, const Eigen::Vector3f& o, const Eigen::Vector3f& d, fl
 
 }  // namespace
 
-std::optional<RayHit> RayTracer::Intersect(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
-                                           float t_min, float t_max) const {
+std::optional<RayHit> RayTracer::Intersect(const Eigen::Vector3f& origin,
+                                           const Eigen::Vector3f& direction, float t_min,
+                                           float t_max) const {
   GS_CHECK(impl_->committed);
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
@@ -153,8 +161,8 @@ std::optional<RayHit> RayTracer::Intersect(const Eigen::Vector3f& origin, const 
   return hit;
 }
 
-bool RayTracer::Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_min,
-                         float t_max) const {
+bool RayTracer::Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
+                         float t_min, float t_max) const {
   GS_CHECK(impl_->committed);
   if (!(t_max > t_min)) return false;
   RTCIntersectContext context;
@@ -165,8 +173,8 @@ bool RayTracer::Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& d
   return ray.tfar == -INFINITY;
 }
 
-void RayTracer::OccludedFrom(const Eigen::Vector3f& origin, const Eigen::Vector3f* directions, const float* t_max,
-                             int n, float t_min, uint8_t* occluded) const {
+void RayTracer::OccludedFrom(const Eigen::Vector3f& origin, const Eigen::Vector3f* directions,
+                             const float* t_max, int n, float t_min, uint8_t* occluded) const {
   GS_CHECK(impl_->committed);
   RTCRay16 packet;
   alignas(64) int valid[16];
@@ -196,10 +204,13 @@ void RayTracer::OccludedFrom(const Eigen::Vector3f& origin, const Eigen::Vector3
       rtcInitIntersectContext(&context);
       rtcOccluded16(valid, impl_->scene, &context, &packet);
     }
-    for (int r = 0; r < count; ++r) occluded[begin + r] = valid[r] != 0 && packet.tfar[r] == -INFINITY ? 1 : 0;
+    for (int r = 0; r < count; ++r)
+      occluded[begin + r] = valid[r] != 0 && packet.tfar[r] == -INFINITY ? 1 : 0;
   }
 }
 
-int RayTracer::MeshCount() const { return static_cast<int>(impl_->geometries.size()); }
+int RayTracer::MeshCount() const {
+  return static_cast<int>(impl_->geometries.size());
+}
 
 }  // namespace genscene::render

@@ -14,11 +14,11 @@
 namespace genscene::render {
 
 struct RayHit {
-  float t = 0.0f;       // distance along the (unit or not) ray direction
-  int mesh = -1;        // index of the mesh, in the order AddMesh was called
-  int face = -1;        // triangle index in that mesh
-  float b1 = 0.0f;      // barycentric weight of the face's second vertex
-  float b2 = 0.0f;      // barycentric weight of the third vertex (first: 1 - b1 - b2)
+  float t = 0.0f;   // distance along the (unit or not) ray direction
+  int mesh = -1;    // index of the mesh, in the order AddMesh was called
+  int face = -1;    // triangle index in that mesh
+  float b1 = 0.0f;  // barycentric weight of the face's second vertex
+  float b2 = 0.0f;  // barycentric weight of the third vertex (first: 1 - b1 - b2)
 };
 
 class RayTracer {
@@ -46,8 +46,8 @@ class RayTracer {
   // for each i, into occluded[i] (1 when blocked). Traced in packets of 16 (rtcOccluded16): the
   // shadow rays of one path vertex to many voxel lights, 1.3x faster than one by one (Embree's
   // stream API, rtcOccluded1M, was no faster than single rays).
-  void OccludedFrom(const Eigen::Vector3f& origin, const Eigen::Vector3f* directions, const float* t_max, int n,
-                    float t_min, uint8_t* occluded) const;
+  void OccludedFrom(const Eigen::Vector3f& origin, const Eigen::Vector3f* directions,
+                    const float* t_max, int n, float t_min, uint8_t* occluded) const;
 
   int MeshCount() const;
 

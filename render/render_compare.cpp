@@ -31,8 +31,10 @@ Eigen::Vector3d RegionComparison::RelativeBias() const {
   return (mean_ours - mean_reference).cwiseAbs().cwiseQuotient(mean_reference);
 }
 
-ImageComparison CompareWithReference(const RenderOutput& a, const RenderOutput& b, const ImageRgb& reference,
-                                     const std::vector<bool>& emitter_meshes, size_t min_region_pixels) {
+ImageComparison CompareWithReference(const RenderOutput& a, const RenderOutput& b,
+                                     const ImageRgb& reference,
+                                     const std::vector<bool>& emitter_meshes,
+                                     size_t min_region_pixels) {
   if (!a.radiance.SameSize(reference) || !b.radiance.SameSize(reference)) {
     throw Error(Format("render ", a.radiance.width(), "x", a.radiance.height(), " vs reference ",
                        reference.width(), "x", reference.height()));
@@ -45,7 +47,8 @@ ImageComparison CompareWithReference(const RenderOutput& a, const RenderOutput& 
   for (int v = 0; v < reference.height(); ++v) {
     for (int u = 0; u < reference.width(); ++u) {
       if (!Interior(a.object, u, v, emitter_meshes)) continue;
-      const Eigen::Vector3d x = a.radiance(u, v).cast<double>(), y = b.radiance(u, v).cast<double>();
+      const Eigen::Vector3d x = a.radiance(u, v).cast<double>(),
+                            y = b.radiance(u, v).cast<double>();
       const Eigen::Vector3d ours = 0.5 * (x + y), ref = reference(u, v).cast<double>();
       RegionComparison& r = regions[a.object(u, v)];
       r.mesh = a.object(u, v);
@@ -67,8 +70,9 @@ ImageComparison CompareWithReference(const RenderOutput& a, const RenderOutput& 
     result.regions.push_back(r);
   }
   // Brighter half by reference luminance, as the reference's own noise figures are measured.
-  std::sort(pixels.begin(), pixels.end(),
-            [](const Pixel& p, const Pixel& q) { return p.reference_luminance > q.reference_luminance; });
+  std::sort(pixels.begin(), pixels.end(), [](const Pixel& p, const Pixel& q) {
+    return p.reference_luminance > q.reference_luminance;
+  });
   pixels.resize(pixels.size() / 2);
   double diff2 = 0.0, noise2 = 0.0;
   for (const Pixel& p : pixels) {

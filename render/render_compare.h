@@ -31,7 +31,9 @@ struct ImageComparison {
 
 // `a` and `b` are two renders of the same view with different seeds; "ours" is their mean.
 // `emitter_meshes[m]` is true for emitting meshes (left out).
-ImageComparison CompareWithReference(const RenderOutput& a, const RenderOutput& b, const ImageRgb& reference,
-                                     const std::vector<bool>& emitter_meshes, size_t min_region_pixels = 50);
+ImageComparison CompareWithReference(const RenderOutput& a, const RenderOutput& b,
+                                     const ImageRgb& reference,
+                                     const std::vector<bool>& emitter_meshes,
+                                     size_t min_region_pixels = 50);
 
 }  // namespace genscene::render

@@ -63,13 +63,15 @@ std::vector<SceneMesh> VoxelCubeFaces(const VoxelLightGrid& grid) {
       SceneMesh m;
       m.name = Format("voxel", v, "_face", k);
       const Eigen::Vector3d center = c + h * n;
-      for (const auto& [a, b] : {std::pair{-1, -1}, std::pair{1, -1}, std::pair{1, 1}, std::pair{-1, 1}}) {
+      for (const auto& [a, b] :
+           {std::pair{-1, -1}, std::pair{1, -1}, std::pair{1, 1}, std::pair{-1, 1}}) {
         m.mesh.vertices.push_back((center + h * (a * t1 + b * t2)).cast<float>());
       }
       m.mesh.faces = {Eigen::Vector3i(0, 1, 2), Eigen::Vector3i(0, 2, 3)};
       m.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Zero());
       // Intensity along n of a Lambertian quad of area A and radiance R is R A: R = L lambda / A.
-      m.emission = grid.intensity[v] * static_cast<float>(grid.weights[v][k] / (grid.cube_size * grid.cube_size));
+      m.emission = grid.intensity[v] *
+                   static_cast<float>(grid.weights[v][k] / (grid.cube_size * grid.cube_size));
       out.push_back(std::move(m));
     }
   }
@@ -81,7 +83,8 @@ void Scene::Validate() const {
     const std::string name = "mesh '" + m.name + "'";
     m.mesh.Validate(name);
     if (!m.emission.allFinite() || m.emission.minCoeff() < 0.0f) {
-      throw Error(Format(name, ": emitted radiance (", m.emission.transpose(), ") must be finite and >= 0"));
+      throw Error(Format(name, ": emitted radiance (", m.emission.transpose(),
+                         ") must be finite and >= 0"));
     }
     if (m.smooth_shading && m.mesh.normals.size() != m.mesh.vertices.size()) {
       throw Error(Format(name, ": smooth shading needs one normal per vertex"));
@@ -97,10 +100,12 @@ void Scene::Validate() const {
         break;
       case SurfaceAlbedo::Kind::kPerFace:
       case SurfaceAlbedo::Kind::kPerVertex: {
-        const size_t expected = m.albedo.kind == SurfaceAlbedo::Kind::kPerFace ? m.mesh.faces.size()
-                                                                               : m.mesh.vertices.size();
+        const size_t expected = m.albedo.kind == SurfaceAlbedo::Kind::kPerFace
+                                    ? m.mesh.faces.size()
+                                    : m.mesh.vertices.size();
         if (m.albedo.values.size() != expected) {
-          throw Error(Format(name, ": ", m.albedo.values.size(), " albedo values for ", expected, " elements"));
+          throw Error(Format(name, ": ", m.albedo.values.size(), " albedo values for ", expected,
+                             " elements"));
         }
         for (const auto& a : m.albedo.values) check_albedo(a);
         break;
@@ -113,8 +118,9 @@ void Scene::Validate() const {
   for (size_t i = 0; i < point_lights.size(); ++i) {
     const PointLight& p = point_lights[i];
     if (!p.position.allFinite() || !p.intensity.allFinite() || p.intensity.minCoeff() < 0.0f) {
-      throw Error(Format("point light ", i, ": position (", p.position.transpose(), ") and intensity (",
-                         p.intensity.transpose(), ") must be finite, intensity >= 0"));
+      throw Error(Format("point light ", i, ": position (", p.position.transpose(),
+                         ") and intensity (", p.intensity.transpose(),
+                         ") must be finite, intensity >= 0"));
     }
   }
   if (voxel_lights) voxel_lights->Validate();
@@ -138,15 +144,18 @@ Scene ShadingOnly(Scene scene) {
 }
 
 std::vector<TrainingView> ReadViews(const std::filesystem::path& folder) {
-  if (!std::filesystem::is_directory(folder)) throw Error(Format(folder.string(), ": no such view set folder"));
+  if (!std::filesystem::is_directory(folder))
+    throw Error(Format(folder.string(), ": no such view set folder"));
   std::vector<TrainingView> views;
   auto source = OpenFrameSource(folder.string(), SourceOptions());
   while (auto frame = source->Next()) {
     if (!frame->world_from_camera) {
-      throw Error(Format(frame->color_path.empty() ? folder.string() : frame->color_path, ": the image has no pose"));
+      throw Error(Format(frame->color_path.empty() ? folder.string() : frame->color_path,
+                         ": the image has no pose"));
     }
     if (frame->color.empty()) throw Error(Format(folder.string(), ": a frame has no colour image"));
-    views.push_back({View{frame->intrinsics, *frame->world_from_camera, frame->timestamp}, frame->color});
+    views.push_back(
+        {View{frame->intrinsics, *frame->world_from_camera, frame->timestamp}, frame->color});
   }
   if (views.empty()) throw Error(Format(folder.string(), ": no images"));
   return views;

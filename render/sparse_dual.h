@@ -24,7 +24,8 @@ class SparseDual {
   };
 
   SparseDual() = default;
-  SparseDual(double value) : v_(value) {}  // NOLINT(google-explicit-constructor): constants mix freely
+  SparseDual(double value)
+      : v_(value) {}  // NOLINT(google-explicit-constructor): constants mix freely
   // The coordinate `axis` of vertex `vertex`, whose value is `value`.
   static SparseDual Variable(double value, int vertex, int axis) {
     SparseDual x(value);
@@ -45,7 +46,8 @@ class SparseDual {
   }
 
   // a x + b y (values and derivatives), the one merge every operator uses.
-  static SparseDual Linear(double a, const SparseDual& x, double b, const SparseDual& y, double value) {
+  static SparseDual Linear(double a, const SparseDual& x, double b, const SparseDual& y,
+                           double value) {
     SparseDual r(value);
     r.d_.reserve(x.d_.size() + y.d_.size());
     auto i = x.d_.begin(), j = y.d_.begin();
@@ -79,8 +81,12 @@ class SparseDual {
   SparseDual operator-() const& { return Chain(-v_, -1.0); }
   SparseDual operator-() && { return std::move(*this).Chain(-v_, -1.0); }
 
-  friend SparseDual operator+(const SparseDual& x, const SparseDual& y) { return Linear(1, x, 1, y, x.v_ + y.v_); }
-  friend SparseDual operator-(const SparseDual& x, const SparseDual& y) { return Linear(1, x, -1, y, x.v_ - y.v_); }
+  friend SparseDual operator+(const SparseDual& x, const SparseDual& y) {
+    return Linear(1, x, 1, y, x.v_ + y.v_);
+  }
+  friend SparseDual operator-(const SparseDual& x, const SparseDual& y) {
+    return Linear(1, x, -1, y, x.v_ - y.v_);
+  }
   friend SparseDual operator*(const SparseDual& x, const SparseDual& y) {
     return Linear(y.v_, x, x.v_, y, x.v_ * y.v_);
   }
@@ -121,7 +127,8 @@ struct DualVec3 {
   SparseDual x, y, z;
 
   DualVec3() = default;
-  DualVec3(SparseDual a, SparseDual b, SparseDual c) : x(std::move(a)), y(std::move(b)), z(std::move(c)) {}
+  DualVec3(SparseDual a, SparseDual b, SparseDual c)
+      : x(std::move(a)), y(std::move(b)), z(std::move(c)) {}
   explicit DualVec3(const Eigen::Vector3d& c) : x(c.x()), y(c.y()), z(c.z()) {}
   // Vertex `vertex` at position `p`, its three coordinates seeded as variables.
   static DualVec3 Variable(const Eigen::Vector3d& p, int vertex) {
@@ -132,10 +139,16 @@ struct DualVec3 {
   Eigen::Vector3d value() const { return {x.value(), y.value(), z.value()}; }
   const SparseDual& operator[](int i) const { return i == 0 ? x : i == 1 ? y : z; }
 
-  friend DualVec3 operator+(const DualVec3& a, const DualVec3& b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-  friend DualVec3 operator-(const DualVec3& a, const DualVec3& b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
+  friend DualVec3 operator+(const DualVec3& a, const DualVec3& b) {
+    return {a.x + b.x, a.y + b.y, a.z + b.z};
+  }
+  friend DualVec3 operator-(const DualVec3& a, const DualVec3& b) {
+    return {a.x - b.x, a.y - b.y, a.z - b.z};
+  }
   friend DualVec3 operator-(const DualVec3& a) { return {-a.x, -a.y, -a.z}; }
-  friend DualVec3 operator*(const SparseDual& s, const DualVec3& a) { return {s * a.x, s * a.y, s * a.z}; }
+  friend DualVec3 operator*(const SparseDual& s, const DualVec3& a) {
+    return {s * a.x, s * a.y, s * a.z};
+  }
   friend DualVec3 operator*(double s, const DualVec3& a) { return {s * a.x, s * a.y, s * a.z}; }
   friend DualVec3 operator+(const DualVec3& a, const Eigen::Vector3d& b) {
     return {a.x + b.x(), a.y + b.y(), a.z + b.z()};
@@ -145,13 +158,21 @@ struct DualVec3 {
   }
 };
 
-inline SparseDual Dot(const DualVec3& a, const DualVec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-inline SparseDual Dot(const DualVec3& a, const Eigen::Vector3d& b) { return a.x * b.x() + a.y * b.y() + a.z * b.z(); }
+inline SparseDual Dot(const DualVec3& a, const DualVec3& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
+inline SparseDual Dot(const DualVec3& a, const Eigen::Vector3d& b) {
+  return a.x * b.x() + a.y * b.y() + a.z * b.z();
+}
 inline DualVec3 Cross(const DualVec3& a, const DualVec3& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-inline SparseDual SquaredNorm(const DualVec3& a) { return Dot(a, a); }
-inline SparseDual Norm(const DualVec3& a) { return sqrt(SquaredNorm(a)); }
+inline SparseDual SquaredNorm(const DualVec3& a) {
+  return Dot(a, a);
+}
+inline SparseDual Norm(const DualVec3& a) {
+  return sqrt(SquaredNorm(a));
+}
 // a / |a|; a must not be zero.
 inline DualVec3 Normalized(const DualVec3& a) {
   const SparseDual inv = 1.0 / Norm(a);

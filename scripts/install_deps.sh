@@ -6,6 +6,8 @@ set -euo pipefail
 PACKAGES=(
   # toolchain (clang and its sanitizer / libFuzzer runtimes for the sanitizer build and fuzz/)
   cmake ninja-build g++ make pkg-config ccache clang libclang-rt-14-dev
+  # the format check of scripts/test.sh
+  clang-format
   # core
   libeigen3-dev libtbb-dev libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopenexr-dev

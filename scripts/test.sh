@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# README command 2: installs what is missing, builds, and runs the whole test suite: the Release
-# build compiles the apps and benchmarks, the ASan + UBSan build runs every test; then the fuzz
+# README command 2: installs what is missing, checks the formatting, builds, and runs the whole
+# test suite: the Release build compiles the apps and benchmarks, the ASan + UBSan build runs every test; then the fuzz
 # build (clang) runs every libFuzzer harness of fuzz/ for 30 s (scripts/fuzz.sh). CI (.ci/run)
 # calls exactly this.
 #   scripts/test.sh            everything (what CI runs)
@@ -14,24 +14,24 @@ if [ "${CI:-}" = "true" ] && [ ! -d ../shared/data ] && [ -z "${GENSCENE_SHARED_
   exit 1
 fi
 
+scripts/check_format.sh
+
 if [ "${1:-}" = "--fast" ]; then
   scripts/build.sh
   (cd build && ctest --output-on-failure -j 2 -L fast)
   exit 0
 fi
 # The Release build makes every app and the benchmarks (CMake target genscene_release_pass: what
-# scripts/run.sh and users run compiles); every test runs in the sanitizer pass below. (Running
-# the chain tests in Release too took 1 min, which CI's 30 minutes do not leave.)
+# scripts/run.sh and users run compiles); every test runs in the sanitizer pass below.
 echo "test: $(date +%T) Release build (apps, benchmarks)"
 scripts/build.sh --target genscene_release_pass
 
 # The sanitizer pass: ASan + UBSan at -O2 without GCC's use-after-scope check (see CMakeLists.txt),
 # every test: "fast", "apps", "slow" (long renders compared with other renderers, the fusion
 # sequences, the whole chain) and "badinput" (the catalogue, 224 runs of the apps).
-# Measured in session 15 on 2 cores: slow 7.7 min, badinput 1.0 min, the rest 2.2 min. At -O1 a
-# 150-frame fusion sequence took over 10 minutes (now about 70 s), and the use-after-scope check
-# made genscene-fuse 1.75x slower: either would take CI past its 30 minutes. Long tests carry a
-# CTest COST so that they start first and do not run alone at the end.
+# At -O1 a 150-frame fusion sequence takes over 10 minutes (70 s at -O2), and the use-after-scope
+# check makes genscene-fuse 1.75x slower. Long tests carry a CTest COST so that they start first
+# and do not run alone at the end.
 echo "test: $(date +%T) sanitizer build (ASan + UBSan)"
 scripts/build.sh --sanitize
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"

@@ -1,20 +1,19 @@
 #include "tests/test_util.h"
 
+#include <spdlog/sinks/ostream_sink.h>
+#include <spdlog/spdlog.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <limits>
-#include <cmath>
 #include <sstream>
-
-#include <spdlog/sinks/ostream_sink.h>
-#include <spdlog/spdlog.h>
 
 namespace genscene::test {
 
@@ -38,7 +37,8 @@ TempDir::~TempDir() {
   fs::remove_all(path_, ec);
 }
 
-std::vector<std::pair<float, float>> HardBarycentrics(std::mt19937& rng, int uniform, int per_edge) {
+std::vector<std::pair<float, float>> HardBarycentrics(std::mt19937& rng, int uniform,
+                                                      int per_edge) {
   std::uniform_real_distribution<float> u(0.0f, 1.0f);
   std::vector<std::pair<float, float>> out;
   for (int k = 0; k < uniform; ++k) {
@@ -49,23 +49,36 @@ std::vector<std::pair<float, float>> HardBarycentrics(std::mt19937& rng, int uni
   for (int k = 0; k < per_edge; ++k) {
     const double t = u(rng);
     const float tf = static_cast<float>(t);
-    out.emplace_back(tf, 1.0f - tf);                                     // long edge, float
-    out.emplace_back(tf, static_cast<float>(1.0 - t));                   // long edge, double
+    out.emplace_back(tf, 1.0f - tf);                    // long edge, float
+    out.emplace_back(tf, static_cast<float>(1.0 - t));  // long edge, double
     out.emplace_back(std::nextafter(tf, 2.0f), std::nextafter(1.0f - tf, 2.0f));  // just past it
     out.emplace_back(tf, 0.0f);
     out.emplace_back(0.0f, tf);
     out.emplace_back(tf, -1e-7f);
     out.emplace_back(-1e-7f, tf);
   }
-  const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
-  for (auto p : std::vector<std::pair<float, float>>{{0, 0}, {1, 0}, {0, 1}, {1, 1}, {-1, -1}, {2, 0.5f}, {0.5f, 2},
-                                                     {1e30f, 1e30f}, {inf, 0}, {0, inf}, {inf, inf}, {-inf, 0.5f},
-                                                     {nan, 0.5f}, {0.5f, nan}, {nan, nan}, {0.205793679f, 0.794206858f}}) {
+  const float inf = std::numeric_limits<float>::infinity(),
+              nan = std::numeric_limits<float>::quiet_NaN();
+  for (auto p : std::vector<std::pair<float, float>>{{0, 0},
+                                                     {1, 0},
+                                                     {0, 1},
+                                                     {1, 1},
+                                                     {-1, -1},
+                                                     {2, 0.5f},
+                                                     {0.5f, 2},
+                                                     {1e30f, 1e30f},
+                                                     {inf, 0},
+                                                     {0, inf},
+                                                     {inf, inf},
+                                                     {-inf, 0.5f},
+                                                     {nan, 0.5f},
+                                                     {0.5f, nan},
+                                                     {nan, nan},
+                                                     {0.205793679f, 0.794206858f}}) {
     out.push_back(p);
   }
   return out;
 }
-
 
 struct LogCapture::Impl {
   std::ostringstream stream;
@@ -112,7 +125,8 @@ CommandResult RunCommand(const std::string& command, int timeout_seconds) {
   if (!pipe) return result;
   std::array<char, 4096> buffer;
   size_t n;
-  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0) result.output.append(buffer.data(), n);
+  while ((n = std::fread(buffer.data(), 1, buffer.size(), pipe)) > 0)
+    result.output.append(buffer.data(), n);
   const int status = ::pclose(pipe);
   result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   return result;

@@ -7,9 +7,9 @@
 #include <memory>
 #include <optional>
 #include <random>
+#include <string>
 #include <utility>
 #include <vector>
-#include <string>
 
 #include "core/check.h"
 
@@ -35,12 +35,12 @@ bool InCi();
 
 // Use at the top of a test: gives the shared data folder, or skips the test with a reason (fails
 // under CI=true).
-#define GS_REQUIRE_SHARED_DATA(var)                                                          \
-  const auto var##_opt = ::genscene::test::FindSharedData();                                 \
-  if (!var##_opt) {                                                                          \
+#define GS_REQUIRE_SHARED_DATA(var)                                                               \
+  const auto var##_opt = ::genscene::test::FindSharedData();                                      \
+  if (!var##_opt) {                                                                               \
     if (::genscene::test::InCi()) FAIL() << "../shared/data is missing, and CI=true requires it"; \
-    GTEST_SKIP() << "../shared/data not found (set GENSCENE_SHARED_DATA); skipping";         \
-  }                                                                                          \
+    GTEST_SKIP() << "../shared/data not found (set GENSCENE_SHARED_DATA); skipping";              \
+  }                                                                                               \
   const std::filesystem::path var = *var##_opt
 
 // Barycentric inputs (b1, b2) as the tracers and the refinement produce them: `uniform` points

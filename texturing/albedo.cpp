@@ -91,7 +91,8 @@ std::vector<Eigen::Vector2d> ChromaModes(const std::vector<Eigen::Vector2d>& chr
     }
     if (!merged) modes.push_back({x, weight[b]});
   }
-  std::stable_sort(modes.begin(), modes.end(), [](const Mode& a, const Mode& b) { return a.mass > b.mass; });
+  std::stable_sort(modes.begin(), modes.end(),
+                   [](const Mode& a, const Mode& b) { return a.mass > b.mass; });
   std::vector<Eigen::Vector2d> out;
   for (const Mode& m : modes) {
     if (m.mass >= min_fraction * total || out.empty()) out.push_back(m.at);
@@ -135,7 +136,8 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
     chroma[s] = Chroma(color[s].cwiseMax(0.0f));
     votes[s] = observed[s] && !dark[s];
   }
-  const std::vector<Eigen::Vector2d> modes = ChromaModes(chroma, votes, o.chroma_bandwidth, o.min_mode_fraction);
+  const std::vector<Eigen::Vector2d> modes =
+      ChromaModes(chroma, votes, o.chroma_bandwidth, o.min_mode_fraction);
   const int dark_class = static_cast<int>(modes.size());
   std::vector<int> klass(n);
   bool any_dark = false;
@@ -226,9 +228,7 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
       if (l_chroma > 1e-9) mean[p] = (chroma * (l_mean / l_chroma)).cwiseMax(1e-6);
     }
   }
-  auto log_lum = [](const Eigen::Vector3d& c) {
-    return std::log(std::max(1e-9, Luminance(c)));
-  };
+  auto log_lum = [](const Eigen::Vector3d& c) { return std::log(std::max(1e-9, Luminance(c))); };
   std::vector<double> log_mean(n_pieces);
   for (int p = 0; p < n_pieces; ++p) log_mean[p] = log_lum(mean[p]);
   // The largest piece of each class anchors the prior.
@@ -261,13 +261,16 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
   }
   for (int p = 0; p < n_pieces; ++p) {
     const int c = anchor[piece_class[p]];
-    if (c != p && o.prior_weight > 0.0) add_difference(p, c, log_mean[c] - log_mean[p], o.prior_weight);
+    if (c != p && o.prior_weight > 0.0)
+      add_difference(p, c, log_mean[c] - log_mean[p], o.prior_weight);
   }
-  for (int p = 0; p < n_pieces; ++p) triplets.emplace_back(p, p, 1e-9);  // pins isolated gauges at 0
+  for (int p = 0; p < n_pieces; ++p)
+    triplets.emplace_back(p, p, 1e-9);  // pins isolated gauges at 0
   Eigen::SparseMatrix<double> normal(n_pieces, n_pieces);
   normal.setFromTriplets(triplets.begin(), triplets.end());
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(normal);
-  if (solver.info() != Eigen::Success) throw Error("albedo: the scale system could not be factorised");
+  if (solver.info() != Eigen::Success)
+    throw Error("albedo: the scale system could not be factorised");
   Eigen::VectorXd x = solver.solve(rhs);
   double weighted = 0.0;
   for (int p = 0; p < n_pieces; ++p) weighted += x[p] * static_cast<double>(texels[p]);
@@ -316,7 +319,8 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
     const double l = std::max(1e-9, Luminance(piece_albedo[p]));
     int found = -1;
     for (size_t c = 0; c < building.size(); ++c) {
-      if (building[c].klass == piece_class[p] && std::abs(std::log(l / building[c].lum)) <= std::log1p(o.merge_tolerance)) {
+      if (building[c].klass == piece_class[p] &&
+          std::abs(std::log(l / building[c].lum)) <= std::log1p(o.merge_tolerance)) {
         found = static_cast<int>(c);
         break;
       }
@@ -347,7 +351,9 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
   // Ids by size (the building order is by the largest piece, which is nearly that).
   std::vector<int> rank(result.clusters.size());
   std::iota(rank.begin(), rank.end(), 0);
-  std::stable_sort(rank.begin(), rank.end(), [&](int a, int b) { return result.clusters[a].texels > result.clusters[b].texels; });
+  std::stable_sort(rank.begin(), rank.end(), [&](int a, int b) {
+    return result.clusters[a].texels > result.clusters[b].texels;
+  });
   std::vector<int> new_id(rank.size());
   std::vector<AlbedoCluster> sorted;
   for (size_t i = 0; i < rank.size(); ++i) {

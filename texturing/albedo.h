@@ -11,9 +11,9 @@
 //   2. each class is split into connected pieces on the mesh (the Mesh Colors lattice graph);
 //      pieces smaller than min_piece_texels join the neighbour they share most boundary with.
 //   3. each piece P gets albedo s_P m_P, where m_P has the chromaticity of its class's mode (the
-//      least tinted by colour bleeding) and the mean observed luminance of the piece. The scales x_P = log s_P
-//      minimise, over every lattice edge (a in P, b in Q) across a piece boundary, the jump in
-//      shading S = L(I) / L(albedo) (L = luminance):
+//      least tinted by colour bleeding) and the mean observed luminance of the piece. The scales
+//      x_P = log s_P minimise, over every lattice edge (a in P, b in Q) across a piece boundary,
+//      the jump in shading S = L(I) / L(albedo) (L = luminance):
 //          E = sum_(a,b) (x_P - x_Q - [log(L(I_a) / L(m_P)) - log(L(I_b) / L(m_Q))])^2
 //            + sum_P w_prior (x_P + log L(m_P) - x_C - log L(m_C))^2
 //      where C is the largest piece of P's class: a weak prior that pieces of one chromaticity
@@ -35,21 +35,25 @@ namespace genscene::texturing {
 
 struct AlbedoOptions {
   static constexpr const char* kSection = "albedo";
-  double chroma_bandwidth = 0.1;     // mean-shift radius in (r, g) chromaticity
-  double min_mode_fraction = 0.02;   // modes with less of the observed texels are dropped
-  double dark_fraction = 0.05;       // darker texels (x the median luminance) form the dark class
-  int min_piece_texels = 30;         // smaller connected pieces join a neighbour
-  double merge_tolerance = 0.2;      // pieces of one class within this luminance ratio share an albedo
-  double max_albedo = 0.9;           // gauge: 95th percentile of the largest albedo channel
-  double prior_weight = 1.0;         // weight of the same-chromaticity-same-albedo prior
+  double chroma_bandwidth = 0.1;    // mean-shift radius in (r, g) chromaticity
+  double min_mode_fraction = 0.02;  // modes with less of the observed texels are dropped
+  double dark_fraction = 0.05;      // darker texels (x the median luminance) form the dark class
+  int min_piece_texels = 30;        // smaller connected pieces join a neighbour
+  double merge_tolerance = 0.2;  // pieces of one class within this luminance ratio share an albedo
+  double max_albedo = 0.9;       // gauge: 95th percentile of the largest albedo channel
+  double prior_weight = 1.0;     // weight of the same-chromaticity-same-albedo prior
 
   template <typename V>
   void Visit(V&& v) {
     v("chroma_bandwidth", chroma_bandwidth, "", "mean-shift radius in rg chromaticity");
-    v("min_mode_fraction", min_mode_fraction, "", "chromaticity modes holding less of the surface are dropped");
-    v("dark_fraction", dark_fraction, "", "texels darker than this x the median luminance form the dark class");
-    v("min_piece_texels", min_piece_texels, "", "connected pieces with fewer texels join a neighbour");
-    v("merge_tolerance", merge_tolerance, "", "pieces of one class whose albedos agree within this ratio merge");
+    v("min_mode_fraction", min_mode_fraction, "",
+      "chromaticity modes holding less of the surface are dropped");
+    v("dark_fraction", dark_fraction, "",
+      "texels darker than this x the median luminance form the dark class");
+    v("min_piece_texels", min_piece_texels, "",
+      "connected pieces with fewer texels join a neighbour");
+    v("merge_tolerance", merge_tolerance, "",
+      "pieces of one class whose albedos agree within this ratio merge");
     v("max_albedo", max_albedo, "", "global scale: 95th percentile of the largest albedo channel");
     v("prior_weight", prior_weight, "", "weight of the prior that one chromaticity has one albedo");
   }
@@ -74,7 +78,7 @@ struct AlbedoStats {
 };
 
 struct AlbedoResult {
-  MeshColors albedo;  // the cluster albedo at every texel; labels() = cluster id
+  MeshColors albedo;                    // the cluster albedo at every texel; labels() = cluster id
   std::vector<AlbedoCluster> clusters;  // by texel count, largest first (id = index)
   AlbedoStats stats;
 };

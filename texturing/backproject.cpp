@@ -17,8 +17,8 @@ void TexturingOptions::Validate() const {
   RequireRange("texel_spacing", texel_spacing, 1e-5, 10.0);
   if (max_resolution < 1 || max_resolution > MeshColors::kMaxResolution ||
       (max_resolution & (max_resolution - 1)) != 0) {
-    throw Error(Format("option max_resolution = ", max_resolution, " must be a power of two in [1, ",
-                       MeshColors::kMaxResolution, "]"));
+    throw Error(Format("option max_resolution = ", max_resolution,
+                       " must be a power of two in [1, ", MeshColors::kMaxResolution, "]"));
   }
   RequireRange("depth_tolerance", depth_tolerance, 0.0, 1.0);
   RequireRange("depth_tolerance_ratio", depth_tolerance_ratio, 0.0, 1.0);
@@ -31,7 +31,9 @@ void TexturingOptions::Validate() const {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double SecondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+double SecondsSince(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
 
 constexpr double kNear = 0.01;  // meters
 
@@ -124,37 +126,41 @@ std::vector<int> FaceResolutions(const TriangleMesh& mesh, const std::vector<Vie
   std::vector<int> res = ChooseFaceResolutions(mesh, o.texel_spacing, o.max_resolution);
   if (!o.limit_to_image_detail) return res;
   const std::vector<int> probes = ChooseFaceResolutions(mesh, 8.0 * o.texel_spacing, 16);
-  ParallelFor(0, mesh.faces.size(), [&](size_t f) {
-    const Eigen::Vector3i& tri = mesh.faces[f];
-    const Eigen::Vector3d p0 = mesh.vertices[tri[0]].cast<double>();
-    const Eigen::Vector3d p1 = mesh.vertices[tri[1]].cast<double>();
-    const Eigen::Vector3d p2 = mesh.vertices[tri[2]].cast<double>();
-    const Eigen::Vector3d scaled = (p1 - p0).cross(p2 - p0);
-    if (!(scaled.norm() > 0.0)) {
-      res[f] = 1;
-      return;
-    }
-    const Eigen::Vector3d n = scaled.normalized();
-    const int r = probes[f];
-    double footprint = std::numeric_limits<double>::infinity();
-    for (int j = 0; j <= r; ++j) {
-      for (int i = 0; i + j <= r; ++i) {
-        // Probe points pulled 1 % towards the centre so that they belong to this face.
-        const double b1 = (0.99 * i + 0.01 * r / 3.0) / r, b2 = (0.99 * j + 0.01 * r / 3.0) / r;
-        const Eigen::Vector3d p = (1.0 - b1 - b2) * p0 + b1 * p1 + b2 * p2;
-        for (const View& view : views) {
-          const auto hit = See(view, p, n, o, cos_max_angle);
-          if (hit) footprint = std::min(footprint, hit->z / view.frame->intrinsics.fx);
+  ParallelFor(
+      0, mesh.faces.size(),
+      [&](size_t f) {
+        const Eigen::Vector3i& tri = mesh.faces[f];
+        const Eigen::Vector3d p0 = mesh.vertices[tri[0]].cast<double>();
+        const Eigen::Vector3d p1 = mesh.vertices[tri[1]].cast<double>();
+        const Eigen::Vector3d p2 = mesh.vertices[tri[2]].cast<double>();
+        const Eigen::Vector3d scaled = (p1 - p0).cross(p2 - p0);
+        if (!(scaled.norm() > 0.0)) {
+          res[f] = 1;
+          return;
         }
-      }
-    }
-    if (!std::isfinite(footprint)) {
-      res[f] = 1;  // no keyframe sees it: its colour is filled from neighbours anyway
-      return;
-    }
-    const double longest = std::max({(p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()});
-    res[f] = ResolutionForSpacing(longest, std::max(o.texel_spacing, footprint), o.max_resolution);
-  }, 64);
+        const Eigen::Vector3d n = scaled.normalized();
+        const int r = probes[f];
+        double footprint = std::numeric_limits<double>::infinity();
+        for (int j = 0; j <= r; ++j) {
+          for (int i = 0; i + j <= r; ++i) {
+            // Probe points pulled 1 % towards the centre so that they belong to this face.
+            const double b1 = (0.99 * i + 0.01 * r / 3.0) / r, b2 = (0.99 * j + 0.01 * r / 3.0) / r;
+            const Eigen::Vector3d p = (1.0 - b1 - b2) * p0 + b1 * p1 + b2 * p2;
+            for (const View& view : views) {
+              const auto hit = See(view, p, n, o, cos_max_angle);
+              if (hit) footprint = std::min(footprint, hit->z / view.frame->intrinsics.fx);
+            }
+          }
+        }
+        if (!std::isfinite(footprint)) {
+          res[f] = 1;  // no keyframe sees it: its colour is filled from neighbours anyway
+          return;
+        }
+        const double longest = std::max({(p1 - p0).norm(), (p2 - p1).norm(), (p0 - p2).norm()});
+        res[f] =
+            ResolutionForSpacing(longest, std::max(o.texel_spacing, footprint), o.max_resolution);
+      },
+      64);
   return res;
 }
 
@@ -162,7 +168,8 @@ std::vector<int> FaceResolutions(const TriangleMesh& mesh, const std::vector<Vie
 // uses only colours known before it, so the result does not depend on the order). Returns the
 // number of texels filled; texels that no observed texel reaches keep `fallback`.
 size_t FillUnobserved(const MeshColors& layout, std::vector<Eigen::Vector3f>& colors,
-                      std::vector<uint8_t>& known, const Eigen::Vector3f& fallback, size_t* unreached) {
+                      std::vector<uint8_t>& known, const Eigen::Vector3f& fallback,
+                      size_t* unreached) {
   const auto pairs = layout.SampleNeighbours();
   const size_t n = colors.size();
   std::vector<uint32_t> start(n + 1, 0), adjacent(2 * pairs.size());
@@ -210,7 +217,8 @@ TexturingResult TextureMesh(const TriangleMesh& input_mesh, const std::vector<Rg
   if (keyframes.empty()) throw Error("texturing: no keyframes (posed colour images are needed)");
   for (size_t i = 0; i < keyframes.size(); ++i) {
     const RgbdFrame& f = keyframes[i];
-    const std::string name = f.color_path.empty() ? Format("keyframe ", i) : Format("keyframe ", i, " (", f.color_path, ")");
+    const std::string name = f.color_path.empty() ? Format("keyframe ", i)
+                                                  : Format("keyframe ", i, " (", f.color_path, ")");
     if (!f.world_from_camera) throw Error(Format("texturing: ", name, " has no camera pose"));
     if (f.color.empty()) throw Error(Format("texturing: ", name, " has no colour image"));
     f.Validate();
@@ -226,24 +234,28 @@ TexturingResult TextureMesh(const TriangleMesh& input_mesh, const std::vector<Rg
   // Visibility: one z-buffer and edge mask per keyframe.
   auto t0 = Clock::now();
   std::vector<View> views(keyframes.size());
-  ParallelFor(0, keyframes.size(), [&](size_t i) {
-    View& view = views[i];
-    view.frame = &keyframes[i];
-    view.camera_from_world = keyframes[i].world_from_camera->inverse();
-    view.center = keyframes[i].world_from_camera->translation();
-    view.zbuffer = RenderDepth(mesh, keyframes[i].intrinsics, view.camera_from_world, kNear);
-    // The margin shrinks on thumbnails: at most 1/40 of the image's smaller side.
-    const int margin = std::min(options.edge_margin, std::min(keyframes[i].intrinsics.width,
-                                                              keyframes[i].intrinsics.height) / 40);
-    view.edges = DepthEdgeMask(view.zbuffer, options.depth_jump_ratio, margin);
-    if (options.use_sensor_depth && !keyframes[i].depth.empty()) {
-      // Discontinuities the mesh lacks (objects not fused, moved things) mix colours too.
-      const Image<uint8_t> sensor = DepthEdgeMask(keyframes[i].depth, options.depth_jump_ratio,
-                                                  margin, /*empty_is_edge=*/false);
-      for (size_t p = 0; p < sensor.size(); ++p) view.edges.pixels()[p] |= sensor.pixels()[p];
-    }
-    view.sharpness_weight = Sharpness(keyframes[i].color);
-  }, 1);
+  ParallelFor(
+      0, keyframes.size(),
+      [&](size_t i) {
+        View& view = views[i];
+        view.frame = &keyframes[i];
+        view.camera_from_world = keyframes[i].world_from_camera->inverse();
+        view.center = keyframes[i].world_from_camera->translation();
+        view.zbuffer = RenderDepth(mesh, keyframes[i].intrinsics, view.camera_from_world, kNear);
+        // The margin shrinks on thumbnails: at most 1/40 of the image's smaller side.
+        const int margin =
+            std::min(options.edge_margin,
+                     std::min(keyframes[i].intrinsics.width, keyframes[i].intrinsics.height) / 40);
+        view.edges = DepthEdgeMask(view.zbuffer, options.depth_jump_ratio, margin);
+        if (options.use_sensor_depth && !keyframes[i].depth.empty()) {
+          // Discontinuities the mesh lacks (objects not fused, moved things) mix colours too.
+          const Image<uint8_t> sensor = DepthEdgeMask(keyframes[i].depth, options.depth_jump_ratio,
+                                                      margin, /*empty_is_edge=*/false);
+          for (size_t p = 0; p < sensor.size(); ++p) view.edges.pixels()[p] |= sensor.pixels()[p];
+        }
+        view.sharpness_weight = Sharpness(keyframes[i].color);
+      },
+      1);
   double sharpest = 0.0;
   for (const View& view : views) sharpest = std::max(sharpest, view.sharpness_weight);
   for (View& view : views) {
@@ -277,7 +289,8 @@ TexturingResult TextureMesh(const TriangleMesh& input_mesh, const std::vector<Rg
         ColorSample c;
         c.color = Bilinear(views[k].frame->color, hit->u, hit->v);
         c.luminance = Luminance(c.color);
-        c.weight = static_cast<float>(hit->cos_angle / (hit->z * hit->z) * views[k].sharpness_weight);
+        c.weight =
+            static_cast<float>(hit->cos_angle / (hit->z * hit->z) * views[k].sharpness_weight);
         samples.push_back(c);
         seen_by[k].store(1, std::memory_order_relaxed);
       }
@@ -295,8 +308,9 @@ TexturingResult TextureMesh(const TriangleMesh& input_mesh, const std::vector<Rg
   }
   for (const auto& b : seen_by) stats.keyframes_seeing_mesh += b.load();
   if (stats.observed == 0) {
-    throw Error(Format("texturing: none of the ", keyframes.size(),
-                       " keyframes sees the mesh (check that poses and mesh share one world frame)"));
+    throw Error(
+        Format("texturing: none of the ", keyframes.size(),
+               " keyframes sees the mesh (check that poses and mesh share one world frame)"));
   }
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (size_t s = 0; s < n; ++s) {
@@ -304,9 +318,11 @@ TexturingResult TextureMesh(const TriangleMesh& input_mesh, const std::vector<Rg
   }
   mean /= static_cast<double>(stats.observed);
   for (int v = 0; v < texture.num_vertices(); ++v) {
-    if (texture.IsolatedVertex(v)) known[v] = 1, ++stats.isolated;  // stays black; nothing to fill from
+    if (texture.IsolatedVertex(v))
+      known[v] = 1, ++stats.isolated;  // stays black; nothing to fill from
   }
-  stats.filled = FillUnobserved(texture, texture.colors(), known, mean.cast<float>(), &stats.unreached);
+  stats.filled =
+      FillUnobserved(texture, texture.colors(), known, mean.cast<float>(), &stats.unreached);
   texture.labels().assign(used.begin(), used.end());
   stats.seconds_backproject = SecondsSince(t0);
   return result;

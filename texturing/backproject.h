@@ -4,9 +4,9 @@
 // For every texel (Mesh Colors sample) and every keyframe:
 //   visible   <=> the texel projects inside the image, faces the camera within max_view_angle,
 //                 is not behind the mesh's own z-buffer by more than the depth tolerance (occlusion
-//                 by other geometry), not behind the keyframe's measured depth either (occluders the
-//                 mesh lacks), and not within edge_margin pixels of a depth discontinuity of the
-//                 z-buffer or of the measured depth;
+//                 by other geometry), not behind the keyframe's measured depth either (occluders
+//                 the mesh lacks), and not within edge_margin pixels of a depth discontinuity of
+//                 the z-buffer or of the measured depth;
 //   sample    =  the keyframe's linear colour, bilinear at the projected point;
 //   weight    =  cos(view angle) / z^2 * sharpness, where sharpness is the keyframe's variance of
 //                the Laplacian of luminance relative to the sharpest keyframe, at least 0.25
@@ -34,29 +34,39 @@ namespace genscene::texturing {
 
 struct TexturingOptions {
   static constexpr const char* kSection = "texturing";
-  double texel_spacing = 0.005;      // target distance between colour samples, meters
-  int max_resolution = 64;           // largest per-face resolution (power of two)
+  double texel_spacing = 0.005;       // target distance between colour samples, meters
+  int max_resolution = 64;            // largest per-face resolution (power of two)
   bool limit_to_image_detail = true;  // no sample spacing finer than the keyframes' pixel footprint
-  double depth_tolerance = 0.01;     // texel counts as visible within this of the z-buffer, meters
+  double depth_tolerance = 0.01;      // texel counts as visible within this of the z-buffer, meters
   double depth_tolerance_ratio = 0.02;  // ... or this fraction of its depth, whichever is larger
-  bool use_sensor_depth = true;      // also test against the keyframe's measured depth
-  double depth_jump_ratio = 0.05;    // a depth discontinuity: neighbours differ by this x depth
-  int edge_margin = 2;               // pixels around discontinuities not used (at most 1/40 of the image's smaller side), px
-  double max_view_angle = 75.0;      // samples seen at a more grazing angle are not used, degrees
-  double outlier_ratio = 0.25;       // keep samples within m (1 +- this) of the median luminance
+  bool use_sensor_depth = true;         // also test against the keyframe's measured depth
+  double depth_jump_ratio = 0.05;       // a depth discontinuity: neighbours differ by this x depth
+  int edge_margin =
+      2;  // pixels around discontinuities not used (at most 1/40 of the image's smaller side), px
+  double max_view_angle = 75.0;  // samples seen at a more grazing angle are not used, degrees
+  double outlier_ratio = 0.25;   // keep samples within m (1 +- this) of the median luminance
 
   template <typename V>
   void Visit(V&& v) {
     v("texel_spacing", texel_spacing, "m", "target distance between colour samples");
-    v("max_resolution", max_resolution, "", "largest per-face Mesh Colors resolution (power of two)");
-    v("limit_to_image_detail", limit_to_image_detail, "", "no texel spacing finer than the keyframes' pixel footprint");
-    v("depth_tolerance", depth_tolerance, "m", "visibility: largest distance behind the z-buffer still visible");
-    v("depth_tolerance_ratio", depth_tolerance_ratio, "", "visibility tolerance as a fraction of depth (the larger applies)");
-    v("use_sensor_depth", use_sensor_depth, "", "also test visibility against the keyframes' measured depth");
-    v("depth_jump_ratio", depth_jump_ratio, "", "neighbouring depths differing by this fraction are a discontinuity");
-    v("edge_margin", edge_margin, "px", "pixels around depth discontinuities that are not used (at most 1/40 of the image's smaller side)");
+    v("max_resolution", max_resolution, "",
+      "largest per-face Mesh Colors resolution (power of two)");
+    v("limit_to_image_detail", limit_to_image_detail, "",
+      "no texel spacing finer than the keyframes' pixel footprint");
+    v("depth_tolerance", depth_tolerance, "m",
+      "visibility: largest distance behind the z-buffer still visible");
+    v("depth_tolerance_ratio", depth_tolerance_ratio, "",
+      "visibility tolerance as a fraction of depth (the larger applies)");
+    v("use_sensor_depth", use_sensor_depth, "",
+      "also test visibility against the keyframes' measured depth");
+    v("depth_jump_ratio", depth_jump_ratio, "",
+      "neighbouring depths differing by this fraction are a discontinuity");
+    v("edge_margin", edge_margin, "px",
+      "pixels around depth discontinuities that are not used (at most 1/40 of the image's smaller "
+      "side)");
     v("max_view_angle", max_view_angle, "deg", "most grazing view angle used");
-    v("outlier_ratio", outlier_ratio, "", "samples farther than this fraction from the median luminance are dropped");
+    v("outlier_ratio", outlier_ratio, "",
+      "samples farther than this fraction from the median luminance are dropped");
   }
   void Validate() const;
 };

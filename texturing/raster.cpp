@@ -59,7 +59,8 @@ void DrawTriangle(const ClipVertex& c0, const ClipVertex& c1, const ClipVertex& 
       if (w0 < 0.0 || w1 < 0.0 || w2 < 0.0) continue;
       const double inv_z = w0 * iz0 + w1 * iz1 + w2 * iz2;
       pixel(u, v, 1.0 / inv_z, [&] {
-        return Eigen::Vector3d((w0 * iz0 * c0.bary + w1 * iz1 * c1.bary + w2 * iz2 * c2.bary) / inv_z);
+        return Eigen::Vector3d((w0 * iz0 * c0.bary + w1 * iz1 * c1.bary + w2 * iz2 * c2.bary) /
+                               inv_z);
       });
     }
   }
@@ -71,15 +72,18 @@ void DrawMesh(const TriangleMesh& mesh, const CameraIntrinsics& intrinsics,
               const Eigen::Isometry3d& camera_from_world, double near, const Pixel& pixel) {
   for (size_t f = 0; f < mesh.faces.size(); ++f) {
     const Eigen::Vector3i& tri = mesh.faces[f];
-    const ClipVertex c[3] = {{camera_from_world * mesh.vertices[tri[0]].cast<double>(), Eigen::Vector3d::UnitX()},
-                             {camera_from_world * mesh.vertices[tri[1]].cast<double>(), Eigen::Vector3d::UnitY()},
-                             {camera_from_world * mesh.vertices[tri[2]].cast<double>(), Eigen::Vector3d::UnitZ()}};
+    const ClipVertex c[3] = {
+        {camera_from_world * mesh.vertices[tri[0]].cast<double>(), Eigen::Vector3d::UnitX()},
+        {camera_from_world * mesh.vertices[tri[1]].cast<double>(), Eigen::Vector3d::UnitY()},
+        {camera_from_world * mesh.vertices[tri[2]].cast<double>(), Eigen::Vector3d::UnitZ()}};
     if (c[0].p.z() < near && c[1].p.z() < near && c[2].p.z() < near) continue;
     ClipVertex clipped[4];
     const int n = ClipNear(c, near, clipped);
     for (int k = 1; k + 1 < n; ++k) {
       DrawTriangle(clipped[0], clipped[k], clipped[k + 1], intrinsics,
-                   [&](int u, int v, double z, const auto& bary) { pixel(static_cast<int>(f), u, v, z, bary); });
+                   [&](int u, int v, double z, const auto& bary) {
+                     pixel(static_cast<int>(f), u, v, z, bary);
+                   });
     }
   }
 }
@@ -89,10 +93,11 @@ void DrawMesh(const TriangleMesh& mesh, const CameraIntrinsics& intrinsics,
 ImageDepth RenderDepth(const TriangleMesh& mesh, const CameraIntrinsics& intrinsics,
                        const Eigen::Isometry3d& camera_from_world, double near) {
   ImageDepth depth(intrinsics.width, intrinsics.height, 0.0f);
-  DrawMesh(mesh, intrinsics, camera_from_world, near, [&](int, int u, int v, double z, const auto&) {
-    float& d = depth(u, v);
-    if (d == 0.0f || z < d) d = static_cast<float>(z);
-  });
+  DrawMesh(mesh, intrinsics, camera_from_world, near,
+           [&](int, int u, int v, double z, const auto&) {
+             float& d = depth(u, v);
+             if (d == 0.0f || z < d) d = static_cast<float>(z);
+           });
   return depth;
 }
 
@@ -103,15 +108,16 @@ SurfaceImage RenderSurface(const TriangleMesh& mesh, const CameraIntrinsics& int
   out.face = Image<int>(intrinsics.width, intrinsics.height, -1);
   out.b1 = ImageDepth(intrinsics.width, intrinsics.height, 0.0f);
   out.b2 = ImageDepth(intrinsics.width, intrinsics.height, 0.0f);
-  DrawMesh(mesh, intrinsics, camera_from_world, near, [&](int f, int u, int v, double z, const auto& bary) {
-    float& d = out.depth(u, v);
-    if (d != 0.0f && z >= d) return;
-    d = static_cast<float>(z);
-    const Eigen::Vector3d b = bary();
-    out.face(u, v) = f;
-    out.b1(u, v) = static_cast<float>(b.y());
-    out.b2(u, v) = static_cast<float>(b.z());
-  });
+  DrawMesh(mesh, intrinsics, camera_from_world, near,
+           [&](int f, int u, int v, double z, const auto& bary) {
+             float& d = out.depth(u, v);
+             if (d != 0.0f && z >= d) return;
+             d = static_cast<float>(z);
+             const Eigen::Vector3d b = bary();
+             out.face(u, v) = f;
+             out.b1(u, v) = static_cast<float>(b.y());
+             out.b2(u, v) = static_cast<float>(b.z());
+           });
   return out;
 }
 

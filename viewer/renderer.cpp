@@ -14,11 +14,16 @@ namespace genscene::viewer {
 
 const char* ColorModeName(ColorMode mode) {
   switch (mode) {
-    case ColorMode::kObserved: return "color";
-    case ColorMode::kAlbedo: return "albedo";
-    case ColorMode::kShading: return "shading";
-    case ColorMode::kClusters: return "clusters";
-    case ColorMode::kGeometry: return "geometry";
+    case ColorMode::kObserved:
+      return "color";
+    case ColorMode::kAlbedo:
+      return "albedo";
+    case ColorMode::kShading:
+      return "shading";
+    case ColorMode::kClusters:
+      return "clusters";
+    case ColorMode::kGeometry:
+      return "geometry";
   }
   return "?";
 }
@@ -29,7 +34,8 @@ ColorMode ParseColorMode(const std::string& text) {
   if (text == "shading") return ColorMode::kShading;
   if (text == "clusters") return ColorMode::kClusters;
   if (text == "geometry") return ColorMode::kGeometry;
-  throw Error(Format("--mode '", text, "' is not one of color, albedo, shading, clusters, geometry"));
+  throw Error(
+      Format("--mode '", text, "' is not one of color, albedo, shading, clusters, geometry"));
 }
 
 namespace {
@@ -226,20 +232,30 @@ bool Renderer::Supports(ColorMode mode) const {
   const Impl& m = *impl_;
   if (m.mesh.count == 0) return false;
   switch (mode) {
-    case ColorMode::kObserved: return m.observed.present;
+    case ColorMode::kObserved:
+      return m.observed.present;
     case ColorMode::kAlbedo:
-    case ColorMode::kClusters: return m.albedo.present;
-    case ColorMode::kShading: return m.observed.present && m.albedo.present;
-    case ColorMode::kGeometry: return true;
+    case ColorMode::kClusters:
+      return m.albedo.present;
+    case ColorMode::kShading:
+      return m.observed.present && m.albedo.present;
+    case ColorMode::kGeometry:
+      return true;
   }
   return false;
 }
 
-bool Renderer::HasRefinedMesh() const { return impl_->refined.count > 0; }
+bool Renderer::HasRefinedMesh() const {
+  return impl_->refined.count > 0;
+}
 
-void Renderer::SetLights(const std::vector<LightGlyph>& lights) { impl_->UploadOverlay(lights); }
+void Renderer::SetLights(const std::vector<LightGlyph>& lights) {
+  impl_->UploadOverlay(lights);
+}
 
-Eigen::AlignedBox3d Renderer::Bounds() const { return impl_->bounds; }
+Eigen::AlignedBox3d Renderer::Bounds() const {
+  return impl_->bounds;
+}
 
 void Renderer::Draw(const PosedView& view, const DrawOptions& options) {
   Impl& m = *impl_;
@@ -268,7 +284,8 @@ void Renderer::Draw(const PosedView& view, const DrawOptions& options) {
   SetMatrix(m.mesh_program, "clip_from_world", clip_from_world);
   glUniform1i(glGetUniformLocation(m.mesh_program, "mode"),
               supported ? static_cast<int>(options.mode) : static_cast<int>(ColorMode::kGeometry));
-  glUniform1i(glGetUniformLocation(m.mesh_program, "linear_lookup"), options.lookup == Lookup::kLinear);
+  glUniform1i(glGetUniformLocation(m.mesh_program, "linear_lookup"),
+              options.lookup == Lookup::kLinear);
   glUniform1i(glGetUniformLocation(m.mesh_program, "encode_srgb"), options.encode_srgb);
   glUniform3f(glGetUniformLocation(m.mesh_program, "eye"), static_cast<float>(eye.x()),
               static_cast<float>(eye.y()), static_cast<float>(eye.z()));
@@ -314,7 +331,8 @@ ImageRgb Renderer::RenderImage(const PosedView& view, const DrawOptions& options
     image = ImageRgb(w, h);
     for (int v = 0; v < h; ++v) {
       const float* row = rows.data() + static_cast<size_t>(h - 1 - v) * w * 3;
-      for (int u = 0; u < w; ++u) image(u, v) = Eigen::Vector3f(row[3 * u], row[3 * u + 1], row[3 * u + 2]);
+      for (int u = 0; u < w; ++u)
+        image(u, v) = Eigen::Vector3f(row[3 * u], row[3 * u + 1], row[3 * u + 2]);
     }
   }
   glBindFramebuffer(GL_FRAMEBUFFER, 0);
@@ -322,8 +340,8 @@ ImageRgb Renderer::RenderImage(const PosedView& view, const DrawOptions& options
   glDeleteRenderbuffers(1, &color);
   glDeleteFramebuffers(1, &fbo);
   if (status != GL_FRAMEBUFFER_COMPLETE) {
-    throw Error(Format("viewer: offscreen framebuffer ", w, "x", h, " incomplete (status 0x", std::hex,
-                       status, ")"));
+    throw Error(Format("viewer: offscreen framebuffer ", w, "x", h, " incomplete (status 0x",
+                       std::hex, status, ")"));
   }
   return image;
 }

@@ -31,10 +31,10 @@ enum class Lookup { kNearest, kLinear };  // MeshColors::Nearest / MeshColors::L
 struct DrawOptions {
   ColorMode mode = ColorMode::kObserved;
   Lookup lookup = Lookup::kNearest;
-  bool cull_back_faces = false;   // hide faces seen from behind (see into a room from outside)
-  bool show_overlay = true;       // trajectory, frusta, light glyphs
-  bool show_refined = false;      // mesh_refined.ply's vertices instead of mesh.ply's
-  bool encode_srgb = true;        // write sRGB (on screen) or linear (float offscreen target)
+  bool cull_back_faces = false;  // hide faces seen from behind (see into a room from outside)
+  bool show_overlay = true;      // trajectory, frusta, light glyphs
+  bool show_refined = false;     // mesh_refined.ply's vertices instead of mesh.ply's
+  bool encode_srgb = true;       // write sRGB (on screen) or linear (float offscreen target)
   Eigen::Vector3f background{0.08f, 0.08f, 0.1f};  // linear RGB
 };
 

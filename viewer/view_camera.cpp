@@ -72,9 +72,12 @@ void OrbitController::Pan(double dx, double dy, double fx) {
   target -= meters_per_pixel * (dx * pose.linear().col(0) + dy * pose.linear().col(1));
 }
 
-void OrbitController::Zoom(double steps) { distance = std::max(1e-3, distance * std::pow(0.9, steps)); }
+void OrbitController::Zoom(double steps) {
+  distance = std::max(1e-3, distance * std::pow(0.9, steps));
+}
 
-OrbitController OrbitController::FromPose(const Eigen::Isometry3d& world_from_camera, double distance) {
+OrbitController OrbitController::FromPose(const Eigen::Isometry3d& world_from_camera,
+                                          double distance) {
   constexpr double kLimit = 89.0 * M_PI / 180.0;
   OrbitController orbit;
   const Eigen::Vector3d forward = world_from_camera.linear().col(2).normalized();
@@ -94,7 +97,8 @@ OrbitController OverviewOrbit(const Eigen::AlignedBox3d& bounds, const CameraInt
   orbit.target = bounds.center();
   // The bounding sphere, roughly, fills the narrower field of view.
   const double radius = std::max(0.5 * bounds.diagonal().norm(), 1e-3);
-  const double half_fov = std::min(std::atan(0.5 * k.width / k.fx), std::atan(0.5 * k.height / k.fy));
+  const double half_fov =
+      std::min(std::atan(0.5 * k.width / k.fx), std::atan(0.5 * k.height / k.fy));
   orbit.distance = radius / std::tan(half_fov);
   return orbit;
 }
@@ -102,8 +106,8 @@ OrbitController OverviewOrbit(const Eigen::AlignedBox3d& bounds, const CameraInt
 CameraSpec ParseCameraSpec(const std::string& text) {
   CameraSpec spec;
   if (text == "overview") return spec;
-  const std::string bad = Format("--camera '", text,
-                                 "' is not 'overview', 'keyframe:N' or 'tx ty tz qx qy qz qw'");
+  const std::string bad =
+      Format("--camera '", text, "' is not 'overview', 'keyframe:N' or 'tx ty tz qx qy qz qw'");
   if (text.rfind("keyframe:", 0) == 0) {
     std::istringstream in(text.substr(9));
     int n = -1;
@@ -119,8 +123,8 @@ CameraSpec ParseCameraSpec(const std::string& text) {
   }
   if (!(in >> std::ws).eof()) throw Error(bad);
   spec.kind = CameraSpec::Kind::kPose;
-  spec.world_from_camera = PoseFromTranslationQuaternion(Eigen::Vector3d(v[0], v[1], v[2]),
-                                                         Eigen::Quaterniond(v[6], v[3], v[4], v[5]));
+  spec.world_from_camera = PoseFromTranslationQuaternion(
+      Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Quaterniond(v[6], v[3], v[4], v[5]));
   return spec;
 }
 

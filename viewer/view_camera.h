@@ -39,9 +39,9 @@ ClipRange ClipRangeFor(const Eigen::AlignedBox3d& bounds, const Eigen::Vector3d&
 // Orbit camera with world up +z: the eye sits on a sphere around `target`.
 struct OrbitController {
   Eigen::Vector3d target = Eigen::Vector3d::Zero();
-  double distance = 3.0;         // meters from the target
-  double azimuth = -M_PI / 2;    // radians about +z; -pi/2 = the eye on the -y side
-  double elevation = 0.35;       // radians above the xy plane, kept within +-89 degrees
+  double distance = 3.0;       // meters from the target
+  double azimuth = -M_PI / 2;  // radians about +z; -pi/2 = the eye on the -y side
+  double elevation = 0.35;     // radians above the xy plane, kept within +-89 degrees
 
   Eigen::Vector3d Eye() const;
   Eigen::Isometry3d WorldFromCamera() const;
@@ -58,7 +58,8 @@ struct OrbitController {
 };
 
 // The overview: the whole of `bounds` in view, seen from the -y side and 20 degrees above.
-OrbitController OverviewOrbit(const Eigen::AlignedBox3d& bounds, const CameraIntrinsics& intrinsics);
+OrbitController OverviewOrbit(const Eigen::AlignedBox3d& bounds,
+                              const CameraIntrinsics& intrinsics);
 
 // --camera: "overview", "keyframe:N" (N-th keyframe, 0-based) or "tx ty tz qx qy qz qw"
 // (world_from_camera, TUM order).

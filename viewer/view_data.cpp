@@ -16,8 +16,8 @@ namespace {
 
 // Runs `load`; a missing file or an Error becomes one line in `missing`.
 template <typename F>
-void LoadPiece(const fs::path& path, const std::string& how_to_make, std::vector<std::string>* missing,
-               F&& load) {
+void LoadPiece(const fs::path& path, const std::string& how_to_make,
+               std::vector<std::string>* missing, F&& load) {
   std::error_code ec;
   if (!fs::exists(path, ec)) {
     missing->push_back(Format(path.filename().string(), ": missing (", how_to_make, ")"));
@@ -57,7 +57,8 @@ ViewData LoadWorkspace(const fs::path& root) {
               [&] { data.albedo = ReadMeshColors(ws.Albedo(), *data.mesh); });
   } else {
     for (const fs::path& p : {ws.Texture(), ws.Albedo()}) {
-      if (fs::exists(p, ec)) missing->push_back(Format(p.filename().string(), ": not shown without mesh.ply"));
+      if (fs::exists(p, ec))
+        missing->push_back(Format(p.filename().string(), ": not shown without mesh.ply"));
     }
   }
   LoadPiece(ws.RefinedMesh(), "vertex refinement has not run", missing, [&] {
@@ -88,11 +89,13 @@ ViewData LoadWorkspace(const fs::path& root) {
 
 Eigen::AlignedBox3d SceneBounds(const ViewData& data) {
   Eigen::AlignedBox3d box;
-  for (const auto* mesh : {data.mesh ? &*data.mesh : nullptr, data.refined_mesh ? &*data.refined_mesh : nullptr}) {
+  for (const auto* mesh :
+       {data.mesh ? &*data.mesh : nullptr, data.refined_mesh ? &*data.refined_mesh : nullptr}) {
     if (!mesh) continue;
     for (const Eigen::Vector3f& p : mesh->vertices) box.extend(p.cast<double>());
   }
-  for (const StampedPose& p : data.trajectory.poses()) box.extend(p.world_from_camera.translation());
+  for (const StampedPose& p : data.trajectory.poses())
+    box.extend(p.world_from_camera.translation());
   for (const PosedView& v : data.keyframes) box.extend(v.world_from_camera.translation());
   for (const LightGlyph& l : data.lights) box.extend(l.position);
   return box;
@@ -140,7 +143,8 @@ MeshColorsTables BuildMeshColorsTables(const MeshColors& colors) {
     total += (r + 1) * (r + 2) / 2;
   }
   if (total > 0x7fffffffull) {
-    throw Error(Format("viewer: Mesh Colors lattice of ", total, " entries exceeds a 32-bit buffer texture index"));
+    throw Error(Format("viewer: Mesh Colors lattice of ", total,
+                       " entries exceeds a 32-bit buffer texture index"));
   }
   t.lattice_index.reserve(total);
   for (int f = 0; f < nf; ++f) {
@@ -154,7 +158,8 @@ MeshColorsTables BuildMeshColorsTables(const MeshColors& colors) {
     }
   }
   t.rgba.reserve(4 * colors.SampleCount());
-  for (const Eigen::Vector3f& c : colors.colors()) t.rgba.insert(t.rgba.end(), {c.x(), c.y(), c.z(), 1.0f});
+  for (const Eigen::Vector3f& c : colors.colors())
+    t.rgba.insert(t.rgba.end(), {c.x(), c.y(), c.z(), 1.0f});
   if (colors.labels().empty()) {
     t.labels.assign(colors.SampleCount(), -1);
   } else {
@@ -193,7 +198,8 @@ void AddFrusta(const std::vector<PosedView>& keyframes, double depth, Overlay* o
     const double us[4] = {-0.5, k.width - 0.5, k.width - 0.5, -0.5};
     const double vs[4] = {-0.5, -0.5, k.height - 0.5, k.height - 0.5};
     Eigen::Vector3d corner[4];
-    for (int c = 0; c < 4; ++c) corner[c] = view.world_from_camera * k.Unproject(us[c], vs[c], depth);
+    for (int c = 0; c < 4; ++c)
+      corner[c] = view.world_from_camera * k.Unproject(us[c], vs[c], depth);
     for (int c = 0; c < 4; ++c) {
       PushSegment(overlay, eye, corner[c], cyan);
       PushSegment(overlay, corner[c], corner[(c + 1) % 4], cyan);
@@ -220,7 +226,8 @@ void AddLightGlyphs(const std::vector<LightGlyph>& lights, double scale, Overlay
     if (!(max_weight > 0.0f)) continue;
     for (int k = 0; k < 6; ++k) {
       const double length = 3.0 * radius * light.weights[k] / max_weight;
-      if (length > 0.0) PushSegment(overlay, light.position, light.position + length * kAxes[k], color);
+      if (length > 0.0)
+        PushSegment(overlay, light.position, light.position + length * kAxes[k], color);
     }
   }
 }

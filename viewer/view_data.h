@@ -22,20 +22,20 @@ namespace genscene::viewer {
 // -z with lengths proportional to the directional weights (the voxel lights of core/light_set.h;
 // LoadWorkspace makes one per lit voxel of lights.json).
 struct LightGlyph {
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();      // world, meters
-  Eigen::Vector3f power = Eigen::Vector3f::Ones();          // linear RGB intensity, W/sr
-  std::array<float, 6> weights{1, 1, 1, 1, 1, 1};           // directional weights lambda_k >= 0
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  // world, meters
+  Eigen::Vector3f power = Eigen::Vector3f::Ones();     // linear RGB intensity, W/sr
+  std::array<float, 6> weights{1, 1, 1, 1, 1, 1};      // directional weights lambda_k >= 0
 };
 
 // Everything a workspace holds that the viewer draws; each piece is optional.
 struct ViewData {
-  std::optional<TriangleMesh> mesh;           // mesh.ply
-  std::optional<MeshColors> observed;         // texture.mcol (labels = view counts)
-  std::optional<MeshColors> albedo;           // albedo.mcol (labels = cluster ids)
-  std::optional<TriangleMesh> refined_mesh;   // mesh_refined.ply (shown instead of mesh when asked)
-  Trajectory trajectory;                      // trajectory.txt (empty when missing)
-  std::vector<PosedView> keyframes;           // keyframes/ (intrinsics.txt + groundtruth.txt)
-  std::vector<LightGlyph> lights;             // lights.json: one per voxel with >= 0.1 % of the top power
+  std::optional<TriangleMesh> mesh;          // mesh.ply
+  std::optional<MeshColors> observed;        // texture.mcol (labels = view counts)
+  std::optional<MeshColors> albedo;          // albedo.mcol (labels = cluster ids)
+  std::optional<TriangleMesh> refined_mesh;  // mesh_refined.ply (shown instead of mesh when asked)
+  Trajectory trajectory;                     // trajectory.txt (empty when missing)
+  std::vector<PosedView> keyframes;          // keyframes/ (intrinsics.txt + groundtruth.txt)
+  std::vector<LightGlyph> lights;  // lights.json: one per voxel with >= 0.1 % of the top power
   // One line per missing or unreadable piece, e.g. "texture.mcol: missing (run genscene-texture)".
   std::vector<std::string> missing;
 };

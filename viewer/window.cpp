@@ -32,7 +32,8 @@ std::string& LastGlfwError() {
 }
 
 void OnGlfwError(int code, const char* description) {
-  LastGlfwError() = Format(description ? description : "unknown", " (GLFW error 0x", std::hex, code, ")");
+  LastGlfwError() =
+      Format(description ? description : "unknown", " (GLFW error 0x", std::hex, code, ")");
 }
 
 // Under AddressSanitizer only: keeps Mesa's DRI driver (*_dri.so) loaded until the process ends.
@@ -88,54 +89,73 @@ class GlfwWindow {
 struct Session {
   Renderer* renderer = nullptr;
   const ViewData* data = nullptr;
-  PosedView view;                // what is drawn
-  OrbitController orbit;         // takes over from `view` at the first drag or scroll
+  PosedView view;         // what is drawn
+  OrbitController orbit;  // takes over from `view` at the first drag or scroll
   bool orbiting = false;
   DrawOptions options;
-  int keyframe = -1;             // the keyframe whose camera is shown, -1 = none
+  int keyframe = -1;  // the keyframe whose camera is shown, -1 = none
   double last_x = 0.0, last_y = 0.0;
   bool dragging_rotate = false, dragging_pan = false;
 
   void StartOrbit() {
     if (orbiting) return;
     const Eigen::AlignedBox3d bounds = renderer->Bounds();
-    const double distance = bounds.isEmpty() ? 3.0
-                                             : (bounds.center() - view.world_from_camera.translation()).norm();
+    const double distance =
+        bounds.isEmpty() ? 3.0 : (bounds.center() - view.world_from_camera.translation()).norm();
     orbit = OrbitController::FromPose(view.world_from_camera, distance);
     orbiting = true;
     keyframe = -1;
   }
   void UpdateTitle(GLFWwindow* window) const {
-    const std::string title = Format("genscene-view: ", ColorModeName(options.mode),
-                                     renderer->Supports(options.mode) ? "" : " (not in this workspace: geometry)",
-                                     options.lookup == Lookup::kNearest ? ", nearest" : ", linear",
-                                     keyframe >= 0 ? Format(", keyframe ", keyframe) : std::string(),
-                                     "  |  H: help");
+    const std::string title =
+        Format("genscene-view: ", ColorModeName(options.mode),
+               renderer->Supports(options.mode) ? "" : " (not in this workspace: geometry)",
+               options.lookup == Lookup::kNearest ? ", nearest" : ", linear",
+               keyframe >= 0 ? Format(", keyframe ", keyframe) : std::string(), "  |  H: help");
     glfwSetWindowTitle(window, title.c_str());
   }
 };
 
-Session* SessionOf(GLFWwindow* window) { return static_cast<Session*>(glfwGetWindowUserPointer(window)); }
+Session* SessionOf(GLFWwindow* window) {
+  return static_cast<Session*>(glfwGetWindowUserPointer(window));
+}
 
 void OnKey(GLFWwindow* window, int key, int, int action, int) {
   if (action != GLFW_PRESS) return;
   Session& s = *SessionOf(window);
   switch (key) {
     case GLFW_KEY_ESCAPE:
-    case GLFW_KEY_Q: glfwSetWindowShouldClose(window, GLFW_TRUE); break;
-    case GLFW_KEY_1: s.options.mode = ColorMode::kObserved; break;
-    case GLFW_KEY_2: s.options.mode = ColorMode::kAlbedo; break;
-    case GLFW_KEY_3: s.options.mode = ColorMode::kShading; break;
-    case GLFW_KEY_4: s.options.mode = ColorMode::kClusters; break;
-    case GLFW_KEY_5: s.options.mode = ColorMode::kGeometry; break;
+    case GLFW_KEY_Q:
+      glfwSetWindowShouldClose(window, GLFW_TRUE);
+      break;
+    case GLFW_KEY_1:
+      s.options.mode = ColorMode::kObserved;
+      break;
+    case GLFW_KEY_2:
+      s.options.mode = ColorMode::kAlbedo;
+      break;
+    case GLFW_KEY_3:
+      s.options.mode = ColorMode::kShading;
+      break;
+    case GLFW_KEY_4:
+      s.options.mode = ColorMode::kClusters;
+      break;
+    case GLFW_KEY_5:
+      s.options.mode = ColorMode::kGeometry;
+      break;
     case GLFW_KEY_L:
       s.options.lookup = s.options.lookup == Lookup::kNearest ? Lookup::kLinear : Lookup::kNearest;
       break;
-    case GLFW_KEY_B: s.options.cull_back_faces = !s.options.cull_back_faces; break;
-    case GLFW_KEY_O: s.options.show_overlay = !s.options.show_overlay; break;
+    case GLFW_KEY_B:
+      s.options.cull_back_faces = !s.options.cull_back_faces;
+      break;
+    case GLFW_KEY_O:
+      s.options.show_overlay = !s.options.show_overlay;
+      break;
     case GLFW_KEY_R:
       s.options.show_refined = !s.options.show_refined;
-      if (!s.renderer->HasRefinedMesh()) std::printf("genscene-view: no mesh_refined.ply in this workspace\n");
+      if (!s.renderer->HasRefinedMesh())
+        std::printf("genscene-view: no mesh_refined.ply in this workspace\n");
       break;
     case GLFW_KEY_V:
       s.orbit = OverviewOrbit(s.renderer->Bounds(), s.view.intrinsics);
@@ -159,8 +179,11 @@ void OnKey(GLFWwindow* window, int key, int, int action, int) {
       s.orbiting = false;
       break;
     }
-    case GLFW_KEY_H: std::printf("%s", KeyHelp().c_str()); break;
-    default: return;
+    case GLFW_KEY_H:
+      std::printf("%s", KeyHelp().c_str());
+      break;
+    default:
+      return;
   }
   std::fflush(stdout);
   s.UpdateTitle(window);
@@ -212,9 +235,11 @@ ImageRgb RenderScreenshot(const ViewData& data, const PosedView& view, const Dra
 std::string KeyHelp() {
   return "genscene-view keys:\n"
          "  left drag: orbit   right/middle or shift+left drag: pan   scroll: zoom\n"
-         "  1 observed colour   2 albedo   3 shading (observed / albedo)   4 clusters   5 geometry\n"
+         "  1 observed colour   2 albedo   3 shading (observed / albedo)   4 clusters   5 "
+         "geometry\n"
          "  L nearest/linear Mesh Colors lookup   B cull back faces   O trajectory/frusta/lights\n"
-         "  R refined mesh   K/J next/previous keyframe camera   V overview   H this help   Q/Esc quit\n";
+         "  R refined mesh   K/J next/previous keyframe camera   V overview   H this help   Q/Esc "
+         "quit\n";
 }
 
 void RunInteractive(const ViewData& data, const PosedView& view, const DrawOptions& options) {
@@ -240,7 +265,8 @@ void RunInteractive(const ViewData& data, const PosedView& view, const DrawOptio
     // Follow the framebuffer's size: same vertical field of view, centred principal point.
     int w = 0, h = 0;
     glfwGetFramebufferSize(window.get(), &w, &h);
-    if (w > 0 && h > 0 && (w != session.view.intrinsics.width || h != session.view.intrinsics.height)) {
+    if (w > 0 && h > 0 &&
+        (w != session.view.intrinsics.width || h != session.view.intrinsics.height)) {
       CameraIntrinsics& k = session.view.intrinsics;
       const double scale = static_cast<double>(h) / k.height;
       k.fx *= scale;

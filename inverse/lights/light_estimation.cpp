@@ -1,8 +1,8 @@
 #include "inverse/lights/light_estimation.h"
 
 #include <algorithm>
-#include <chrono>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -25,14 +25,16 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 }
 
 // Calls sink(connections, scale) for every vertex of the `paths.spp` paths through `pixel` (see
-// VoxelConnections): the coefficients times `scale` summed over all of them estimate the pixel. Direct light (the first vertex's connections)
-// comes from the first `direct_paths` of them, indirect light from all. Each group's positions
-// in the pixel are a Latin hypercube (stratified in x and in y) over the box filter's footprint
-// [u - 0.5, u + 0.5) x [v - 0.5, v + 0.5). Random numbers are keyed by (seed, view, pixel).
+// VoxelConnections): the coefficients times `scale` summed over all of them estimate the pixel.
+// Direct light (the first vertex's connections) comes from the first `direct_paths` of them,
+// indirect light from all. Each group's positions in the pixel are a Latin hypercube (stratified in
+// x and in y) over the box filter's footprint [u - 0.5, u + 0.5) x [v - 0.5, v + 0.5). Random
+// numbers are keyed by (seed, view, pixel).
 template <typename Sink>
-void WalkPixel(const PathTracer& tracer, const VoxelLightGrid& grid, const VoxelSplitting& splitting,
-               const SampledPixel& pixel, const View& view, const RenderOptions& paths, int direct_paths,
-               uint64_t seed, const Sink& sink, RayCounts* rays) {
+void WalkPixel(const PathTracer& tracer, const VoxelLightGrid& grid,
+               const VoxelSplitting& splitting, const SampledPixel& pixel, const View& view,
+               const RenderOptions& paths, int direct_paths, uint64_t seed, const Sink& sink,
+               RayCounts* rays) {
   const CameraIntrinsics& k = view.intrinsics;
   const Eigen::Matrix3f rotation = view.world_from_camera.rotation().cast<float>();
   const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
@@ -40,14 +42,17 @@ void WalkPixel(const PathTracer& tracer, const VoxelLightGrid& grid, const Voxel
                           static_cast<uint64_t>(pixel.v * k.width + pixel.u);
   const int total = paths.spp, direct = std::clamp(direct_paths, 1, total);
   const float scale = 1.0f / static_cast<float>(total);
-  const VoxelCoefficientSink scaled = [&](const VoxelConnections& connections) { sink(connections, scale); };
+  const VoxelCoefficientSink scaled = [&](const VoxelConnections& connections) {
+    sink(connections, scale);
+  };
   // Latin hypercube per group: path s of a group of n takes x stratum s and y stratum perm[s].
   CounterRng strata(seed, stream, 0xFFFFFFFFull);
   std::vector<int> perm(static_cast<size_t>(total));
   for (int begin : {0, direct}) {
     const int end = begin == 0 ? direct : total;
     for (int s = begin; s < end; ++s) perm[s] = s - begin;
-    for (int s = end - 1; s > begin; --s) std::swap(perm[s], perm[begin + strata.UniformInt(static_cast<uint32_t>(s - begin + 1))]);
+    for (int s = end - 1; s > begin; --s)
+      std::swap(perm[s], perm[begin + strata.UniformInt(static_cast<uint32_t>(s - begin + 1))]);
   }
   for (int s = 0; s < total; ++s) {
     CounterRng rng(seed, stream, static_cast<uint64_t>(s));
@@ -55,7 +60,8 @@ void WalkPixel(const PathTracer& tracer, const VoxelLightGrid& grid, const Voxel
     const double x = pixel.u - 0.5 + (stratum + rng.UniformDouble()) / n;
     const double y = pixel.v - 0.5 + (perm[s] + rng.UniformDouble()) / n;
     const Eigen::Vector3f dir = rotation * k.RayDirection(x, y).cast<float>().normalized();
-    const float first_weight = s < direct ? static_cast<float>(total) / static_cast<float>(direct) : 0.0f;
+    const float first_weight =
+        s < direct ? static_cast<float>(total) / static_cast<float>(direct) : 0.0f;
     tracer.VoxelCoefficients(eye, dir, grid, splitting, paths, rng, scaled, rays, first_weight);
   }
 }
@@ -64,8 +70,8 @@ void CheckView(const TrainingView& tv, size_t index) {
   const CameraIntrinsics& k = tv.view.intrinsics;
   k.Validate(Format("view ", index));
   if (tv.image.width() != k.width || tv.image.height() != k.height) {
-    throw Error(Format("view ", index, ": image ", tv.image.width(), "x", tv.image.height(), " but intrinsics say ",
-                       k.width, "x", k.height));
+    throw Error(Format("view ", index, ": image ", tv.image.width(), "x", tv.image.height(),
+                       " but intrinsics say ", k.width, "x", k.height));
   }
 }
 
@@ -77,7 +83,8 @@ void LightEstimationOptions::Validate() const {
   RequireRange("spp", spp, 2, 1 << 16);
   if (spp % 2) throw Error(Format("option spp = ", spp, " must be even (two independent halves)"));
   RequireRange("direct_paths", direct_paths, 1, 1 << 16);  // at most all of a half's paths
-  if (max_depth == 0 || max_depth < -1) throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
+  if (max_depth == 0 || max_depth < -1)
+    throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
   RequireRange("rr_depth", rr_depth, 1, 1 << 20);
   RequireRange("split_depth", split_depth, 1, 1 << 20);
   RequireRange("refine_coarse_pixels", refine_coarse_pixels, 0, 1 << 24);
@@ -103,7 +110,9 @@ void LightEstimationOptions::Validate() const {
   RequireRange("refine_max_voxels", refine_max_voxels, 1, 1 << 20);
   RequireRange("refine_spp", refine_spp, 0, 1 << 16);
   RequireRange("refine_grow", refine_grow, 0, 100);
-  if (refine_spp % 2) throw Error(Format("option refine_spp = ", refine_spp, " must be even (two independent halves)"));
+  if (refine_spp % 2)
+    throw Error(
+        Format("option refine_spp = ", refine_spp, " must be even (two independent halves)"));
   if (grid << refine_levels > 256) {
     throw Error(Format("option refine_levels = ", refine_levels, " with grid = ", grid, " gives a ",
                        grid << refine_levels, "^3 grid; at most 256 per axis"));
@@ -126,7 +135,8 @@ Scene WithoutLights(const Scene& scene) {
   for (const SceneMesh& m : scene.meshes) {
     if (!m.IsEmitter()) out.meshes.push_back(m);
   }
-  if (out.meshes.empty()) throw Error("light estimation: the scene has no reflecting (non-emitting) mesh");
+  if (out.meshes.empty())
+    throw Error("light estimation: the scene has no reflecting (non-emitting) mesh");
   return out;
 }
 
@@ -159,8 +169,8 @@ VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset
   return g;
 }
 
-Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& tv, const LightEstimationOptions& options,
-                           PixelMaskCounts* counts) {
+Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& tv,
+                           const LightEstimationOptions& options, PixelMaskCounts* counts) {
   const CameraIntrinsics& k = tv.view.intrinsics;
   Image<uint8_t> valid(k.width, k.height, 0);
   PixelMaskCounts local;
@@ -169,13 +179,15 @@ Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& tv, con
     for (int u = 0; u < k.width; ++u) {
       const Eigen::Vector3f& observed = tv.image(u, v);
       if (!observed.allFinite()) {
-        throw Error(Format("pixel (", u, ", ", v, ") holds a non-finite value (", observed.transpose(), ")"));
+        throw Error(Format("pixel (", u, ", ", v, ") holds a non-finite value (",
+                           observed.transpose(), ")"));
       }
       const auto hit = tracer.PixelCentreHit(tv.view, u, v);
       bool reflects = false;
       if (hit) {
         const SceneMesh& m = tracer.scene().meshes[hit->mesh];
-        reflects = !m.IsEmitter() && m.albedo.Eval(m.mesh, hit->face, hit->b1, hit->b2).maxCoeff() > 0.0f;
+        reflects =
+            !m.IsEmitter() && m.albedo.Eval(m.mesh, hit->face, hit->b1, hit->b2).maxCoeff() > 0.0f;
       }
       if (!reflects) {
         ++local.miss;
@@ -191,12 +203,14 @@ Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& tv, con
   if (!luminance.empty()) {
     std::vector<float> sorted = luminance;
     const size_t at = static_cast<size_t>(0.95 * static_cast<double>(sorted.size() - 1));
-    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(at), sorted.end());
+    std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(at),
+                     sorted.end());
     const double limit = options.emitter_factor * std::max(0.0f, sorted[at]);
     // The box filter mixes an emitter into the pixels around it: those go too (8-neighbours).
     Image<uint8_t> bright(k.width, k.height, 0);
     for (int v = 0; v < k.height; ++v) {
-      for (int u = 0; u < k.width; ++u) bright(u, v) = limit > 0.0 && Luminance(tv.image(u, v)) > limit;
+      for (int u = 0; u < k.width; ++u)
+        bright(u, v) = limit > 0.0 && Luminance(tv.image(u, v)) > limit;
     }
     for (int v = 0; v < k.height; ++v) {
       for (int u = 0; u < k.width; ++u) {
@@ -219,7 +233,8 @@ Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& tv, con
   return valid;
 }
 
-std::vector<SampledPixel> SamplePixels(const PathTracer& tracer, const std::vector<TrainingView>& views,
+std::vector<SampledPixel> SamplePixels(const PathTracer& tracer,
+                                       const std::vector<TrainingView>& views,
                                        const LightEstimationOptions& options, uint64_t seed,
                                        std::vector<PixelMaskCounts>* counts) {
   options.Validate();
@@ -260,8 +275,10 @@ std::vector<SampledPixel> SamplePixels(const PathTracer& tracer, const std::vect
     }
   }
   if (out.empty()) {
-    throw Error("light estimation: no valid pixel in any view (every camera ray misses the geometry, sees an "
-                "emitter or is saturated)");
+    throw Error(
+        "light estimation: no valid pixel in any view (every camera ray misses the geometry, sees "
+        "an "
+        "emitter or is saturated)");
   }
   return out;
 }
@@ -281,10 +298,13 @@ double EquationBytes(double voxels) {
 
 }  // namespace
 
-double NormalEquationsBoundBytes(int dims) { return EquationBytes(static_cast<double>(dims) * dims * dims); }
+double NormalEquationsBoundBytes(int dims) {
+  return EquationBytes(static_cast<double>(dims) * dims * dims);
+}
 
-LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid, const VoxelSplitting& splitting,
-                           const std::vector<TrainingView>& views, const std::vector<SampledPixel>& pixels,
+LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
+                           const VoxelSplitting& splitting, const std::vector<TrainingView>& views,
+                           const std::vector<SampledPixel>& pixels,
                            const LightEstimationOptions& options, uint64_t seed, double cap_bytes) {
   const RenderOptions paths = options.Paths();
   const int parameters = 6 * grid.VoxelCount();
@@ -297,9 +317,9 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
   // The rows live twice for a moment (per row, then packed): count them twice against the cap.
   const size_t fixed = pixels.size() * (sizeof(Row) + sizeof(size_t) + sizeof(SampledPixel));
   if (cap_bytes > 0.0 && 2.0 * fixed > cap_bytes) {
-    throw Error(Format("light estimation: the path-coefficient cache of ", pixels.size(), " pixels needs more than",
-                       " the memory cap of ", cap_bytes / 1e6, " MB; lower lights pixels_per_view or raise the",
-                       " lights memory_cap"));
+    throw Error(Format("light estimation: the path-coefficient cache of ", pixels.size(),
+                       " pixels needs more than", " the memory cap of ", cap_bytes / 1e6,
+                       " MB; lower lights pixels_per_view or raise the", " lights memory_cap"));
   }
   VoxelSplitting prepared = splitting;
   prepared.Prepare(grid);
@@ -315,22 +335,23 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
       const SampledPixel& pixel = pixels[i];
       GS_CHECK_LT(static_cast<size_t>(pixel.view), views.size());
       touched.clear();
-      WalkPixel(tracer, grid, prepared, pixel, views[pixel.view].view, paths, options.direct_paths, seed,
-                [&](const VoxelConnections& to, float scale) {
-                  for (int c = 0; c < to.count; ++c) {
-                    const int j = to.voxel[c];
-                    if (stamp[j] != i) {
-                      stamp[j] = i;
-                      touched.push_back(j);
-                    }
-                    Eigen::Vector3f* faces = &sum[6 * static_cast<size_t>(j)];
-                    for (int axis = 0; axis < 3; ++axis) {
-                      const float w = to.w[c][axis];
-                      if (w != 0.0f) faces[VoxelFace(axis, w)] += (to.base[c] * std::abs(w)) * scale;
-                    }
-                  }
-                },
-                &rows[i].rays);
+      WalkPixel(
+          tracer, grid, prepared, pixel, views[pixel.view].view, paths, options.direct_paths, seed,
+          [&](const VoxelConnections& to, float scale) {
+            for (int c = 0; c < to.count; ++c) {
+              const int j = to.voxel[c];
+              if (stamp[j] != i) {
+                stamp[j] = i;
+                touched.push_back(j);
+              }
+              Eigen::Vector3f* faces = &sum[6 * static_cast<size_t>(j)];
+              for (int axis = 0; axis < 3; ++axis) {
+                const float w = to.w[c][axis];
+                if (w != 0.0f) faces[VoxelFace(axis, w)] += (to.base[c] * std::abs(w)) * scale;
+              }
+            }
+          },
+          &rows[i].rays);
       std::sort(touched.begin(), touched.end());
       Row& row = rows[i];
       for (int32_t j : touched) {
@@ -344,9 +365,11 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
       }
       const size_t held = entries.fetch_add(row.index.size()) + row.index.size();
       if (cap_bytes > 0.0 && 2.0 * static_cast<double>(held * kEntryBytes + fixed) > cap_bytes) {
-        throw Error(Format("light estimation: the path-coefficient cache outgrew the memory cap of ", cap_bytes / 1e6,
-                           " MB (", held, " coefficients so far, ", pixels.size(), " pixels); lower lights ",
-                           "pixels_per_view, spp or grid, or raise the lights memory_cap"));
+        throw Error(
+            Format("light estimation: the path-coefficient cache outgrew the memory cap of ",
+                   cap_bytes / 1e6, " MB (", held, " coefficients so far, ", pixels.size(),
+                   " pixels); lower lights ",
+                   "pixels_per_view, spp or grid, or raise the lights memory_cap"));
       }
     }
   });
@@ -356,7 +379,8 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
   cache.row_begin.push_back(0);
   for (Row& row : rows) {
     cache.index.insert(cache.index.end(), row.index.begin(), row.index.end());
-    cache.coefficient.insert(cache.coefficient.end(), row.coefficient.begin(), row.coefficient.end());
+    cache.coefficient.insert(cache.coefficient.end(), row.coefficient.begin(),
+                             row.coefficient.end());
     cache.row_begin.push_back(cache.index.size());
     cache.rays.intersect += row.rays.intersect;
     cache.rays.occluded += row.rays.occluded;
@@ -392,40 +416,40 @@ void LightCache::Merge(const LightCache& other) {
   rays.occluded += other.rays.occluded;
 }
 
-std::pair<LightCache, LightCache> TraceLightCacheHalves(const PathTracer& tracer, const VoxelLightGrid& grid,
-                                                        const VoxelSplitting& splitting,
-                                                        const std::vector<TrainingView>& views,
-                                                        const std::vector<SampledPixel>& pixels,
-                                                        const LightEstimationOptions& options, uint64_t seed_a,
-                                                        uint64_t seed_b, double cap_bytes) {
+std::pair<LightCache, LightCache> TraceLightCacheHalves(
+    const PathTracer& tracer, const VoxelLightGrid& grid, const VoxelSplitting& splitting,
+    const std::vector<TrainingView>& views, const std::vector<SampledPixel>& pixels,
+    const LightEstimationOptions& options, uint64_t seed_a, uint64_t seed_b, double cap_bytes) {
   LightEstimationOptions half = options;
   half.spp = options.spp / 2;
   std::pair<LightCache, LightCache> out;
   out.first = TraceLightCache(tracer, grid, splitting, views, pixels, half, seed_a, cap_bytes);
-  const double left = cap_bytes > 0.0 ? std::max(1.0, cap_bytes - static_cast<double>(out.first.Bytes())) : 0.0;
+  const double left =
+      cap_bytes > 0.0 ? std::max(1.0, cap_bytes - static_cast<double>(out.first.Bytes())) : 0.0;
   out.second = TraceLightCache(tracer, grid, splitting, views, pixels, half, seed_b, left);
   return out;
 }
 
 Eigen::Vector3f RenderSampledPixel(const PathTracer& tracer, const VoxelLightGrid& grid,
                                    const VoxelSplitting& splitting, const SampledPixel& pixel,
-                                   const std::vector<TrainingView>& views, const LightEstimationOptions& options,
-                                   uint64_t seed) {
+                                   const std::vector<TrainingView>& views,
+                                   const LightEstimationOptions& options, uint64_t seed) {
   Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
-  WalkPixel(tracer, grid, splitting, pixel, views.at(static_cast<size_t>(pixel.view)).view, options.Paths(),
-            options.direct_paths, seed,
-            [&](const VoxelConnections& to, float scale) {
-              for (int i = 0; i < to.count; ++i) {
-                const int j = to.voxel[i];
-                for (int axis = 0; axis < 3; ++axis) {
-                  const float w = to.w[i][axis];
-                  if (w == 0.0f) continue;
-                  const Eigen::Vector3f c = (to.base[i] * std::abs(w)) * scale;
-                  radiance += c.cwiseProduct(grid.intensity[j]) * grid.weights[j][VoxelFace(axis, w)];
-                }
-              }
-            },
-            nullptr);
+  WalkPixel(
+      tracer, grid, splitting, pixel, views.at(static_cast<size_t>(pixel.view)).view,
+      options.Paths(), options.direct_paths, seed,
+      [&](const VoxelConnections& to, float scale) {
+        for (int i = 0; i < to.count; ++i) {
+          const int j = to.voxel[i];
+          for (int axis = 0; axis < 3; ++axis) {
+            const float w = to.w[i][axis];
+            if (w == 0.0f) continue;
+            const Eigen::Vector3f c = (to.base[i] * std::abs(w)) * scale;
+            radiance += c.cwiseProduct(grid.intensity[j]) * grid.weights[j][VoxelFace(axis, w)];
+          }
+        }
+      },
+      nullptr);
   return radiance;
 }
 
@@ -451,8 +475,9 @@ namespace {
 // The normal equations of NormalEquations::FromCaches from sparse rows: per row, the merged
 // entries of both halves (compact indices, sorted), then per tile of G the products of the
 // row's entries that fall in it. Cost sum_i nnz_i^2 instead of pixels x n^2.
-void FillSparse(const LightCache& first, const LightCache& second, double correction, const std::vector<int>& compact,
-                const std::vector<std::pair<int, int>>& tile_pairs, int tile, NormalEquations* eq) {
+void FillSparse(const LightCache& first, const LightCache& second, double correction,
+                const std::vector<int>& compact, const std::vector<std::pair<int, int>>& tile_pairs,
+                int tile, NormalEquations* eq) {
   const int n = static_cast<int>(eq->used.size());
   const bool same = &first == &second;
   std::vector<size_t> begin{0};
@@ -462,7 +487,8 @@ void FillSparse(const LightCache& first, const LightCache& second, double correc
     size_t a = first.row_begin[i], b = second.row_begin[i];
     const size_t a_end = first.row_begin[i + 1], b_end = same ? b : second.row_begin[i + 1];
     while (a < a_end || b < b_end) {
-      const int32_t pa = a < a_end ? first.index[a] : INT32_MAX, pb = b < b_end ? second.index[b] : INT32_MAX;
+      const int32_t pa = a < a_end ? first.index[a] : INT32_MAX,
+                    pb = b < b_end ? second.index[b] : INT32_MAX;
       const int32_t p = std::min(pa, pb);
       Eigen::Vector3f ca = Eigen::Vector3f::Zero(), cb = Eigen::Vector3f::Zero();
       if (pa == p) ca = first.coefficient[a++];
@@ -483,38 +509,48 @@ void FillSparse(const LightCache& first, const LightCache& second, double correc
     const Eigen::Vector3d observed = first.pixels[i].observed.cast<double>();
     for (int c = 0; c < 3; ++c) eq->observed_sq[c] += observed[c] * observed[c];
     for (size_t e = begin[i]; e < begin[i + 1]; ++e) {
-      for (int c = 0; c < 3; ++c) eq->rhs[c][index[e]] += static_cast<double>(mean[e][c]) * observed[c];
+      for (int c = 0; c < 3; ++c)
+        eq->rhs[c][index[e]] += static_cast<double>(mean[e][c]) * observed[c];
     }
   }
-  ParallelFor(0, tile_pairs.size(), [&](size_t t) {
-    const auto [ta, tb] = tile_pairs[t];
-    const int a_lo = ta * tile, a_hi = a_lo + tile, b_lo = tb * tile, b_hi = b_lo + tile;
-    for (size_t i = 0; i < eq->pixels; ++i) {
-      const auto row = index.begin() + static_cast<std::ptrdiff_t>(begin[i]);
-      const auto row_end = index.begin() + static_cast<std::ptrdiff_t>(begin[i + 1]);
-      const auto a0 = std::lower_bound(row, row_end, a_lo), a1 = std::lower_bound(a0, row_end, a_hi);
-      const auto b0 = std::lower_bound(row, row_end, b_lo), b1 = std::lower_bound(b0, row_end, b_hi);
-      for (auto ia = a0; ia != a1; ++ia) {
-        const size_t ea = static_cast<size_t>(ia - index.begin());
-        for (auto ib = std::max(b0, ia); ib != b1; ++ib) {
-          const size_t eb = static_cast<size_t>(ib - index.begin());
-          for (int c = 0; c < 3; ++c) {
-            eq->gram[c](*ia, *ib) += static_cast<double>(mean[ea][c]) * mean[eb][c] -
-                                     correction * static_cast<double>(half_difference[ea][c]) * half_difference[eb][c];
+  ParallelFor(
+      0, tile_pairs.size(),
+      [&](size_t t) {
+        const auto [ta, tb] = tile_pairs[t];
+        const int a_lo = ta * tile, a_hi = a_lo + tile, b_lo = tb * tile, b_hi = b_lo + tile;
+        for (size_t i = 0; i < eq->pixels; ++i) {
+          const auto row = index.begin() + static_cast<std::ptrdiff_t>(begin[i]);
+          const auto row_end = index.begin() + static_cast<std::ptrdiff_t>(begin[i + 1]);
+          const auto a0 = std::lower_bound(row, row_end, a_lo),
+                     a1 = std::lower_bound(a0, row_end, a_hi);
+          const auto b0 = std::lower_bound(row, row_end, b_lo),
+                     b1 = std::lower_bound(b0, row_end, b_hi);
+          for (auto ia = a0; ia != a1; ++ia) {
+            const size_t ea = static_cast<size_t>(ia - index.begin());
+            for (auto ib = std::max(b0, ia); ib != b1; ++ib) {
+              const size_t eb = static_cast<size_t>(ib - index.begin());
+              for (int c = 0; c < 3; ++c) {
+                eq->gram[c](*ia, *ib) += static_cast<double>(mean[ea][c]) * mean[eb][c] -
+                                         correction * static_cast<double>(half_difference[ea][c]) *
+                                             half_difference[eb][c];
+              }
+            }
           }
         }
-      }
-    }
-  }, 1);
-  for (int c = 0; c < 3; ++c) eq->gram[c].triangularView<Eigen::StrictlyLower>() = eq->gram[c].transpose();
+      },
+      1);
+  for (int c = 0; c < 3; ++c)
+    eq->gram[c].triangularView<Eigen::StrictlyLower>() = eq->gram[c].transpose();
 }
 
 }  // namespace
 
-NormalEquations NormalEquations::FromCache(const LightCache& cache) { return FromCaches(cache, cache, 0.0); }
+NormalEquations NormalEquations::FromCache(const LightCache& cache) {
+  return FromCaches(cache, cache, 0.0);
+}
 
-NormalEquations NormalEquations::FromCaches(const LightCache& first, const LightCache& second, double correction,
-                                            const NormalEquations* known) {
+NormalEquations NormalEquations::FromCaches(const LightCache& first, const LightCache& second,
+                                            double correction, const NormalEquations* known) {
   GS_CHECK_EQ(first.parameters, second.parameters);
   GS_CHECK_EQ(first.pixels.size(), second.pixels.size());
   NormalEquations eq;
@@ -564,7 +600,8 @@ NormalEquations NormalEquations::FromCaches(const LightCache& first, const Light
       const float w = cache == &first ? 0.5f : 0.5f * sign;
       for (size_t i = begin; i < end; ++i) {
         for (size_t e = cache->row_begin[i]; e < cache->row_begin[i + 1]; ++e) {
-          (*m)(static_cast<Eigen::Index>(i - begin), compact[cache->index[e]]) += w * cache->coefficient[e][c];
+          (*m)(static_cast<Eigen::Index>(i - begin), compact[cache->index[e]]) +=
+              w * cache->coefficient[e][c];
         }
       }
     }
@@ -572,30 +609,38 @@ NormalEquations NormalEquations::FromCaches(const LightCache& first, const Light
   // Upper tiles of M^T M: each tile is written by one task, chunks in a fixed order, so the sums
   // do not depend on the thread count.
   const auto accumulate = [&](const Eigen::MatrixXf& m, double scale, Eigen::MatrixXd* gram) {
-    ParallelFor(0, tile_pairs.size(), [&](size_t t) {
-      const auto [ta, tb] = tile_pairs[t];
-      const int ca = ta * kTile, cb = tb * kTile;
-      const int wa = std::min(kTile, n - ca), wb = std::min(kTile, n - cb);
-      const Eigen::MatrixXf block = m.middleCols(ca, wa).transpose() * m.middleCols(cb, wb);
-      gram->block(ca, cb, wa, wb) += scale * block.cast<double>();
-    }, 1);
+    ParallelFor(
+        0, tile_pairs.size(),
+        [&](size_t t) {
+          const auto [ta, tb] = tile_pairs[t];
+          const int ca = ta * kTile, cb = tb * kTile;
+          const int wa = std::min(kTile, n - ca), wb = std::min(kTile, n - cb);
+          const Eigen::MatrixXf block = m.middleCols(ca, wa).transpose() * m.middleCols(cb, wb);
+          gram->block(ca, cb, wa, wb) += scale * block.cast<double>();
+        },
+        1);
   };
   // With `known`: the columns of the fresh parameters, X = M^T M[:, fresh], by tiles of X.
   const int fresh_n = static_cast<int>(fresh.size());
   const int fresh_tiles = (fresh_n + kTile - 1) / kTile;
   const auto accumulate_fresh = [&](const Eigen::MatrixXf& m, double scale, Eigen::MatrixXd* x) {
     const Eigen::MatrixXf m_fresh = m(Eigen::all, fresh);
-    ParallelFor(0, static_cast<size_t>(tiles) * fresh_tiles, [&](size_t t) {
-      const int ta = static_cast<int>(t) / fresh_tiles, tb = static_cast<int>(t) % fresh_tiles;
-      const int ca = ta * kTile, cb = tb * kTile;
-      const int wa = std::min(kTile, n - ca), wb = std::min(kTile, fresh_n - cb);
-      const Eigen::MatrixXf block = m.middleCols(ca, wa).transpose() * m_fresh.middleCols(cb, wb);
-      x->block(ca, cb, wa, wb) += scale * block.cast<double>();
-    }, 1);
+    ParallelFor(
+        0, static_cast<size_t>(tiles) * fresh_tiles,
+        [&](size_t t) {
+          const int ta = static_cast<int>(t) / fresh_tiles, tb = static_cast<int>(t) % fresh_tiles;
+          const int ca = ta * kTile, cb = tb * kTile;
+          const int wa = std::min(kTile, n - ca), wb = std::min(kTile, fresh_n - cb);
+          const Eigen::MatrixXf block =
+              m.middleCols(ca, wa).transpose() * m_fresh.middleCols(cb, wb);
+          x->block(ca, cb, wa, wb) += scale * block.cast<double>();
+        },
+        1);
   };
   size_t nonzeros = 0;
   for (const LightCache* cache : {&first, &second}) nonzeros += cache->NonZeros();
-  if (static_cast<double>(nonzeros) < 0.2 * static_cast<double>(n) * static_cast<double>(eq.pixels)) {
+  if (static_cast<double>(nonzeros) <
+      0.2 * static_cast<double>(n) * static_cast<double>(eq.pixels)) {
     FillSparse(first, second, same ? 0.0 : correction, compact, tile_pairs, kTile, &eq);
     return eq;
   }
@@ -611,7 +656,8 @@ NormalEquations NormalEquations::FromCaches(const LightCache& first, const Light
       const size_t end = std::min(eq.pixels, begin + kRows);
       fill(begin, end, c, 1.0f, &mean);
       Eigen::VectorXd observed(static_cast<Eigen::Index>(end - begin));
-      for (size_t i = begin; i < end; ++i) observed[static_cast<Eigen::Index>(i - begin)] = first.pixels[i].observed[c];
+      for (size_t i = begin; i < end; ++i)
+        observed[static_cast<Eigen::Index>(i - begin)] = first.pixels[i].observed[c];
       eq.observed_sq[c] += observed.squaredNorm();
       eq.rhs[c] += mean.cast<double>().transpose() * observed;
       if (incremental) {
@@ -657,12 +703,14 @@ void NormalEquations::Add(const NormalEquations& other) {
     return;
   }
   std::vector<int> merged;
-  std::set_union(used.begin(), used.end(), other.used.begin(), other.used.end(), std::back_inserter(merged));
+  std::set_union(used.begin(), used.end(), other.used.begin(), other.used.end(),
+                 std::back_inserter(merged));
   const auto expand = [&](const NormalEquations& from, std::array<Eigen::MatrixXd, 3>* gram,
                           std::array<Eigen::VectorXd, 3>* rhs) {
     std::vector<int> at(from.used.size());
     for (size_t i = 0; i < from.used.size(); ++i) {
-      at[i] = static_cast<int>(std::lower_bound(merged.begin(), merged.end(), from.used[i]) - merged.begin());
+      at[i] = static_cast<int>(std::lower_bound(merged.begin(), merged.end(), from.used[i]) -
+                               merged.begin());
     }
     const int n = static_cast<int>(merged.size());
     for (int c = 0; c < 3; ++c) {
@@ -671,7 +719,8 @@ void NormalEquations::Add(const NormalEquations& other) {
       for (size_t b = 0; b < at.size(); ++b) {
         (*rhs)[c][at[b]] = from.rhs[c][static_cast<Eigen::Index>(b)];
         for (size_t a = 0; a < at.size(); ++a) {
-          (*gram)[c](at[a], at[b]) = from.gram[c](static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b));
+          (*gram)[c](at[a], at[b]) =
+              from.gram[c](static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b));
         }
       }
     }
@@ -706,18 +755,22 @@ Eigen::Vector3d UniformFit(const NormalEquations& eq) {
 
 }  // namespace
 
-LightCost::LightCost(const NormalEquations& equations, double penalty_weight, double penalty_epsilon)
+LightCost::LightCost(const NormalEquations& equations, double penalty_weight,
+                     double penalty_epsilon)
     : eq_(equations), weight_(penalty_weight) {
   energy_ = eq_.observed_sq[0] + eq_.observed_sq[1] + eq_.observed_sq[2];
   if (eq_.used.empty()) {
-    throw Error("light estimation: no sampled path reaches any voxel (every shadow ray is blocked or faces away)");
+    throw Error(
+        "light estimation: no sampled path reaches any voxel (every shadow ray is blocked or faces "
+        "away)");
   }
   if (!(energy_ > 0.0)) throw Error("light estimation: the sampled pixels are all black");
   const Eigen::Vector3d alpha = UniformFit(eq_);
   // The best uniform lighting lights every voxel some path reaches (with adaptive refinement only
   // the candidates are traced): s_ref is its summed intensity.
   int used_voxels = 0;
-  for (size_t i = 0; i < eq_.used.size(); ++i) used_voxels += i == 0 || eq_.used[i] / 6 != eq_.used[i - 1] / 6;
+  for (size_t i = 0; i < eq_.used.size(); ++i)
+    used_voxels += i == 0 || eq_.used[i] / 6 != eq_.used[i - 1] / 6;
   const double s_ref = alpha.sum() * used_voxels;
   epsilon_ = penalty_epsilon * std::max(s_ref, 1e-30);
 }
@@ -747,27 +800,30 @@ double LightCost::Evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradi
   std::array<Eigen::VectorXd, 3> local_gx;
   std::array<Eigen::VectorXd, 3>& gx = gram_x ? *gram_x : local_gx;
   std::array<double, 3> part{};
-  ParallelFor(0, 3, [&](size_t c) {
-    Eigen::VectorXd x(n);
-    for (int i = 0; i < n; ++i) {
-      const int j = eq_.used[i] / 6, k = eq_.used[i] % 6;
-      x[i] = params[9 * j + c] * params[9 * j + 3 + k];
-    }
-    // x is sparse once the penalty has switched most voxels off: then G x is a sum of the
-    // columns of the lit parameters, O(n nnz) instead of O(n^2).
-    std::vector<int> lit;
-    for (int i = 0; i < n; ++i) {
-      if (x[i] != 0.0) lit.push_back(i);
-    }
-    if (4 * lit.size() < static_cast<size_t>(n)) {
-      gx[c] = Eigen::VectorXd::Zero(n);
-      for (int i : lit) gx[c].noalias() += x[i] * eq_.gram[c].col(i);
-    } else {
-      gx[c].noalias() = eq_.gram[c].selfadjointView<Eigen::Upper>() * x;
-    }
-    // |A x - I|^2 = x^T G x - 2 b^T x + I^T I.
-    part[c] = x.dot(gx[c]) - 2.0 * eq_.rhs[c].dot(x) + eq_.observed_sq[c];
-  }, 1);
+  ParallelFor(
+      0, 3,
+      [&](size_t c) {
+        Eigen::VectorXd x(n);
+        for (int i = 0; i < n; ++i) {
+          const int j = eq_.used[i] / 6, k = eq_.used[i] % 6;
+          x[i] = params[9 * j + c] * params[9 * j + 3 + k];
+        }
+        // x is sparse once the penalty has switched most voxels off: then G x is a sum of the
+        // columns of the lit parameters, O(n nnz) instead of O(n^2).
+        std::vector<int> lit;
+        for (int i = 0; i < n; ++i) {
+          if (x[i] != 0.0) lit.push_back(i);
+        }
+        if (4 * lit.size() < static_cast<size_t>(n)) {
+          gx[c] = Eigen::VectorXd::Zero(n);
+          for (int i : lit) gx[c].noalias() += x[i] * eq_.gram[c].col(i);
+        } else {
+          gx[c].noalias() = eq_.gram[c].selfadjointView<Eigen::Upper>() * x;
+        }
+        // |A x - I|^2 = x^T G x - 2 b^T x + I^T I.
+        part[c] = x.dot(gx[c]) - 2.0 * eq_.rhs[c].dot(x) + eq_.observed_sq[c];
+      },
+      1);
   const double data_sum = part[0] + part[1] + part[2];
   if (gradient) {
     *gradient = Eigen::VectorXd::Zero(params.size());
@@ -801,8 +857,8 @@ namespace {
 
 // min_x x^T H x - 2 g^T x + q^T x over lo <= x <= hi by cyclic coordinate descent; `hx` holds H x
 // on entry and is kept up to date. Coordinates with H_ii <= 0 (no path reaches them) go to lo.
-void CoordinateDescent(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, const Eigen::VectorXd& q, double lo,
-                       double hi, int sweeps, Eigen::VectorXd* x, Eigen::VectorXd* hx) {
+void CoordinateDescent(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, const Eigen::VectorXd& q,
+                       double lo, double hi, int sweeps, Eigen::VectorXd* x, Eigen::VectorXd* hx) {
   const Eigen::Index n = x->size();
   for (int sweep = 0; sweep < sweeps; ++sweep) {
     double change = 0.0, scale = 0.0;
@@ -824,7 +880,8 @@ void CoordinateDescent(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, const
 
 }  // namespace
 
-SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions& options, VoxelLightGrid* grid) {
+SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions& options,
+                        VoxelLightGrid* grid) {
   options.Validate();
   const int voxels = grid->VoxelCount();
   GS_CHECK_EQ(6 * voxels, eq.parameters);
@@ -867,8 +924,8 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
     for (int c = 0; c < 3; ++c) {
       Eigen::VectorXd x = Eigen::VectorXd::Constant(n, alpha[c]);
       Eigen::VectorXd gx = eq.gram[c] * x;
-      CoordinateDescent(eq.gram[c], eq.rhs[c], Eigen::VectorXd::Zero(n), 0.0, std::numeric_limits<double>::infinity(),
-                        20, &x, &gx);
+      CoordinateDescent(eq.gram[c], eq.rhs[c], Eigen::VectorXd::Zero(n), 0.0,
+                        std::numeric_limits<double>::infinity(), 20, &x, &gx);
       for (int i = 0; i < n; ++i) products(eq.used[i], c) = x[i];
     }
     for (int j = 0; j < voxels; ++j) {
@@ -949,44 +1006,48 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
     // the voxel's columns of G to G x. A sweep costs O(n) plus O(n) per parameter of a voxel
     // that changes; most stay dark. `gx` holds G_c x_c (current L, lambda) on entry and after.
     // Channels in parallel, each by one task.
-    ParallelFor(0, 3, [&](size_t c) {
-      const Eigen::MatrixXd& gram = eq.gram[c];
-      Eigen::VectorXd& gxc = gx[c];
-      Eigen::VectorXd h(slots), g(slots), l(slots);
-      for (int v = 0; v < slots; ++v) {
-        double hvv = 0.0, gv = 0.0;
-        for (int a = slot_begin[v]; a < slot_begin[v + 1]; ++a) {
-          if (lambda_of[a] == 0.0) continue;
-          gv += lambda_of[a] * eq.rhs[c][a];
-          for (int b = slot_begin[v]; b < slot_begin[v + 1]; ++b) hvv += lambda_of[a] * lambda_of[b] * gram(a, b);
-        }
-        h[v] = hvv;
-        g[v] = gv;
-        l[v] = light(reached[v], c);
-      }
-      for (int sweep = 0; sweep < 10; ++sweep) {
-        double change = 0.0, scale = 0.0;
-        for (int v = 0; v < slots; ++v) {
-          double value = 0.0;
-          if (h[v] > 0.0) {
-            double hl = 0.0;
-            for (int a = slot_begin[v]; a < slot_begin[v + 1]; ++a) hl += lambda_of[a] * gxc[a];
-            value = std::max(0.0, l[v] - (hl - g[v] + 0.5 * q[v]) / h[v]);
-          }
-          const double delta = value - l[v];
-          if (delta != 0.0) {
+    ParallelFor(
+        0, 3,
+        [&](size_t c) {
+          const Eigen::MatrixXd& gram = eq.gram[c];
+          Eigen::VectorXd& gxc = gx[c];
+          Eigen::VectorXd h(slots), g(slots), l(slots);
+          for (int v = 0; v < slots; ++v) {
+            double hvv = 0.0, gv = 0.0;
             for (int a = slot_begin[v]; a < slot_begin[v + 1]; ++a) {
-              if (lambda_of[a] != 0.0) gxc.noalias() += (lambda_of[a] * delta) * gram.col(a);
+              if (lambda_of[a] == 0.0) continue;
+              gv += lambda_of[a] * eq.rhs[c][a];
+              for (int b = slot_begin[v]; b < slot_begin[v + 1]; ++b)
+                hvv += lambda_of[a] * lambda_of[b] * gram(a, b);
             }
-            l[v] = value;
+            h[v] = hvv;
+            g[v] = gv;
+            l[v] = light(reached[v], c);
           }
-          change = std::max(change, std::abs(delta) * std::sqrt(std::max(h[v], 0.0)));
-          scale = std::max(scale, std::abs(value) * std::sqrt(std::max(h[v], 0.0)));
-        }
-        if (change <= 1e-9 * scale) break;
-      }
-      for (int v = 0; v < slots; ++v) light(reached[v], c) = l[v];
-    }, 1);
+          for (int sweep = 0; sweep < 10; ++sweep) {
+            double change = 0.0, scale = 0.0;
+            for (int v = 0; v < slots; ++v) {
+              double value = 0.0;
+              if (h[v] > 0.0) {
+                double hl = 0.0;
+                for (int a = slot_begin[v]; a < slot_begin[v + 1]; ++a) hl += lambda_of[a] * gxc[a];
+                value = std::max(0.0, l[v] - (hl - g[v] + 0.5 * q[v]) / h[v]);
+              }
+              const double delta = value - l[v];
+              if (delta != 0.0) {
+                for (int a = slot_begin[v]; a < slot_begin[v + 1]; ++a) {
+                  if (lambda_of[a] != 0.0) gxc.noalias() += (lambda_of[a] * delta) * gram.col(a);
+                }
+                l[v] = value;
+              }
+              change = std::max(change, std::abs(delta) * std::sqrt(std::max(h[v], 0.0)));
+              scale = std::max(scale, std::abs(value) * std::sqrt(std::max(h[v], 0.0)));
+            }
+            if (change <= 1e-9 * scale) break;
+          }
+          for (int v = 0; v < slots; ++v) light(reached[v], c) = l[v];
+        },
+        1);
     // lambda step over the parameters of lit voxels: x_i = L_j(i)c lambda_i, so the quadratic
     // is sum_c D_c G_c D_c with D_c = diag(L_j(i)c); 0 <= lambda <= 1.
     std::vector<int> active;
@@ -998,12 +1059,15 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
       // sum_c D_c G_c[active, active] D_c, the channels' terms in parallel and added in order.
       std::array<Eigen::MatrixXd, 3> hc;
       std::array<Eigen::VectorXd, 3> gc;
-      ParallelFor(0, 3, [&](size_t c) {
-        Eigen::VectorXd l(m);
-        for (int a = 0; a < m; ++a) l[a] = light(voxel_of[active[a]], c);
-        hc[c] = l.asDiagonal() * eq.gram[c](active, active) * l.asDiagonal();
-        gc[c] = l.cwiseProduct(eq.rhs[c](active));
-      }, 1);
+      ParallelFor(
+          0, 3,
+          [&](size_t c) {
+            Eigen::VectorXd l(m);
+            for (int a = 0; a < m; ++a) l[a] = light(voxel_of[active[a]], c);
+            hc[c] = l.asDiagonal() * eq.gram[c](active, active) * l.asDiagonal();
+            gc[c] = l.cwiseProduct(eq.rhs[c](active));
+          },
+          1);
       Eigen::MatrixXd h = hc[0] + hc[1] + hc[2];
       Eigen::VectorXd g = gc[0] + gc[1] + gc[2], x(m);
       for (int a = 0; a < m; ++a) x[a] = lambda(voxel_of[active[a]], face_of[active[a]]);
@@ -1041,7 +1105,8 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
         if (power > 0.0) lit.emplace_back(-power, j);
       }
       std::sort(lit.begin(), lit.end());
-      if (lit.size() > static_cast<size_t>(options.move_voxels)) lit.resize(static_cast<size_t>(options.move_voxels));
+      if (lit.size() > static_cast<size_t>(options.move_voxels))
+        lit.resize(static_cast<size_t>(options.move_voxels));
       bool improved = false;
       for (const auto& [negative_power, j] : lit) {
         const Eigen::Vector3i at(j % dims.x(), j / dims.x() % dims.y(), j / (dims.x() * dims.y()));
@@ -1106,7 +1171,8 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     for (size_t begin = 0; begin < pixels.size();) {
       size_t end = begin;
       while (end < pixels.size() && pixels[end].view == pixels[begin].view) ++end;
-      const size_t m = end - begin, keep = std::min<size_t>(m, static_cast<size_t>(options.refine_coarse_pixels));
+      const size_t m = end - begin,
+                   keep = std::min<size_t>(m, static_cast<size_t>(options.refine_coarse_pixels));
       for (size_t t = 0; t < keep; ++t) coarse_pixels.push_back(pixels[begin + t * m / keep]);
       begin = end;
     }
@@ -1120,25 +1186,27 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   const double cap_bytes = options.memory_cap * 1e6;
   const double equation_bytes = NormalEquationsBoundBytes(options.grid);
   if (equation_bytes >= cap_bytes) {
-    throw Error(Format("light estimation: the normal equations of a ", options.grid, "^3 voxel grid (",
-                       6 * grid.VoxelCount(), " parameters, dense) may take ", std::ceil(equation_bytes / 1e6),
-                       " MB, over the memory cap of ", options.memory_cap, " MB; lower lights grid or raise the",
+    throw Error(Format("light estimation: the normal equations of a ", options.grid,
+                       "^3 voxel grid (", 6 * grid.VoxelCount(), " parameters, dense) may take ",
+                       std::ceil(equation_bytes / 1e6), " MB, over the memory cap of ",
+                       options.memory_cap, " MB; lower lights grid or raise the",
                        " lights memory_cap"));
   }
   NormalEquations total;
   LightCache last;
   // Two independent halves of the paths (the second keyed by ~key), kept in `last` and `second`,
   // within what the cap leaves beside `equation_bytes` of normal equations.
-  const auto trace_halves = [&](const std::vector<SampledPixel>& traced_pixels, const VoxelLightGrid& lights,
-                                const VoxelSplitting& splitting, int spp, uint64_t key, double equation_bytes,
-                                LightCache* second, LightRound* r) {
+  const auto trace_halves = [&](const std::vector<SampledPixel>& traced_pixels,
+                                const VoxelLightGrid& lights, const VoxelSplitting& splitting,
+                                int spp, uint64_t key, double equation_bytes, LightCache* second,
+                                LightRound* r) {
     const auto t = std::chrono::steady_clock::now();
     LightEstimationOptions paths = options;
     paths.spp = spp;
     last = LightCache();  // the previous caches are not needed while tracing
     *second = LightCache();
-    std::tie(last, *second) =
-        TraceLightCacheHalves(tracer, lights, splitting, views, traced_pixels, paths, key, ~key, cap_bytes - equation_bytes);
+    std::tie(last, *second) = TraceLightCacheHalves(tracer, lights, splitting, views, traced_pixels,
+                                                    paths, key, ~key, cap_bytes - equation_bytes);
     r->trace_seconds = SecondsSince(t);
     r->nonzeros = last.NonZeros() + second->NonZeros();
     r->rays = last.rays.total() + second->rays.total();
@@ -1157,7 +1225,8 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
       std::vector<double> pmf(static_cast<size_t>(grid.VoxelCount()), 1.0);
       if (round > 0) {
         double total_power = 0.0;
-        for (int j = 0; j < grid.VoxelCount(); ++j) total_power += pmf[j] = Luminance(grid.Power(j));
+        for (int j = 0; j < grid.VoxelCount(); ++j)
+          total_power += pmf[j] = Luminance(grid.Power(j));
         for (double& p : pmf) {
           p = (1.0 - options.resample_uniform) * (total_power > 0.0 ? p / total_power : 0.0) +
               options.resample_uniform / grid.VoxelCount();
@@ -1165,7 +1234,8 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
       }
       splitting.SetPmf(std::move(pmf), options.resample_voxels);
       LightCache second;
-      trace_halves(round_pixels, grid, splitting, options.spp, Mix64(seed + 0x51ED * (round + 1)), equation_bytes, &second, &r);
+      trace_halves(round_pixels, grid, splitting, options.spp, Mix64(seed + 0x51ED * (round + 1)),
+                   equation_bytes, &second, &r);
       auto t = std::chrono::steady_clock::now();
       NormalEquations eq = NormalEquations::FromCaches(last, second, options.noise_correction);
       if (round == 0) {
@@ -1212,8 +1282,8 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   // standing in for an extended light can sit a layer off it) and solve again.
   // Adds the finer voxels near `lit`'s lights (strongest first) while refine_max_voxels allows;
   // `left_out` tells whether some light's neighbourhood did not fit.
-  const auto add_candidates = [&](const VoxelLightGrid& lit, const VoxelLightGrid& fine, std::vector<bool>* enabled,
-                                  int* count, bool* left_out) {
+  const auto add_candidates = [&](const VoxelLightGrid& lit, const VoxelLightGrid& fine,
+                                  std::vector<bool>* enabled, int* count, bool* left_out) {
     std::vector<std::pair<double, int>> split;
     double top = 0.0;
     for (int j = 0; j < lit.VoxelCount(); ++j) top = std::max<double>(top, Luminance(lit.Power(j)));
@@ -1224,14 +1294,16 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     std::sort(split.begin(), split.end(), [](const auto& a, const auto& b) {
       return a.first != b.first ? a.first > b.first : a.second < b.second;
     });
-    const Eigen::Vector3d reach =
-        options.refine_reach * lit.bounds.sizes().cwiseQuotient(lit.dims.cast<double>()) * (1.0 + 1e-9);
+    const Eigen::Vector3d reach = options.refine_reach *
+                                  lit.bounds.sizes().cwiseQuotient(lit.dims.cast<double>()) *
+                                  (1.0 + 1e-9);
     int added = 0;
     for (const auto& [power, j] : split) {
       const Eigen::Vector3d centre = lit.VoxelCenter(j);
       std::vector<int> near;
       for (int f = 0; f < fine.VoxelCount(); ++f) {
-        if (!(*enabled)[f] && ((fine.VoxelCenter(f) - centre).cwiseAbs().array() <= reach.array()).all()) {
+        if (!(*enabled)[f] &&
+            ((fine.VoxelCenter(f) - centre).cwiseAbs().array() <= reach.array()).all()) {
           near.push_back(f);
         }
       }
@@ -1258,9 +1330,10 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     // the coarse grid is estimated again from every sampled pixel.
     const bool reestimate = level == 1 && coarse_pixels.size() < pixels.size();
     if (left_out) {
-      out.notes.push_back(Format("adaptive refinement stopped before level ", level, ": the lights of the ",
-                                 grid.dims.x(), "^3 grid spread over more than lights refine_max_voxels = ",
-                                 options.refine_max_voxels, " finer voxels (a larger penalty_weight gives fewer)"));
+      out.notes.push_back(Format(
+          "adaptive refinement stopped before level ", level, ": the lights of the ", grid.dims.x(),
+          "^3 grid spread over more than lights refine_max_voxels = ", options.refine_max_voxels,
+          " finer voxels (a larger penalty_weight gives fewer)"));
       if (reestimate) coarse_rounds(pixels);
       break;
     }
@@ -1282,9 +1355,11 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
       r.candidates = candidates;
       const double level_equation_bytes = EquationBytes(candidates);
       if (level_equation_bytes >= cap_bytes) {
-        throw Error(Format("light estimation: the normal equations of refinement level ", level, " (", candidates,
-                           " voxels) may take ", std::ceil(level_equation_bytes / 1e6), " MB, over the memory cap of ",
-                           options.memory_cap, " MB; lower lights refine_max_voxels or raise the lights memory_cap"));
+        throw Error(Format("light estimation: the normal equations of refinement level ", level,
+                           " (", candidates, " voxels) may take ",
+                           std::ceil(level_equation_bytes / 1e6), " MB, over the memory cap of ",
+                           options.memory_cap,
+                           " MB; lower lights refine_max_voxels or raise the lights memory_cap"));
       }
       // A growing pass traces only the voxels it adds, with the same keys: the paths are the same
       // (a vertex that connects to every enabled voxel draws no random number for it), so their
@@ -1296,11 +1371,13 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
       const int level_spp = options.refine_spp > 0 ? options.refine_spp : options.spp;
       const uint64_t key = Mix64(seed + 0x5EF1 * level);
       if (pass == 0) {
-        trace_halves(pixels, fine, splitting, level_spp, key, level_equation_bytes + coarser_bytes, &second, &r);
+        trace_halves(pixels, fine, splitting, level_spp, key, level_equation_bytes + coarser_bytes,
+                     &second, &r);
       } else {
         LightCache held_first = std::move(last), held_second = std::move(second);
         trace_halves(pixels, fine, splitting, level_spp, key,
-                     level_equation_bytes + coarser_bytes + static_cast<double>(held_first.Bytes() + held_second.Bytes()),
+                     level_equation_bytes + coarser_bytes +
+                         static_cast<double>(held_first.Bytes() + held_second.Bytes()),
                      &second, &r);
         held_first.Merge(last);
         held_second.Merge(second);
@@ -1319,7 +1396,8 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
       t = std::chrono::steady_clock::now();
       LightEstimationOptions level_options = options;
       level_options.penalty_weight = options.penalty_weight * options.refine_penalty_scale;
-      for (int j = 0; j < fine.VoxelCount(); ++j) {  // every pass starts dark (the convex relaxation)
+      for (int j = 0; j < fine.VoxelCount();
+           ++j) {  // every pass starts dark (the convex relaxation)
         fine.intensity[j].setZero();
         fine.weights[j] = {1, 1, 1, 1, 1, 1};
       }
@@ -1335,8 +1413,9 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     // The coarser data term is the noisier (fewer paths per pixel), which favours the finer level.
     const double finer_data = out.rounds.back().solve.data;
     if (finer_data > coarser_data) {
-      out.notes.push_back(Format("adaptive refinement level ", level, " fitted the pixels worse than the ",
-                                 coarser.dims.x(), "^3 grid (data term ", finer_data, " against ", coarser_data,
+      out.notes.push_back(Format("adaptive refinement level ", level,
+                                 " fitted the pixels worse than the ", coarser.dims.x(),
+                                 "^3 grid (data term ", finer_data, " against ", coarser_data,
                                  "): the coarser result stands"));
       second = LightCache();
       if (reestimate) {
@@ -1358,7 +1437,8 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     ref += last.pixels[i].observed.cast<double>().squaredNorm();
   }
   out.train_rmse = ref > 0.0 ? std::sqrt(err / ref) : 0.0;
-  out.active_voxels = static_cast<int>(grid.ActiveVoxels(options.active_fraction).size());  // of the result's grid
+  out.active_voxels =
+      static_cast<int>(grid.ActiveVoxels(options.active_fraction).size());  // of the result's grid
   out.seconds = SecondsSince(start);
   return out;
 }
@@ -1377,7 +1457,8 @@ AmbientBaseline FitAmbientBaseline(const PathTracer& tracer, const std::vector<T
         const auto hit = tracer.PixelCentreHit(tv.view, u, v);
         if (!hit) continue;
         const SceneMesh& mesh = tracer.scene().meshes[static_cast<size_t>(hit->mesh)];
-        const Eigen::Vector3d a = mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2).cast<double>();
+        const Eigen::Vector3d a =
+            mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2).cast<double>();
         const Eigen::Vector3d o = tv.image(u, v).cast<double>();
         samples[t].emplace_back(a, o);
         ao += a.cwiseProduct(o);
@@ -1399,13 +1480,15 @@ AmbientBaseline FitAmbientBaseline(const PathTracer& tracer, const std::vector<T
   return out;
 }
 
-ViewError CompareRender(const PathTracer& lit, const TrainingView& reference, const LightEstimationOptions& options,
-                        int spp, uint64_t seed, double reference_noise_rms, ImageRgb* render, int block) {
+ViewError CompareRender(const PathTracer& lit, const TrainingView& reference,
+                        const LightEstimationOptions& options, int spp, uint64_t seed,
+                        double reference_noise_rms, ImageRgb* render, int block) {
   GS_CHECK_GE(block, 1);
   const Image<uint8_t> valid = ValidPixels(lit, reference, options);
   RenderOptions paths = options.Paths();
   paths.spp = spp;
-  const RenderHalves halves = RenderInHalves(lit, reference.view, paths, seed, seed ^ 0xB5297A4D3F1E0C2Bull);
+  const RenderHalves halves =
+      RenderInHalves(lit, reference.view, paths, seed, seed ^ 0xB5297A4D3F1E0C2Bull);
   ViewError e;
   double err = 0.0, ref = 0.0, noise = 0.0;
   const double reference_variance = 3.0 * reference_noise_rms * reference_noise_rms;  // per pixel
@@ -1418,7 +1501,8 @@ ViewError CompareRender(const PathTracer& lit, const TrainingView& reference, co
       for (int v = v0; v < std::min(v0 + block, valid.height()); ++v) {
         for (int u = u0; u < std::min(u0 + block, valid.width()); ++u) {
           if (!valid(u, v)) continue;
-          const Eigen::Vector3d pa = halves.a(u, v).cast<double>(), pb = halves.b(u, v).cast<double>();
+          const Eigen::Vector3d pa = halves.a(u, v).cast<double>(),
+                                pb = halves.b(u, v).cast<double>();
           sum_mean += 0.5 * (pa + pb);
           sum_ref += reference.image(u, v).cast<double>();
           // Variance of the mean of two independent halves: |a - b|^2 / 4.

@@ -21,14 +21,16 @@ void RefineOptions::Validate() const {
   RequireRange("spp", spp, 1, 1 << 16);
   RequireRange("pixels_per_view", pixels_per_view, 0, 1 << 26);
   const auto require_depth = [](const char* name, int depth) {
-    if (depth == 0 || depth < -1) throw Error(Format("option ", name, " = ", depth, " must be -1 or >= 1"));
+    if (depth == 0 || depth < -1)
+      throw Error(Format("option ", name, " = ", depth, " must be -1 or >= 1"));
   };
   require_depth("max_depth", max_depth);
   RequireRange("rr_depth", rr_depth, 1, 1 << 20);
   require_depth("jacobian_max_depth", jacobian_max_depth);
   RequireRange("noise", noise, 1e-6, 10.0);
   RequireRange("prior_sigma", prior_sigma, 1e-9, 1e6);
-  if (prior_tangent_sigma != 0.0) RequireRange("prior_tangent_sigma", prior_tangent_sigma, 1e-9, 1e6);
+  if (prior_tangent_sigma != 0.0)
+    RequireRange("prior_tangent_sigma", prior_tangent_sigma, 1e-9, 1e6);
   if (relax_sigma != 0.0) RequireRange("relax_sigma", relax_sigma, 1e-9, 1e6);
   if (smooth_sigma != 0.0) RequireRange("smooth_sigma", smooth_sigma, 1e-9, 1e6);
   RequireRange("damping", damping, 0.0, 1e12);
@@ -62,8 +64,8 @@ struct PixelRef {
 // do not see, and would pull the vertices the wrong way.
 // `ids` is a plain tracer of the tracer's scene (its object buffer gives what each pixel sees).
 std::vector<PixelRef> SamplePixels(const DifferentiablePathTracer& tracer, const PathTracer& ids,
-                                   const std::vector<TrainingView>& targets, int per_view, int margin,
-                                   bool refined_only, uint64_t seed) {
+                                   const std::vector<TrainingView>& targets, int per_view,
+                                   int margin, bool refined_only, uint64_t seed) {
   std::vector<PixelRef> pixels;
   RenderOptions one;
   one.spp = 1;
@@ -97,7 +99,10 @@ std::vector<PixelRef> SamplePixels(const DifferentiablePathTracer& tracer, const
     }
     for (int p : order) pixels.push_back({static_cast<int>(t), p % w, p / w});
   }
-  if (pixels.empty()) throw Error("vertex refinement: no pixels to fit (no pixel sees a refined mesh away from a silhouette)");
+  if (pixels.empty())
+    throw Error(
+        "vertex refinement: no pixels to fit (no pixel sees a refined mesh away from a "
+        "silhouette)");
   return pixels;
 }
 
@@ -118,7 +123,8 @@ double HuberWeight(double r, double k) {
 // RMS of the reference over the sampled pixels and channels (> 0).
 double ReferenceRms(const std::vector<TrainingView>& targets, const std::vector<PixelRef>& pixels) {
   double sum = 0.0;
-  for (const PixelRef& p : pixels) sum += targets[p.target].image(p.u, p.v).cast<double>().squaredNorm();
+  for (const PixelRef& p : pixels)
+    sum += targets[p.target].image(p.u, p.v).cast<double>().squaredNorm();
   const double rms = std::sqrt(sum / (3.0 * pixels.size()));
   if (!(rms > 0.0)) throw Error("vertex refinement: the reference images are black where sampled");
   return rms;
@@ -129,33 +135,40 @@ double ReferenceRms(const std::vector<TrainingView>& targets, const std::vector<
 struct Evaluation {
   std::vector<DualRgb> rows;  // per pixel
   double data_cost = 0.0;
-  double sum_squared = 0.0;   // of I - I*, for the RMSE
+  double sum_squared = 0.0;  // of I - I*, for the RMSE
   RayCounts rays;
 };
 
-Evaluation Evaluate(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
-                    const std::vector<PixelRef>& pixels, const RefineOptions& options, uint64_t seed, double scale,
-                    bool derivatives) {
+Evaluation Evaluate(const DifferentiablePathTracer& tracer,
+                    const std::vector<TrainingView>& targets, const std::vector<PixelRef>& pixels,
+                    const RefineOptions& options, uint64_t seed, double scale, bool derivatives) {
   Evaluation e;
   e.rows.resize(pixels.size());
   std::vector<RayCounts> rays(pixels.size());
   const RenderOptions render = options.Render();
   RenderOptions jacobian = render;
-  if (options.jacobian_max_depth > 0 && (render.max_depth < 0 || options.jacobian_max_depth < render.max_depth)) {
+  if (options.jacobian_max_depth > 0 &&
+      (render.max_depth < 0 || options.jacobian_max_depth < render.max_depth)) {
     jacobian.max_depth = options.jacobian_max_depth;  // never deeper than the residuals' paths
   }
   const bool separate = derivatives && jacobian.max_depth != render.max_depth;
-  ParallelFor(0, pixels.size(), [&](size_t i) {
-    const PixelRef& p = pixels[i];
-    const TrainingView& t = targets[p.target];
-    DualRgb row = tracer.Pixel(t.view, p.u, p.v, render, seed, derivatives && !separate, &rays[i]);
-    if (separate) {  // the values of the full paths, the derivatives of the short ones
-      const DualRgb d = tracer.Pixel(t.view, p.u, p.v, jacobian, seed, true, &rays[i]);
-      for (int c = 0; c < 3; ++c) row[c] = SparseDual::Linear(1.0, d[c], 0.0, SparseDual(), row[c].value());
-    }
-    for (int c = 0; c < 3; ++c) row[c] = (std::move(row[c]) - t.image(p.u, p.v)[c]) * (1.0 / scale);
-    e.rows[i] = std::move(row);
-  }, 8);
+  ParallelFor(
+      0, pixels.size(),
+      [&](size_t i) {
+        const PixelRef& p = pixels[i];
+        const TrainingView& t = targets[p.target];
+        DualRgb row =
+            tracer.Pixel(t.view, p.u, p.v, render, seed, derivatives && !separate, &rays[i]);
+        if (separate) {  // the values of the full paths, the derivatives of the short ones
+          const DualRgb d = tracer.Pixel(t.view, p.u, p.v, jacobian, seed, true, &rays[i]);
+          for (int c = 0; c < 3; ++c)
+            row[c] = SparseDual::Linear(1.0, d[c], 0.0, SparseDual(), row[c].value());
+        }
+        for (int c = 0; c < 3; ++c)
+          row[c] = (std::move(row[c]) - t.image(p.u, p.v)[c]) * (1.0 / scale);
+        e.rows[i] = std::move(row);
+      },
+      8);
   for (size_t i = 0; i < pixels.size(); ++i) {  // fixed order: the same sums with any thread count
     for (int c = 0; c < 3; ++c) {
       const double r = e.rows[i][c].value();
@@ -189,9 +202,11 @@ struct NormalEquations {
     out->setZero(v.size());
     for (size_t r = 0; r + 1 < row_start.size(); ++r) {
       double s = 0.0;
-      for (size_t k = row_start[r]; k < row_start[r + 1]; ++k) s += row_d[k].dot(v.segment<3>(3 * row_vertex[k]));
+      for (size_t k = row_start[r]; k < row_start[r + 1]; ++k)
+        s += row_d[k].dot(v.segment<3>(3 * row_vertex[k]));
       s *= row_weight[r];
-      for (size_t k = row_start[r]; k < row_start[r + 1]; ++k) out->segment<3>(3 * row_vertex[k]) += s * row_d[k];
+      for (size_t k = row_start[r]; k < row_start[r + 1]; ++k)
+        out->segment<3>(3 * row_vertex[k]) += s * row_d[k];
     }
   }
 };
@@ -212,7 +227,8 @@ NormalEquations Assemble(const Evaluation& e, int vertices, double robust, bool 
         n.diagonal[d[a].vertex] += w * d[a].d * d[a].d.transpose();
         if (keep_blocks) {
           for (size_t b = a + 1; b < d.size(); ++b) {
-            auto [it, fresh] = n.blocks.try_emplace({d[a].vertex, d[b].vertex}, Eigen::Matrix3d::Zero());
+            auto [it, fresh] =
+                n.blocks.try_emplace({d[a].vertex, d[b].vertex}, Eigen::Matrix3d::Zero());
             it->second += w * d[a].d * d[b].d.transpose();
           }
         } else {
@@ -236,13 +252,14 @@ NormalEquations Assemble(const Evaluation& e, int vertices, double robust, bool 
 // gradients preconditioned with the inverse 3 x 3 diagonal blocks, to a relative residual of
 // 1e-10 (at most 1000 iterations; serial, so the same with any thread count).
 Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior_gradient,
-                          const std::vector<Eigen::Matrix3d>& prior, const Eigen::SparseMatrix<double>& coupling,
-                          double mu) {
+                          const std::vector<Eigen::Matrix3d>& prior,
+                          const Eigen::SparseMatrix<double>& coupling, double mu) {
   const int size = static_cast<int>(n.gradient.size());
   const int vertices = size / 3;
   const bool coupled = coupling.nonZeros() > 0;
   Eigen::VectorXd diagonal(size);  // diag(H)
-  for (int i = 0; i < vertices; ++i) diagonal.segment<3>(3 * i) = (n.diagonal[i] + prior[i]).diagonal();
+  for (int i = 0; i < vertices; ++i)
+    diagonal.segment<3>(3 * i) = (n.diagonal[i] + prior[i]).diagonal();
   if (coupled) diagonal += coupling.diagonal();
   const Eigen::VectorXd rhs = -(n.gradient + prior_gradient);
   Eigen::VectorXd step;
@@ -252,14 +269,16 @@ Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior
     for (int i = 0; i < vertices; ++i) {
       for (int r = 0; r < 3; ++r) {
         for (int c = 0; c < 3; ++c) {
-          const double value = r == c ? diagonal[3 * i + r] * (1.0 + mu) : n.diagonal[i](r, c) + prior[i](r, c);
+          const double value =
+              r == c ? diagonal[3 * i + r] * (1.0 + mu) : n.diagonal[i](r, c) + prior[i](r, c);
           triplets.emplace_back(3 * i + r, 3 * i + c, value);
         }
       }
     }
     for (int c = 0; coupled && c < coupling.outerSize(); ++c) {  // its diagonal is in `diagonal`
       for (Eigen::SparseMatrix<double>::InnerIterator e(coupling, c); e; ++e) {
-        if (e.row() != e.col()) triplets.emplace_back(static_cast<int>(e.row()), static_cast<int>(e.col()), e.value());
+        if (e.row() != e.col())
+          triplets.emplace_back(static_cast<int>(e.row()), static_cast<int>(e.col()), e.value());
       }
     }
     for (const auto& [ij, block] : n.blocks) {
@@ -274,7 +293,8 @@ Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior
     Eigen::SparseMatrix<double> h(size, size);
     h.setFromTriplets(triplets.begin(), triplets.end());
     Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(h);
-    if (solver.info() != Eigen::Success) throw Error("vertex refinement: the normal equations could not be factorised");
+    if (solver.info() != Eigen::Success)
+      throw Error("vertex refinement: the normal equations could not be factorised");
     step = solver.solve(rhs);
   } else {
     std::vector<Eigen::Matrix3d> preconditioner(vertices);
@@ -294,7 +314,8 @@ Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior
     };
     const auto precondition = [&](const Eigen::VectorXd& r) {
       Eigen::VectorXd z(size);
-      for (int i = 0; i < vertices; ++i) z.segment<3>(3 * i) = preconditioner[i] * r.segment<3>(3 * i);
+      for (int i = 0; i < vertices; ++i)
+        z.segment<3>(3 * i) = preconditioner[i] * r.segment<3>(3 * i);
       return z;
     };
     step = Eigen::VectorXd::Zero(size);
@@ -326,7 +347,8 @@ double MeanEdgeLength(const DifferentiablePathTracer& tracer) {
     if (tracer.ParameterVertex(static_cast<int>(m), 0) < 0) continue;
     const TriangleMesh& mesh = tracer.scene().meshes[m].mesh;
     for (const Eigen::Vector3i& f : mesh.faces) {
-      for (int k = 0; k < 3; ++k) sum += (mesh.vertices[f[k]] - mesh.vertices[f[(k + 1) % 3]]).norm(), ++count;
+      for (int k = 0; k < 3; ++k)
+        sum += (mesh.vertices[f[k]] - mesh.vertices[f[(k + 1) % 3]]).norm(), ++count;
     }
   }
   return count > 0 ? sum / count : 1.0;
@@ -347,7 +369,8 @@ std::vector<Eigen::Vector3i> ParameterFaces(const DifferentiablePathTracer& trac
 }
 
 Eigen::Vector3d FaceNormalAt(const Eigen::VectorXd& x, const Eigen::Vector3i& f) {
-  const Eigen::Vector3d a = x.segment<3>(3 * f[0]), b = x.segment<3>(3 * f[1]), c = x.segment<3>(3 * f[2]);
+  const Eigen::Vector3d a = x.segment<3>(3 * f[0]), b = x.segment<3>(3 * f[1]),
+                        c = x.segment<3>(3 * f[2]);
   return (b - a).cross(c - a);
 }
 
@@ -355,10 +378,13 @@ Eigen::Vector3d FaceNormalAt(const Eigen::VectorXd& x, const Eigen::Vector3i& f)
 // normal (area-weighted), 1 / sigma_t^2 across it (by default the same: the relaxation term, not
 // this prior, keeps the vertices from sliding across the surface, and a firm prior across the
 // starting normal of a noisy mesh, whose normals are tilted, also holds the moves along the true
-// normal that the images ask for). Vertices without a normal (no face) get the isotropic 1 / sigma_n^2.
-std::vector<Eigen::Matrix3d> PriorBlocks(const DifferentiablePathTracer& tracer, const RefineOptions& options) {
+// normal that the images ask for). Vertices without a normal (no face) get the isotropic 1 /
+// sigma_n^2.
+std::vector<Eigen::Matrix3d> PriorBlocks(const DifferentiablePathTracer& tracer,
+                                         const RefineOptions& options) {
   const double wn = 1.0 / (options.prior_sigma * options.prior_sigma);
-  const double sigma_t = options.prior_tangent_sigma > 0.0 ? options.prior_tangent_sigma : options.prior_sigma;
+  const double sigma_t =
+      options.prior_tangent_sigma > 0.0 ? options.prior_tangent_sigma : options.prior_sigma;
   const double wt = 1.0 / (sigma_t * sigma_t);
   std::vector<Eigen::Matrix3d> blocks(tracer.VertexCount(), wn * Eigen::Matrix3d::Identity());
   if (wt == wn) return blocks;
@@ -458,7 +484,8 @@ class Relaxation {
         const Eigen::Matrix3d t = Eigen::Matrix3d::Identity() - unit[r] * unit[r].transpose();
         const auto put = [&](int vertex, double scale) {
           for (int i = 0; i < 3; ++i) {
-            for (int c = 0; c < 3; ++c) entries.emplace_back(3 * row.vertex + i, 3 * vertex + c, scale * t(i, c));
+            for (int c = 0; c < 3; ++c)
+              entries.emplace_back(3 * row.vertex + i, 3 * vertex + c, scale * t(i, c));
           }
         };
         put(row.vertex, 1.0);
@@ -469,8 +496,8 @@ class Relaxation {
       q = (a.transpose() * a) / (sigma_ * sigma_);
     }
     if (smooth_sigma_ > 0.0) {
-      // Row r of B: k_r - the mean of k over its ring, k_r = h_r / l_r * l, where h_r = n_r . (x_r -
-      // c_r) is the vertex's offset along its normal from its one-ring's centroid (the umbrella
+      // Row r of B: k_r - the mean of k over its ring, k_r = h_r / l_r * l, where h_r = n_r . (x_r
+      // - c_r) is the vertex's offset along its normal from its one-ring's centroid (the umbrella
       // Laplacian along the normal), l_r the mean squared length of its edges and l the mean of l_r
       // over the vertices. h_r / l_r is half the mean curvature wherever the ring lies on a sphere
       // (a neighbour at distance d is d^2 / 2R below the tangent plane), whatever the valence and
@@ -506,7 +533,8 @@ class Relaxation {
       }
       Eigen::SparseMatrix<double> b(rows, size_);
       b.setFromTriplets(entries.begin(), entries.end());
-      const Eigen::SparseMatrix<double> bend = (b.transpose() * b) / (smooth_sigma_ * smooth_sigma_);
+      const Eigen::SparseMatrix<double> bend =
+          (b.transpose() * b) / (smooth_sigma_ * smooth_sigma_);
       q = sigma_ > 0.0 ? Eigen::SparseMatrix<double>(q + bend) : bend;
     }
     q.prune(0.0);
@@ -515,8 +543,8 @@ class Relaxation {
 
  private:
   struct Row {
-    int vertex;                 // parameter vertex
-    std::vector<int> ring;      // its neighbours' parameter vertices
+    int vertex;                  // parameter vertex
+    std::vector<int> ring;       // its neighbours' parameter vertices
     std::vector<int> ring_rows;  // their rows (empty when a neighbour has none: no bending row)
   };
   int size_;
@@ -537,9 +565,11 @@ constexpr double kHeld = 1e10;
 // (a 1-sample trace left the Cycles dent held on some seeds).
 // `rays` is a plain tracer of the tracer's scene.
 std::vector<bool> SeenVertices(const DifferentiablePathTracer& tracer, const PathTracer& rays,
-                               const std::vector<TrainingView>& targets, const std::vector<PixelRef>& pixels) {
+                               const std::vector<TrainingView>& targets,
+                               const std::vector<PixelRef>& pixels) {
   const Scene& scene = tracer.scene();
-  std::vector<std::vector<std::vector<int>>> incident(scene.meshes.size());  // mesh -> vertex -> faces
+  std::vector<std::vector<std::vector<int>>> incident(
+      scene.meshes.size());  // mesh -> vertex -> faces
   for (size_t m = 0; m < scene.meshes.size(); ++m) {
     if (tracer.ParameterVertex(static_cast<int>(m), 0) < 0) continue;
     const TriangleMesh& mesh = scene.meshes[m].mesh;
@@ -568,10 +598,13 @@ std::vector<bool> SeenVertices(const DifferentiablePathTracer& tracer, const Pat
 
 }  // namespace
 
-RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
-                                        const RefineOptions& options, uint64_t seed, const Eigen::VectorXd* direction) {
-  const std::vector<PixelRef> pixels = SamplePixels(tracer, PathTracer(tracer.scene()), targets, options.pixels_per_view,
-                                                    options.edge_margin, options.refined_pixels_only, seed);
+RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer,
+                                        const std::vector<TrainingView>& targets,
+                                        const RefineOptions& options, uint64_t seed,
+                                        const Eigen::VectorXd* direction) {
+  const std::vector<PixelRef> pixels =
+      SamplePixels(tracer, PathTracer(tracer.scene()), targets, options.pixels_per_view,
+                   options.edge_margin, options.refined_pixels_only, seed);
   const double scale = options.noise * ReferenceRms(targets, pixels);
   const Evaluation e = Evaluate(tracer, targets, pixels, options, seed, scale, true);
   RefineLinearization l;
@@ -586,39 +619,45 @@ RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer, 
   return l;
 }
 
-HeldOutComparison CompareOnFreshPixels(DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
-                                       const RefineOptions& options, uint64_t seed, const Eigen::VectorXd& a,
-                                       const Eigen::VectorXd& b) {
-  const std::vector<PixelRef> pixels = SamplePixels(tracer, PathTracer(tracer.scene()), targets, options.pixels_per_view,
-                                                    options.edge_margin, options.refined_pixels_only, seed);
+HeldOutComparison CompareOnFreshPixels(DifferentiablePathTracer& tracer,
+                                       const std::vector<TrainingView>& targets,
+                                       const RefineOptions& options, uint64_t seed,
+                                       const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  const std::vector<PixelRef> pixels =
+      SamplePixels(tracer, PathTracer(tracer.scene()), targets, options.pixels_per_view,
+                   options.edge_margin, options.refined_pixels_only, seed);
   HeldOutComparison out;
   out.pixels = static_cast<int>(pixels.size());
   if (pixels.empty()) return out;
   const double rms = ReferenceRms(targets, pixels), channels = 3.0 * pixels.size();
   const auto rmse_at = [&](const Eigen::VectorXd& x) {
     tracer.SetPositions(x, false);
-    return std::sqrt(Evaluate(tracer, targets, pixels, options, seed, 1.0, false).sum_squared / channels) / rms;
+    return std::sqrt(Evaluate(tracer, targets, pixels, options, seed, 1.0, false).sum_squared /
+                     channels) /
+           rms;
   };
   out.rmse_a = rmse_at(a);
   out.rmse_b = rmse_at(b);
   return out;
 }
 
-RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<TrainingView>& targets,
-                            const RefineOptions& options, uint64_t seed, const RefineProgress& progress) {
+RefineResult RefineVertices(DifferentiablePathTracer& tracer,
+                            const std::vector<TrainingView>& targets, const RefineOptions& options,
+                            uint64_t seed, const RefineProgress& progress) {
   options.Validate();
   if (targets.empty()) throw Error("vertex refinement: no reference images");
   for (size_t t = 0; t < targets.size(); ++t) {
     const auto& k = targets[t].view.intrinsics;
     const ImageRgb& image = targets[t].image;
     if (image.width() != k.width || image.height() != k.height) {
-      throw Error(Format("vertex refinement: reference image ", t, " is ", image.width(), "x", image.height(),
-                         " but its view is ", k.width, "x", k.height));
+      throw Error(Format("vertex refinement: reference image ", t, " is ", image.width(), "x",
+                         image.height(), " but its view is ", k.width, "x", k.height));
     }
     for (int v = 0; v < image.height(); ++v) {
       for (int u = 0; u < image.width(); ++u) {
         if (!image(u, v).allFinite()) {
-          throw Error(Format("vertex refinement: reference image ", t, " pixel (", u, ", ", v, ") is not finite"));
+          throw Error(Format("vertex refinement: reference image ", t, " pixel (", u, ", ", v,
+                             ") is not finite"));
         }
       }
     }
@@ -626,8 +665,9 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   if (tracer.VertexCount() == 0) throw Error("vertex refinement: no vertices to refine");
 
   const PathTracer plain(tracer.scene());  // built once for the pixel sample and the seen vertices
-  const std::vector<PixelRef> pixels = SamplePixels(tracer, plain, targets, options.pixels_per_view,
-                                                    options.edge_margin, options.refined_pixels_only, seed);
+  const std::vector<PixelRef> pixels =
+      SamplePixels(tracer, plain, targets, options.pixels_per_view, options.edge_margin,
+                   options.refined_pixels_only, seed);
   const double rms = ReferenceRms(targets, pixels);
   const double scale = options.noise * rms;
   std::vector<Eigen::Matrix3d> prior = PriorBlocks(tracer, options);
@@ -664,7 +704,8 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   const auto prior_gradient_at = [&](const Eigen::VectorXd& at) {
     Eigen::VectorXd g(at.size());
     for (size_t v = 0; v < prior.size(); ++v) {
-      g.segment<3>(3 * v) = prior_weight(at, v) * (prior[v] * (at - result.initial).segment<3>(3 * v));
+      g.segment<3>(3 * v) =
+          prior_weight(at, v) * (prior[v] * (at - result.initial).segment<3>(3 * v));
     }
     if (relaxation.nonZeros() > 0) g += relaxation * at;
     return g;
@@ -682,7 +723,9 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
     return blocks;
   };
   const auto now = [] { return std::chrono::steady_clock::now(); };
-  const auto seconds = [](auto since) { return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count(); };
+  const auto seconds = [](auto since) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - since).count();
+  };
 
   auto start = now();
   // With resampling every iteration traces its own linearisation: the start needs values only.
@@ -715,8 +758,8 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
       record.rays.occluded += current.rays.occluded;
     }
     relaxation = relax.Matrix(x);
-    const NormalEquations equations =
-        Assemble(current, tracer.VertexCount(), options.robust, tracer.VertexCount() <= options.direct_max_vertices);
+    const NormalEquations equations = Assemble(current, tracer.VertexCount(), options.robust,
+                                               tracer.VertexCount() <= options.direct_max_vertices);
     record.jacobian_nonzeros_per_pixel = equations.nonzeros / pixels.size();
     const Eigen::VectorXd prior_gradient = prior_gradient_at(x);
     const std::vector<Eigen::Matrix3d> prior_here = prior_blocks_at(x);
@@ -726,16 +769,19 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
       Eigen::VectorXd step = SolveStep(equations, prior_gradient, prior_here, relaxation, mu);
       // Trust region on the largest vertex move: the linear model holds over a fraction of an edge.
       double largest = 0.0;
-      for (int v = 0; v < tracer.VertexCount(); ++v) largest = std::max(largest, step.segment<3>(3 * v).norm());
+      for (int v = 0; v < tracer.VertexCount(); ++v)
+        largest = std::max(largest, step.segment<3>(3 * v).norm());
       if (largest > radius) step *= radius / largest;
-      if (options.average_after > 0 && it > options.average_after) step /= it - options.average_after;
+      if (options.average_after > 0 && it > options.average_after)
+        step /= it - options.average_after;
       record.held += HoldFoldingVertices(faces, result.initial, x, &step);
       const Eigen::VectorXd trial = x + step;
       const bool derivatives = it < options.iterations && !options.resample;
       tracer.SetPositions(trial, derivatives);
       // Most steps are kept: trace the trial with derivatives, they are the next iteration's
       // (unless the next iteration draws new random numbers).
-      Evaluation evaluation = Evaluate(tracer, targets, pixels, options, it_seed, scale, derivatives);
+      Evaluation evaluation =
+          Evaluate(tracer, targets, pixels, options, it_seed, scale, derivatives);
       record.rays.intersect += evaluation.rays.intersect;
       record.rays.occluded += evaluation.rays.occluded;
       const double trial_cost = evaluation.data_cost + prior_cost(trial);
@@ -766,8 +812,8 @@ RefineResult RefineVertices(DifferentiablePathTracer& tracer, const std::vector<
   return result;
 }
 
-int HoldFoldingVertices(const std::vector<Eigen::Vector3i>& faces, const Eigen::VectorXd& start, const Eigen::VectorXd& x,
-                        Eigen::VectorXd* step) {
+int HoldFoldingVertices(const std::vector<Eigen::Vector3i>& faces, const Eigen::VectorXd& start,
+                        const Eigen::VectorXd& x, Eigen::VectorXd* step) {
   const auto folded = [&](const Eigen::VectorXd& at, const Eigen::Vector3i& f) {
     const Eigen::Vector3d n0 = FaceNormalAt(start, f), n = FaceNormalAt(at, f);
     return n0.squaredNorm() > 0.0 && (n.squaredNorm() == 0.0 || n0.dot(n) <= 0.0);

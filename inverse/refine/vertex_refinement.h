@@ -2,7 +2,8 @@
 // through the differentiable path tracer, by Levenberg-Marquardt on
 //
 //   E(x) = sum_pixels sum_c rho((I_c(x) - I*_c) / (noise * s)) + sum_i huber(sqrt(d_i^T P_i d_i))
-//          + sum_i |T_i (x_i - c_i)|^2 / (2 relax_sigma^2) + sum_i (k_i - mean_ring k_j)^2 / (2 smooth_sigma^2),
+//          + sum_i |T_i (x_i - c_i)|^2 / (2 relax_sigma^2) + sum_i (k_i - mean_ring k_j)^2 / (2
+//          smooth_sigma^2),
 //   d_i = x_i - x0_i,  P_i = n n^T / sigma_n^2 + (I - n n^T) / sigma_t^2
 //
 // where I(x) is the path-traced pixel (options.spp samples with fixed random numbers, so E is a
@@ -24,9 +25,9 @@
 // plane whatever the valence, so the term charges changes of curvature: a single vertex that
 // walks along the normal, where visibility changes (not differentiated) at a silhouette pull it.
 // Vertices on a mesh boundary get no relaxation row (their one-ring's centroid lies inside). The
-// prior's Huber loss of the distance (threshold prior_robust) holds noise-sized moves quadratically and
-// pulls a large move the images support with a constant force, not in proportion. rho is Huber's
-// loss of the residual (threshold robust). The pixels are those that see a refined mesh (by
+// prior's Huber loss of the distance (threshold prior_robust) holds noise-sized moves quadratically
+// and pulls a large move the images support with a constant force, not in proportion. rho is
+// Huber's loss of the residual (threshold robust). The pixels are those that see a refined mesh (by
 // default), and vertices that no fitted pixel sees directly are held in place (by default).
 // Each iteration traces every sampled pixel (the residuals from the full paths, the sparse
 // Jacobian rows from the paths' first jacobian_max_depth segments, by default direct light only:
@@ -53,28 +54,33 @@ namespace genscene::inverse {
 struct RefineOptions {
   static constexpr const char* kSection = "refine";
 
-  int iterations = 5;           // Levenberg-Marquardt iterations (accepted or not)
-  int spp = 64;                 // path samples per pixel and evaluation
-  int pixels_per_view = 0;      // pixels sampled per view (0 = every pixel)
-  bool refine_unseen = false;   // also move vertices that no sampled pixel sees directly
+  int iterations = 5;               // Levenberg-Marquardt iterations (accepted or not)
+  int spp = 64;                     // path samples per pixel and evaluation
+  int pixels_per_view = 0;          // pixels sampled per view (0 = every pixel)
+  bool refine_unseen = false;       // also move vertices that no sampled pixel sees directly
   bool refined_pixels_only = true;  // fit only pixels whose camera ray sees a refined mesh
-  int edge_margin = 1;          // pixels within this distance of a silhouette are left out
-  int max_depth = -1;           // longest path, Mitsuba convention (-1 = Russian roulette)
-  int rr_depth = 5;             // depth at which Russian roulette starts
-  int jacobian_max_depth = 2;   // longest path whose derivatives enter the Jacobian (2 = direct light; -1 = max_depth)
-  double noise = 0.05;          // relative pixel noise that weighs the data term
-  double robust = 3.0;          // Huber threshold of the residuals, in noise units (0 = none)
-  double prior_sigma = 0.003;   // standard deviation of the prior on vertex positions, m (along the normal)
+  int edge_margin = 1;              // pixels within this distance of a silhouette are left out
+  int max_depth = -1;               // longest path, Mitsuba convention (-1 = Russian roulette)
+  int rr_depth = 5;                 // depth at which Russian roulette starts
+  int jacobian_max_depth =
+      2;  // longest path whose derivatives enter the Jacobian (2 = direct light; -1 = max_depth)
+  double noise = 0.05;  // relative pixel noise that weighs the data term
+  double robust = 3.0;  // Huber threshold of the residuals, in noise units (0 = none)
+  double prior_sigma =
+      0.003;  // standard deviation of the prior on vertex positions, m (along the normal)
   double prior_tangent_sigma = 0.0;  // the same across the surface, m (0 = prior_sigma: isotropic)
-  double relax_sigma = 0.001;     // relaxation across the surface: SD of a vertex's offset from its one-ring's centroid, m (0 = off)
-  double smooth_sigma = 0.002;    // bending: SD of a vertex's offset along its normal from its neighbours' mean offset, m (0 = off)
-  double prior_robust = 2.0;    // Huber threshold of the prior, in standard deviations (0 = quadratic)
-  double damping = 1e-3;        // initial Levenberg-Marquardt damping (times diag of J^T J)
-  double max_step = 0.25;       // largest vertex move per step, in mean edge lengths (trust region)
-  bool resample = true;         // fresh random numbers every iteration (same within one)
-  int average_after = 2;        // step k > this moves 1 / (k - average_after) of the way (0 = full steps)
-  int max_retries = 6;          // rejected steps per iteration before giving up
-  double tolerance = 1e-5;      // stop when an accepted step lowers E by less than this fraction
+  double relax_sigma = 0.001;   // relaxation across the surface: SD of a vertex's offset from its
+                                // one-ring's centroid, m (0 = off)
+  double smooth_sigma = 0.002;  // bending: SD of a vertex's offset along its normal from its
+                                // neighbours' mean offset, m (0 = off)
+  double prior_robust =
+      2.0;                 // Huber threshold of the prior, in standard deviations (0 = quadratic)
+  double damping = 1e-3;   // initial Levenberg-Marquardt damping (times diag of J^T J)
+  double max_step = 0.25;  // largest vertex move per step, in mean edge lengths (trust region)
+  bool resample = true;    // fresh random numbers every iteration (same within one)
+  int average_after = 2;  // step k > this moves 1 / (k - average_after) of the way (0 = full steps)
+  int max_retries = 6;    // rejected steps per iteration before giving up
+  double tolerance = 1e-5;         // stop when an accepted step lowers E by less than this fraction
   int direct_max_vertices = 3000;  // larger problems are solved by conjugate gradients
 
   template <typename V>
@@ -83,30 +89,44 @@ struct RefineOptions {
     v("spp", spp, "", "path samples per pixel and evaluation");
     v("pixels_per_view", pixels_per_view, "", "pixels sampled per view (0 = every pixel)");
     v("refine_unseen", refine_unseen, "",
-      "also move the vertices no sampled pixel sees directly (only indirect light, mostly noise, speaks of them)");
+      "also move the vertices no sampled pixel sees directly (only indirect light, mostly noise, "
+      "speaks of them)");
     v("refined_pixels_only", refined_pixels_only, "",
-      "fit only the pixels whose camera ray first hits a mesh being refined (elsewhere a vertex shows only through shadows and indirect light)");
-    v("edge_margin", edge_margin, "px", "pixels this close to a silhouette are left out (0 = none)");
+      "fit only the pixels whose camera ray first hits a mesh being refined (elsewhere a vertex "
+      "shows only through shadows and indirect light)");
+    v("edge_margin", edge_margin, "px",
+      "pixels this close to a silhouette are left out (0 = none)");
     v("max_depth", max_depth, "segments", "longest path (Mitsuba convention; -1 = unlimited)");
     v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
     v("jacobian_max_depth", jacobian_max_depth, "segments",
-      "longest path whose derivatives enter the Jacobian (2 = direct light only; -1 = max_depth); the residuals always use max_depth");
+      "longest path whose derivatives enter the Jacobian (2 = direct light only; -1 = max_depth); "
+      "the residuals always use max_depth");
     v("noise", noise, "", "relative pixel noise that weighs the data term");
-    v("robust", robust, "", "Huber threshold of the residuals in noise units (0 = plain least squares)");
-    v("prior_sigma", prior_sigma, "m", "standard deviation of the prior on the starting vertex positions, along the normal");
+    v("robust", robust, "",
+      "Huber threshold of the residuals in noise units (0 = plain least squares)");
+    v("prior_sigma", prior_sigma, "m",
+      "standard deviation of the prior on the starting vertex positions, along the normal");
     v("prior_tangent_sigma", prior_tangent_sigma, "m",
-      "the same across the surface, where a move slides the vertex along the surface (0 = prior_sigma)");
+      "the same across the surface, where a move slides the vertex along the surface (0 = "
+      "prior_sigma)");
     v("relax_sigma", relax_sigma, "m",
-      "standard deviation of a vertex's offset across the surface from the centroid of its neighbours: spreads the vertices evenly where the images cannot see them slide (0 = off)");
+      "standard deviation of a vertex's offset across the surface from the centroid of its "
+      "neighbours: spreads the vertices evenly where the images cannot see them slide (0 = off)");
     v("smooth_sigma", smooth_sigma, "m",
-      "bending: standard deviation of a vertex's offset along its normal from its one-ring's centroid, less its neighbours' mean offset (a discrete change of curvature); holds single vertices from walking where visibility misleads the images (0 = off)");
+      "bending: standard deviation of a vertex's offset along its normal from its one-ring's "
+      "centroid, less its neighbours' mean offset (a discrete change of curvature); holds single "
+      "vertices from walking where visibility misleads the images (0 = off)");
     v("prior_robust", prior_robust, "sigma",
-      "Huber threshold of the prior's distance from the start, in standard deviations (0 = quadratic)");
+      "Huber threshold of the prior's distance from the start, in standard deviations (0 = "
+      "quadratic)");
     v("damping", damping, "", "initial Levenberg-Marquardt damping");
     v("max_step", max_step, "edges", "largest vertex move per step, in mean edge lengths");
-    v("resample", resample, "", "fresh random numbers every iteration (the same for its trial steps)");
+    v("resample", resample, "",
+      "fresh random numbers every iteration (the same for its trial steps)");
     v("average_after", average_after, "iterations",
-      "later steps are averaged: step k moves 1 / (k - average_after) of the way, so the positions become the mean of the steps' targets, each fitted to its own random numbers (0 = full steps)");
+      "later steps are averaged: step k moves 1 / (k - average_after) of the way, so the positions "
+      "become the mean of the steps' targets, each fitted to its own random numbers (0 = full "
+      "steps)");
     v("max_retries", max_retries, "", "rejected steps per iteration before stopping");
     v("tolerance", tolerance, "", "stop when a step lowers the cost by less than this fraction");
     v("direct_max_vertices", direct_max_vertices, "vertices",
@@ -117,27 +137,28 @@ struct RefineOptions {
 };
 
 struct RefineIteration {
-  int iteration = 0;           // 0: the start
-  double cost = 0.0;           // E at the positions after this iteration
-  double data_rmse = 0.0;      // RMS of (I - I*) / RMS of I* over the sampled pixels and channels
-  double step_rms = 0.0;       // RMS vertex move of this iteration's step, m (0 when rejected)
-  double damping = 0.0;        // damping after this iteration
-  int rejected = 0;            // steps rejected in this iteration
-  int held = 0;                // vertex moves zeroed because they would turn a face over (all trials)
+  int iteration = 0;       // 0: the start
+  double cost = 0.0;       // E at the positions after this iteration
+  double data_rmse = 0.0;  // RMS of (I - I*) / RMS of I* over the sampled pixels and channels
+  double step_rms = 0.0;   // RMS vertex move of this iteration's step, m (0 when rejected)
+  double damping = 0.0;    // damping after this iteration
+  int rejected = 0;        // steps rejected in this iteration
+  int held = 0;            // vertex moves zeroed because they would turn a face over (all trials)
   bool accepted = false;
-  double seconds = 0.0;        // wall time of the iteration
+  double seconds = 0.0;                      // wall time of the iteration
   double jacobian_nonzeros_per_pixel = 0.0;  // non-zero scalar entries of the 3 rows of a pixel
   render::RayCounts rays;
 };
 
 struct RefineResult {
-  Eigen::VectorXd initial;     // x0
-  Eigen::VectorXd positions;   // final x (also set in the tracer)
-  int pixels = 0;              // sampled pixels (each gives 3 residuals)
+  Eigen::VectorXd initial;    // x0
+  Eigen::VectorXd positions;  // final x (also set in the tracer)
+  int pixels = 0;             // sampled pixels (each gives 3 residuals)
   std::vector<RefineIteration> history;
 };
 
-using RefineProgress = std::function<void(const RefineIteration&, const render::DifferentiablePathTracer&)>;
+using RefineProgress =
+    std::function<void(const RefineIteration&, const render::DifferentiablePathTracer&)>;
 
 // The guard every step of RefineVertices passes: zeroes the step of the vertices of every face
 // (vertex indices into x, 3 coordinates each) that x + step would turn over (its normal at or
@@ -145,15 +166,17 @@ using RefineProgress = std::function<void(const RefineIteration&, const render::
 // face turns over; returns how many vertices were held. A fold is never a better fit of a
 // surface: it comes from a step the linear model over-reaches, or from noise on a thin face.
 // Faces of zero area at `start` have no orientation and are not checked.
-int HoldFoldingVertices(const std::vector<Eigen::Vector3i>& faces, const Eigen::VectorXd& start, const Eigen::VectorXd& x,
-                        Eigen::VectorXd* step);
+int HoldFoldingVertices(const std::vector<Eigen::Vector3i>& faces, const Eigen::VectorXd& start,
+                        const Eigen::VectorXd& x, Eigen::VectorXd* step);
 
 // Refines the tracer's parameter vertices so that its renders match the targets; leaves the
 // tracer at the final positions. `seed` keys the random numbers of the traces and of the pixel
 // sample. `progress` is called after the start and after every iteration.
 // Throws Error when a target's size does not match its view or the image is not finite.
-RefineResult RefineVertices(render::DifferentiablePathTracer& tracer, const std::vector<render::TrainingView>& targets,
-                            const RefineOptions& options, uint64_t seed = 1, const RefineProgress& progress = {});
+RefineResult RefineVertices(render::DifferentiablePathTracer& tracer,
+                            const std::vector<render::TrainingView>& targets,
+                            const RefineOptions& options, uint64_t seed = 1,
+                            const RefineProgress& progress = {});
 
 // The data term of E at the tracer's positions and its gradient J^T r (3 per parameter vertex),
 // for checks of the objective against finite differences.
@@ -162,7 +185,8 @@ struct RefineLinearization {
   Eigen::VectorXd gradient;
   double curvature = 0.0;  // d^T J^T W J d along the given direction d (Gauss-Newton model)
 };
-RefineLinearization LinearizeRefinement(const render::DifferentiablePathTracer& tracer, const std::vector<render::TrainingView>& targets,
+RefineLinearization LinearizeRefinement(const render::DifferentiablePathTracer& tracer,
+                                        const std::vector<render::TrainingView>& targets,
                                         const RefineOptions& options, uint64_t seed = 1,
                                         const Eigen::VectorXd* direction = nullptr);
 
@@ -174,9 +198,10 @@ struct HeldOutComparison {
   int pixels = 0;
   double rmse_a = 0.0, rmse_b = 0.0;
 };
-HeldOutComparison CompareOnFreshPixels(render::DifferentiablePathTracer& tracer, const std::vector<render::TrainingView>& targets,
-                                       const RefineOptions& options, uint64_t seed, const Eigen::VectorXd& a,
-                                       const Eigen::VectorXd& b);
+HeldOutComparison CompareOnFreshPixels(render::DifferentiablePathTracer& tracer,
+                                       const std::vector<render::TrainingView>& targets,
+                                       const RefineOptions& options, uint64_t seed,
+                                       const Eigen::VectorXd& a, const Eigen::VectorXd& b);
 
 // Faces whose normal turned by more than 90 degrees between `before` and `after` (same faces),
 // plus faces that lost all their area: the tangles a refinement must not create.

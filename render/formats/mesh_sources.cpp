@@ -70,8 +70,7 @@ TriangleMesh ReadObj(const fs::path& path) {
         for (int k = 0; k < 3 && start <= t[i].size(); ++k) {
           const size_t slash = std::min(t[i].find('/', start), t[i].size());
           if (slash > start)
-            c[static_cast<size_t>(k)] =
-                ParseInt32(t[i].substr(start, slash - start), where);
+            c[static_cast<size_t>(k)] = ParseInt32(t[i].substr(start, slash - start), where);
           start = slash + 1;
         }
         if (c[0] < 1 || c[1] < 0 || c[2] < 0)

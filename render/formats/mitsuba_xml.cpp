@@ -737,7 +737,8 @@ class Importer {
     const long long spp = p.Integer("sample_count").value_or(4);
     p.Integer("seed");
     p.Finish();
-    if (spp < 1 || spp > (1 << 20)) Fail(el, Format("sample_count ", spp, " is not in [1, 1048576]"));
+    if (spp < 1 || spp > (1 << 20))
+      Fail(el, Format("sample_count ", spp, " is not in [1, 1048576]"));
     return static_cast<int>(spp);
   }
 
@@ -745,7 +746,8 @@ class Importer {
     if (Type(el) != "hdrfilm") Fail(el, "film type not in the subset (hdrfilm)");
     Props p = PropsOf(el);
     const long long w = p.Integer("width").value_or(768), h = p.Integer("height").value_or(576);
-    if (w < 1 || h < 1 || w > 16384 || h > 16384) Fail(el, Format("film size ", w, "x", h, " is not in [1, 16384]"));
+    if (w < 1 || h < 1 || w > 16384 || h > 16384)
+      Fail(el, Format("film size ", w, "x", h, " is not in [1, 16384]"));
     *width = static_cast<int>(w);
     *height = static_cast<int>(h);
     const std::string format = p.String("pixel_format").value_or("rgb");

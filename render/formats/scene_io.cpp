@@ -3,11 +3,11 @@
 #include "render/formats/scene_io.h"
 
 #include <algorithm>
-#include <limits>
 #include <array>
 #include <charconv>
 #include <cmath>
 #include <iomanip>
+#include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -151,7 +151,8 @@ SceneMesh ParseMesh(const json& j, const fs::path& file, const std::string& wher
   if (!j.contains("ply") || !j["ply"].is_string())
     throw Error(Format(where, ": needs a \"ply\" path"));
   SceneMesh m;
-  if (j.contains("name") && !j["name"].is_string()) throw Error(Format(where, ".name: expected a string, got ", j["name"].dump()));
+  if (j.contains("name") && !j["name"].is_string())
+    throw Error(Format(where, ".name: expected a string, got ", j["name"].dump()));
   m.name = j.contains("name") ? j["name"].get<std::string>() : Format("mesh", index);
   m.mesh = ReadPly(ResolveRelativeTo(file, j["ply"].get<std::string>()));
   if (!j.contains("albedo")) {
@@ -176,7 +177,6 @@ SceneMesh ParseMesh(const json& j, const fs::path& file, const std::string& wher
   }
   return m;
 }
-
 
 LoadedScene LoadSceneJsonUnguarded(const fs::path& path) {
   const std::string name = path.string();

@@ -34,7 +34,8 @@ class Apps : public ::testing::Test {
  protected:
   // A small valid TUM sequence made by genscene-synth.
   void MakeSequence(const fs::path& dir) {
-    const auto r = RunCommand(AppPath("genscene-synth") + " --frames 3 --size 32x24 --out " + dir.string());
+    const auto r =
+        RunCommand(AppPath("genscene-synth") + " --frames 3 --size 32x24 --out " + dir.string());
     ASSERT_EQ(r.exit_code, 0) << r.output;
   }
   // Expects failure with a one-line "app: error: ..." message containing every needle, and no
@@ -45,7 +46,8 @@ class Apps : public ::testing::Test {
     EXPECT_NE(r.exit_code, 0) << command << "\n" << r.output;
     const std::string line = LastLine(r.output);
     EXPECT_NE(line.find(": error: "), std::string::npos) << r.output;
-    for (const auto& needle : needles) EXPECT_NE(line.find(needle), std::string::npos) << "'" << needle << "' not in: " << line;
+    for (const auto& needle : needles)
+      EXPECT_NE(line.find(needle), std::string::npos) << "'" << needle << "' not in: " << line;
     if (!out.empty()) {
       EXPECT_EQ(FilesBelow(out), 0u) << "output left in " << out;
     }
@@ -56,14 +58,16 @@ class Apps : public ::testing::Test {
 TEST_F(Apps, HelpDocumentsFlagsWithUnitsAndDefaults) {
   const auto r = RunCommand(AppPath("genscene-synth") + " --help");
   EXPECT_EQ(r.exit_code, 0);
-  for (const char* flag : {"--frames", "--size", "--noise", "--fov", "--seed", "--threads", "--config", "--out"}) {
+  for (const char* flag :
+       {"--frames", "--size", "--noise", "--fov", "--seed", "--threads", "--config", "--out"}) {
     EXPECT_NE(r.output.find(flag), std::string::npos) << flag << " missing from --help";
   }
   EXPECT_NE(r.output.find("[deg]"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("160x120"), std::string::npos) << "default of --size not shown";
   const auto run = RunCommand(AppPath("genscene") + " run --help");
   EXPECT_EQ(run.exit_code, 0);
-  for (const char* flag : {"--input", "--intrinsics", "--depth-scale", "--camera-response", "--associations"}) {
+  for (const char* flag :
+       {"--input", "--intrinsics", "--depth-scale", "--camera-response", "--associations"}) {
     EXPECT_NE(run.output.find(flag), std::string::npos) << flag;
   }
   EXPECT_EQ(RunCommand(AppPath("genscene") + " --help").exit_code, 0);
@@ -73,10 +77,14 @@ TEST_F(Apps, HelpDocumentsFlagsWithUnitsAndDefaults) {
 // (ICP cannot track frames of 32 x 24 pixels: the synthetic poses are fused instead.)
 TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
   const fs::path ws = dir_ / "ws";
-  const std::string demo = AppPath("genscene") + " demo --frames 3 --size 32x24 --tracking known --lights-grid 3 --lights-pixels-per-view 200 "
-                           "--lights-rounds 1 --refine-iterations 1 --refine-spp 2 --refine-pixels-per-view 100 "
-                           "--evaluate-views 1 --evaluate-truth-spp 4 --evaluate-model-spp 4 --decimate-max-error 0 --no-report "
-                           "--out " + ws.string();
+  const std::string demo =
+      AppPath("genscene") +
+      " demo --frames 3 --size 32x24 --tracking known --lights-grid 3 --lights-pixels-per-view 200 "
+      "--lights-rounds 1 --refine-iterations 1 --refine-spp 2 --refine-pixels-per-view 100 "
+      "--evaluate-views 1 --evaluate-truth-spp 4 --evaluate-model-spp 4 --decimate-max-error 0 "
+      "--no-report "
+      "--out " +
+      ws.string();
   auto r = RunCommand(demo);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(fs::exists(ws / "input/rgb.txt"));
@@ -91,9 +99,10 @@ TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
   // The report (without its sweeps, which re-run stages) of that workspace.
   const auto report = RunCommand(AppPath("genscene") + " report " + ws.string());
   EXPECT_EQ(report.exit_code, 0) << report.output;
-  for (const char* output : {"lights.json", "mesh_refined.ply", "export/model.ply", "export/model.xml",
-                             "export/trajectory.txt", "evaluation/evaluation.json", "summary.json", "genscene.log",
-                             "report/report.md", "report/tracking_time.png", "report/refine_error.png"}) {
+  for (const char* output :
+       {"lights.json", "mesh_refined.ply", "export/model.ply", "export/model.xml",
+        "export/trajectory.txt", "evaluation/evaluation.json", "summary.json", "genscene.log",
+        "report/report.md", "report/tracking_time.png", "report/refine_error.png"}) {
     EXPECT_TRUE(fs::exists(ws / output)) << output;
   }
   EXPECT_NE(ReadTextFile(ws / "report/report.md").find("## Light estimation"), std::string::npos);
@@ -105,21 +114,24 @@ TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
 }
 
 TEST_F(Apps, ReportNeedsAWorkspaceWithOutputs) {
-  ExpectFailure(AppPath("genscene") + " report " + (dir_ / "nope").string(), {"nope", "no such workspace folder"});
+  ExpectFailure(AppPath("genscene") + " report " + (dir_ / "nope").string(),
+                {"nope", "no such workspace folder"});
   fs::create_directories(dir_ / "empty");
-  ExpectFailure(AppPath("genscene") + " report " + (dir_ / "empty").string(), {"empty", "no stage outputs"},
-                dir_ / "empty");
+  ExpectFailure(AppPath("genscene") + " report " + (dir_ / "empty").string(),
+                {"empty", "no stage outputs"}, dir_ / "empty");
 }
 
 TEST_F(Apps, MissingInput) {
-  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "nope").string() + " --out " + (dir_ / "ws").string(),
+  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "nope").string() + " --out " +
+                    (dir_ / "ws").string(),
                 {"nope", "no such file or folder"}, dir_ / "ws");
 }
 
 TEST_F(Apps, EmptyList) {
   MakeSequence(dir_ / "seq");
   std::ofstream(dir_ / "seq/rgb.txt") << "# nothing\n";
-  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --out " + (dir_ / "ws").string(),
+  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --out " +
+                    (dir_ / "ws").string(),
                 {"rgb.txt", "empty list"}, dir_ / "ws");
 }
 
@@ -127,7 +139,8 @@ TEST_F(Apps, CorruptPng) {
   MakeSequence(dir_ / "seq");
   const fs::path victim = fs::directory_iterator(dir_ / "seq/depth")->path();
   std::ofstream(victim, std::ios::binary | std::ios::trunc) << "\x89PNG\r\n\x1a\n garbage";
-  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --out " + (dir_ / "ws").string(),
+  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --out " +
+                    (dir_ / "ws").string(),
                 {victim.filename().string(), "cannot decode"}, dir_ / "ws");
 }
 
@@ -150,7 +163,8 @@ TEST_F(Apps, NanInfNegativeDepth) {
     std::getline(in, header);
     std::getline(in, first);
     std::ofstream(dir_ / "seq/depth.txt") << first.substr(0, first.find(' ')) << " depth/bad.exr\n";
-    ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --out " + (dir_ / "ws").string(),
+    ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --out " +
+                      (dir_ / "ws").string(),
                   {"bad.exr", "NaN, infinite or negative", "pixel (5, 6)"}, dir_ / "ws");
     fs::remove_all(dir_ / "seq");
   }
@@ -158,19 +172,24 @@ TEST_F(Apps, NanInfNegativeDepth) {
 
 TEST_F(Apps, TruncatedPly) {
   const fs::path ws = dir_ / "ws";
-  ASSERT_EQ(RunCommand(AppPath("genscene-synth") + " --frames 2 --size 16x12 --out " + (ws / "input").string()).exit_code, 0);
+  ASSERT_EQ(RunCommand(AppPath("genscene-synth") + " --frames 2 --size 16x12 --out " +
+                       (ws / "input").string())
+                .exit_code,
+            0);
   std::ifstream in(ws / "input/mesh_gt.ply", std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), {});
   std::ofstream(dir_ / "cut.ply", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
   ExpectFailure(AppPath("genscene") + " inspect " + (dir_ / "cut.ply").string(), {"cut.ply"});
-  const auto ok = RunCommand(AppPath("genscene") + " inspect " + (ws / "input/mesh_gt.ply").string());
+  const auto ok =
+      RunCommand(AppPath("genscene") + " inspect " + (ws / "input/mesh_gt.ply").string());
   EXPECT_EQ(ok.exit_code, 0) << ok.output;
   EXPECT_NE(ok.output.find("triangles"), std::string::npos) << ok.output;
 }
 
 TEST_F(Apps, UnknownConfigKey) {
   std::ofstream(dir_ / "c.json") << R"({"synth": {"frames": 2, "frame_count": 3}})";
-  ExpectFailure(AppPath("genscene-synth") + " --config " + (dir_ / "c.json").string() + " --out " + (dir_ / "out").string(),
+  ExpectFailure(AppPath("genscene-synth") + " --config " + (dir_ / "c.json").string() + " --out " +
+                    (dir_ / "out").string(),
                 {"c.json", "unknown key 'synth.frame_count'"});
   EXPECT_FALSE(fs::exists(dir_ / "out"));
 }
@@ -185,19 +204,24 @@ TEST_F(Apps, ConfigValuesAndFlagPrecedence) {
 }
 
 TEST_F(Apps, OutOfRangeOptions) {
-  ExpectFailure(AppPath("genscene-synth") + " --frames 0 --out " + (dir_ / "out").string(), {"frames = 0"});
-  ExpectFailure(AppPath("genscene-synth") + " --size 4x4 --out " + (dir_ / "out").string(), {"size = '4x4'"});
-  ExpectFailure(AppPath("genscene-synth") + " --noise loud --out " + (dir_ / "out").string(), {"noise = 'loud'"});
-  ExpectFailure(AppPath("genscene-synth") + " --frames many --out " + (dir_ / "out").string(), {"--frames", "many"});
+  ExpectFailure(AppPath("genscene-synth") + " --frames 0 --out " + (dir_ / "out").string(),
+                {"frames = 0"});
+  ExpectFailure(AppPath("genscene-synth") + " --size 4x4 --out " + (dir_ / "out").string(),
+                {"size = '4x4'"});
+  ExpectFailure(AppPath("genscene-synth") + " --noise loud --out " + (dir_ / "out").string(),
+                {"noise = 'loud'"});
+  ExpectFailure(AppPath("genscene-synth") + " --frames many --out " + (dir_ / "out").string(),
+                {"--frames", "many"});
   EXPECT_FALSE(fs::exists(dir_ / "out"));
   MakeSequence(dir_ / "seq");
-  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() + " --stride 0 --out " +
-                    (dir_ / "ws").string(),
+  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() +
+                    " --stride 0 --out " + (dir_ / "ws").string(),
                 {"stride = 0"}, dir_ / "ws");
 }
 
 TEST_F(Apps, SameSeedSameOutputWhateverTheThreadCount) {
-  const std::string base = AppPath("genscene-synth") + " --frames 2 --size 24x16 --noise kinect --seed 9 ";
+  const std::string base =
+      AppPath("genscene-synth") + " --frames 2 --size 24x16 --noise kinect --seed 9 ";
   ASSERT_EQ(RunCommand(base + "--threads 1 --out " + (dir_ / "a").string()).exit_code, 0);
   ASSERT_EQ(RunCommand(base + "--threads 2 --out " + (dir_ / "b").string()).exit_code, 0);
   const auto cmp = RunCommand("diff -r " + (dir_ / "a").string() + " " + (dir_ / "b").string());
@@ -207,13 +231,15 @@ TEST_F(Apps, SameSeedSameOutputWhateverTheThreadCount) {
 TEST_F(Apps, RenderAViewSetFromASynthScene) {
   MakeSequence(dir_ / "seq");
   const fs::path out = dir_ / "render";
-  const auto r = RunCommand(AppPath("genscene-render") + " --scene " + (dir_ / "seq/scene.json").string() +
-                            " --views " + (dir_ / "seq").string() + " --spp 4 --aovs --export-xml " +
-                            (dir_ / "export/scene.xml").string() + " --out " + out.string());
+  const auto r =
+      RunCommand(AppPath("genscene-render") + " --scene " + (dir_ / "seq/scene.json").string() +
+                 " --views " + (dir_ / "seq").string() + " --spp 4 --aovs --export-xml " +
+                 (dir_ / "export/scene.xml").string() + " --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   // The exported Mitsuba scene renders again, with the views it carries.
-  const auto again = RunCommand(AppPath("genscene-render") + " --scene " + (dir_ / "export/scene.xml").string() +
-                                " --spp 2 --out " + (dir_ / "render2").string());
+  const auto again =
+      RunCommand(AppPath("genscene-render") + " --scene " + (dir_ / "export/scene.xml").string() +
+                 " --spp 2 --out " + (dir_ / "render2").string());
   ASSERT_EQ(again.exit_code, 0) << again.output;
   EXPECT_EQ(test::CountFilesContaining(dir_ / "render2", ".exr"), 3);
   EXPECT_NE(r.output.find("3 views, 4 spp"), std::string::npos) << r.output;
@@ -230,19 +256,20 @@ TEST_F(Apps, RenderAViewSetFromASynthScene) {
 
 TEST_F(Apps, RenderRejectsBadScenes) {
   std::ofstream(dir_ / "broken.xml") << "<scene version=\"3.0.0\"><shape type=\"ply\">";
-  ExpectFailure(AppPath("genscene-render") + " --scene " + (dir_ / "broken.xml").string() + " --out " +
-                    (dir_ / "out").string(),
+  ExpectFailure(AppPath("genscene-render") + " --scene " + (dir_ / "broken.xml").string() +
+                    " --out " + (dir_ / "out").string(),
                 {"broken.xml"});
-  std::ofstream(dir_ / "missing.xml") << "<scene version=\"3.0.0\"><shape type=\"ply\">"
-                                         "<string name=\"filename\" value=\"nope.ply\"/></shape></scene>";
-  ExpectFailure(AppPath("genscene-render") + " --scene " + (dir_ / "missing.xml").string() + " --out " +
-                    (dir_ / "out").string(),
+  std::ofstream(dir_ / "missing.xml")
+      << "<scene version=\"3.0.0\"><shape type=\"ply\">"
+         "<string name=\"filename\" value=\"nope.ply\"/></shape></scene>";
+  ExpectFailure(AppPath("genscene-render") + " --scene " + (dir_ / "missing.xml").string() +
+                    " --out " + (dir_ / "out").string(),
                 {"nope.ply"});
   std::ofstream(dir_ / "negative.xml")
       << "<scene version=\"3.0.0\"><shape type=\"rectangle\"><emitter type=\"area\">"
          "<rgb name=\"radiance\" value=\"1, -1, 1\"/></emitter></shape></scene>";
-  ExpectFailure(AppPath("genscene-render") + " --scene " + (dir_ / "negative.xml").string() + " --out " +
-                    (dir_ / "out").string(),
+  ExpectFailure(AppPath("genscene-render") + " --scene " + (dir_ / "negative.xml").string() +
+                    " --out " + (dir_ / "out").string(),
                 {"negative.xml"});
   ExpectFailure(AppPath("genscene-render") + " --scene " + (dir_ / "missing.xml").string() +
                     " --pose \"0 0 0 0 0 0 1\" --out " + (dir_ / "out").string(),

@@ -13,16 +13,19 @@ namespace fs = std::filesystem;
 using test::AppPath;
 using test::RunCommand;
 
-constexpr const char* kSmall = " --grid 3 --pixels-per-view 200 --spp 4 --rounds 2 --render-spp 4 --saturation 0.99";
+constexpr const char* kSmall =
+    " --grid 3 --pixels-per-view 200 --spp 4 --rounds 2 --render-spp 4 --saturation 0.99";
 
 TEST(GensceneLights, EstimatesLightsFromASynthSequence) {
   test::TempDir dir;
-  const auto synth = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 3 --size 48x36 --spp 16 --out " +
+  const auto synth = RunCommand(AppPath("genscene-synth") +
+                                " --scene cornell --frames 3 --size 48x36 --spp 16 --out " +
                                 (dir / "seq").string());
   ASSERT_EQ(synth.exit_code, 0) << synth.output;
   const std::string ws = (dir / "ws").string();
-  const auto r = RunCommand(AppPath("genscene-lights") + " " + ws + " --scene " + (dir / "seq" / "scene.json").string() +
-                            " --views " + (dir / "seq").string() + kSmall);
+  const auto r = RunCommand(AppPath("genscene-lights") + " " + ws + " --scene " +
+                            (dir / "seq" / "scene.json").string() + " --views " +
+                            (dir / "seq").string() + kSmall);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   // The 3^3 grid refined once (the default): a 6^3 grid, dark outside the candidates.
   EXPECT_CONTAINS(r.output, "active voxels of 216");
@@ -48,20 +51,25 @@ TEST(GensceneLights, EstimatesLightsFromASynthSequence) {
 // the ambient baseline on the console.
 TEST(GensceneLights, AFitWorseThanTheAmbientBaselineIsAWarning) {
   test::TempDir dir;
-  const auto synth = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 3 --size 48x36 --spp 16 --out " +
+  const auto synth = RunCommand(AppPath("genscene-synth") +
+                                " --scene cornell --frames 3 --size 48x36 --spp 16 --out " +
                                 (dir / "seq").string());
   ASSERT_EQ(synth.exit_code, 0) << synth.output;
-  const auto r = RunCommand(AppPath("genscene-lights") + " " + (dir / "ws").string() + " --scene " +
-                            (dir / "seq" / "scene.json").string() + " --views " + (dir / "seq").string() + kSmall +
-                            " --penalty-weight 1e6 --refine-levels 0");
+  const auto r =
+      RunCommand(AppPath("genscene-lights") + " " + (dir / "ws").string() + " --scene " +
+                 (dir / "seq" / "scene.json").string() + " --views " + (dir / "seq").string() +
+                 kSmall + " --penalty-weight 1e6 --refine-levels 0");
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_CONTAINS(r.output, "warning: the voxel lights fit the training views worse than a constant ambient light");
+  EXPECT_CONTAINS(
+      r.output,
+      "warning: the voxel lights fit the training views worse than a constant ambient light");
 }
 
 TEST(GensceneLights, BadInputIsOneLineAndWritesNothing) {
   test::TempDir dir;
   const std::string ws = (dir / "ws").string();
-  const auto missing = RunCommand(AppPath("genscene-lights") + " " + ws + " --views " + (dir / "nope").string() + kSmall);
+  const auto missing = RunCommand(AppPath("genscene-lights") + " " + ws + " --views " +
+                                  (dir / "nope").string() + kSmall);
   EXPECT_NE(missing.exit_code, 0);
   EXPECT_CONTAINS(missing.output, "mesh.ply: no such mesh");
   EXPECT_FALSE(fs::exists(dir / "ws" / "lights.json"));

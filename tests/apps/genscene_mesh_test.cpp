@@ -4,9 +4,9 @@
 
 #include <algorithm>
 
+#include "core/analytic_volume.h"
 #include "core/ply_io.h"
 #include "core/tsdf_volume.h"
-#include "core/analytic_volume.h"
 #include "tests/test_util.h"
 
 namespace genscene {
@@ -27,7 +27,8 @@ TEST(GensceneMesh, MeshesTheWorkspaceVolume) {
   analytic::AnalyticVolumeSpec spec;
   spec.lo = Eigen::Vector3i::Constant(-12);
   spec.hi = Eigen::Vector3i::Constant(12);
-  WriteTsdfVolume(dir / "tsdf.gsv", analytic::MakeAnalyticVolume(spec, [](const Eigen::Vector3d& p) {
+  WriteTsdfVolume(dir / "tsdf.gsv",
+                  analytic::MakeAnalyticVolume(spec, [](const Eigen::Vector3d& p) {
                     return analytic::SphereSdf(p, Eigen::Vector3d(0.003, 0.001, -0.002), 0.15);
                   }));
   const auto r = RunCommand(AppPath("genscene-mesh") + " " + dir.path().string() + " --threads 2");

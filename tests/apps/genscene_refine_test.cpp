@@ -20,11 +20,13 @@ constexpr const char* kSmall = " --iterations 1 --spp 2 --render-spp 2 --pixels-
 
 // A 2-view Cornell box sequence in DIR/seq, refined (from its true scene) into DIR/ws.
 test::CommandResult SynthAndRefine(const test::TempDir& dir) {
-  const auto synth = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 2 --size 40x30 --spp 8 --out " +
+  const auto synth = RunCommand(AppPath("genscene-synth") +
+                                " --scene cornell --frames 2 --size 40x30 --spp 8 --out " +
                                 (dir / "seq").string());
   if (synth.exit_code != 0) return synth;
   return RunCommand(AppPath("genscene-refine") + " " + (dir / "ws").string() + " --scene " +
-                    (dir / "seq" / "scene.json").string() + " --views " + (dir / "seq").string() + kSmall);
+                    (dir / "seq" / "scene.json").string() + " --views " + (dir / "seq").string() +
+                    kSmall);
 }
 
 TEST(GensceneRefine, RefinesASceneAgainstASynthSequence) {
@@ -51,38 +53,46 @@ TEST(GensceneRefine, ARefinedMeshWorseOnFreshPixelsIsNotKept) {
   test::TempDir dir;
   const auto r = SynthAndRefine(dir);
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_CONTAINS(r.output, "warning: the refined mesh fits 600 held-out pixels worse than the unrefined one");
+  EXPECT_CONTAINS(
+      r.output, "warning: the refined mesh fits 600 held-out pixels worse than the unrefined one");
   EXPECT_CONTAINS(r.output, "(unrefined mesh kept)");
   const auto report = nlohmann::json::parse(ReadTextFile(dir / "ws" / "refine" / "report.json"));
   EXPECT_TRUE(report["held_out"]["kept_unrefined"].get<bool>());
-  EXPECT_GT(report["held_out"]["image_rmse_refined"].get<double>(), report["held_out"]["image_rmse_unrefined"].get<double>());
+  EXPECT_GT(report["held_out"]["image_rmse_refined"].get<double>(),
+            report["held_out"]["image_rmse_unrefined"].get<double>());
   // The written mesh is the input's, vertex for vertex.
   const TriangleMesh written = ReadPly(dir / "ws" / "mesh_refined.ply");
   const TriangleMesh truth = ReadPly(dir / "seq" / "mesh_gt.ply");
   ASSERT_EQ(written.vertices.size(), truth.vertices.size());
   double moved = 0.0;
-  for (size_t v = 0; v < truth.vertices.size(); ++v) moved = std::max(moved, double((written.vertices[v] - truth.vertices[v]).norm()));
+  for (size_t v = 0; v < truth.vertices.size(); ++v)
+    moved = std::max(moved, double((written.vertices[v] - truth.vertices[v]).norm()));
   EXPECT_LT(moved, 1e-6);
 }
 
 TEST(GensceneRefine, BadInputIsOneLineAndWritesNothing) {
   test::TempDir dir;
-  const auto synth = RunCommand(AppPath("genscene-synth") + " --scene cornell --frames 1 --size 24x18 --spp 2 --out " +
+  const auto synth = RunCommand(AppPath("genscene-synth") +
+                                " --scene cornell --frames 1 --size 24x18 --spp 2 --out " +
                                 (dir / "seq").string());
   ASSERT_EQ(synth.exit_code, 0) << synth.output;
   const std::string ws = (dir / "ws").string();
   const std::string scene = " --scene " + (dir / "seq" / "scene.json").string();
-  const auto unknown = RunCommand(AppPath("genscene-refine") + " " + ws + scene + " --views " + (dir / "seq").string() +
-                                  " --refine sofa" + kSmall);
+  const auto unknown = RunCommand(AppPath("genscene-refine") + " " + ws + scene + " --views " +
+                                  (dir / "seq").string() + " --refine sofa" + kSmall);
   EXPECT_NE(unknown.exit_code, 0);
-  EXPECT_CONTAINS(unknown.output, "--refine sofa: no such non-emitting mesh in the scene (meshes: cornell, light)");
-  const auto no_views = RunCommand(AppPath("genscene-refine") + " " + ws + scene + " --views " + (dir / "nope").string() + kSmall);
+  EXPECT_CONTAINS(unknown.output,
+                  "--refine sofa: no such non-emitting mesh in the scene (meshes: cornell, light)");
+  const auto no_views = RunCommand(AppPath("genscene-refine") + " " + ws + scene + " --views " +
+                                   (dir / "nope").string() + kSmall);
   EXPECT_NE(no_views.exit_code, 0);
   EXPECT_CONTAINS(no_views.output, "no such view set folder");
-  const auto no_lights = RunCommand(AppPath("genscene-refine") + " " + ws + " --mesh " + (dir / "seq" / "mesh_gt.ply").string() +
-                                    " --views " + (dir / "seq").string() + kSmall);
+  const auto no_lights = RunCommand(AppPath("genscene-refine") + " " + ws + " --mesh " +
+                                    (dir / "seq" / "mesh_gt.ply").string() + " --views " +
+                                    (dir / "seq").string() + kSmall);
   EXPECT_NE(no_lights.exit_code, 0);
-  EXPECT_CONTAINS(no_lights.output, "lights.json: no lights (run genscene-lights, or give --lights)");
+  EXPECT_CONTAINS(no_lights.output,
+                  "lights.json: no lights (run genscene-lights, or give --lights)");
   EXPECT_FALSE(fs::exists(dir / "ws" / "mesh_refined.ply"));
 }
 

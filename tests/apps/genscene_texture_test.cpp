@@ -36,7 +36,8 @@ void MakeWorkspace(const fs::path& ws) {
 TEST(GensceneTexture, TexturesAndClustersAWorkspace) {
   test::TempDir dir;
   MakeWorkspace(dir.path());
-  const auto t = RunCommand(AppPath("genscene-texture") + " " + dir.path().string() + " --texel-spacing 0.05");
+  const auto t =
+      RunCommand(AppPath("genscene-texture") + " " + dir.path().string() + " --texel-spacing 0.05");
   ASSERT_EQ(t.exit_code, 0) << t.output;
   EXPECT_CONTAINS(t.output, "texels/s");
   const TriangleMesh mesh = ReadPly(dir / "mesh.ply");
@@ -95,7 +96,8 @@ TEST(GensceneTexture, MissingAndMismatchedInputsAreClearErrors) {
 
   // A texture made for another mesh.
   MakeWorkspace(dir.path());
-  ASSERT_EQ(RunCommand(AppPath("genscene-texture") + " " + ws + " --texel-spacing 0.1").exit_code, 0);
+  ASSERT_EQ(RunCommand(AppPath("genscene-texture") + " " + ws + " --texel-spacing 0.1").exit_code,
+            0);
   TriangleMesh other = ReadPly(dir / "mesh.ply");
   other.faces.pop_back();
   other.face_colors.pop_back();

@@ -187,8 +187,11 @@ TEST_F(OniFromTumFolder, MirroredRecordingReadsAsTheUnmirroredOne) {
   const int w = plain[0].depth.width();
   for (int v = 0; v < plain[0].depth.height(); ++v) {
     for (int u = 0; u < w; ++u) {
-      EXPECT_EQ(stored.frames[0].depth_mm[v * w + u], straight.frames[0].depth_mm[v * w + w - 1 - u]) << u << ", " << v;
-      EXPECT_EQ(stored.frames[0].color_rgb[3 * (v * w + u) + 1], straight.frames[0].color_rgb[3 * (v * w + w - 1 - u) + 1]);
+      EXPECT_EQ(stored.frames[0].depth_mm[v * w + u],
+                straight.frames[0].depth_mm[v * w + w - 1 - u])
+          << u << ", " << v;
+      EXPECT_EQ(stored.frames[0].color_rgb[3 * (v * w + u) + 1],
+                straight.frames[0].color_rgb[3 * (v * w + w - 1 - u) + 1]);
     }
   }
 }

@@ -2,6 +2,8 @@
 // model of an uninterrupted run; the exported Mitsuba XML re-imports and renders the same image;
 // the demo's model against its synthetic ground truth. Labelled "slow" (CI runs it under ASan +
 // UBSan).
+#include "apps/chain.h"
+
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -15,7 +17,6 @@
 #include <thread>
 
 #include "../test_util.h"
-#include "apps/chain.h"
 #include "apps/scene_inputs.h"
 #include "core/file_util.h"
 #include "core/image_io.h"
@@ -24,8 +25,8 @@
 #include "core/ply_io.h"
 #include "core/trajectory.h"
 #include "core/trajectory_metrics.h"
-#include "render/path_tracer.h"
 #include "render/formats/scene_io.h"
+#include "render/path_tracer.h"
 
 namespace genscene {
 namespace {
@@ -34,11 +35,33 @@ namespace fs = std::filesystem;
 using test::AppPath;
 
 // A small demo: 12 frames of 80 x 60, no decimation, few pixels and samples (about 15 s).
-const std::vector<std::string> kSmallDemo = {
-    "--frames", "12", "--size", "80x60", "--decimate-max-error", "0", "--lights-grid", "3",
-    "--lights-pixels-per-view", "300", "--lights-rounds", "2", "--refine-iterations", "1",
-    "--refine-pixels-per-view", "200", "--refine-spp", "4", "--evaluate-views", "1",
-    "--evaluate-truth-spp", "16", "--evaluate-model-spp", "8", "--no-report", "--seed", "3"};
+const std::vector<std::string> kSmallDemo = {"--frames",
+                                             "12",
+                                             "--size",
+                                             "80x60",
+                                             "--decimate-max-error",
+                                             "0",
+                                             "--lights-grid",
+                                             "3",
+                                             "--lights-pixels-per-view",
+                                             "300",
+                                             "--lights-rounds",
+                                             "2",
+                                             "--refine-iterations",
+                                             "1",
+                                             "--refine-pixels-per-view",
+                                             "200",
+                                             "--refine-spp",
+                                             "4",
+                                             "--evaluate-views",
+                                             "1",
+                                             "--evaluate-truth-spp",
+                                             "16",
+                                             "--evaluate-model-spp",
+                                             "8",
+                                             "--no-report",
+                                             "--seed",
+                                             "3"};
 
 std::vector<std::string> DemoArgs(const fs::path& out) {
   std::vector<std::string> args = {AppPath("genscene"), "demo", "--out", out.string()};
@@ -51,7 +74,8 @@ pid_t Start(const std::vector<std::string>& args, const fs::path& stderr_path) {
   std::fflush(stderr);
   const pid_t pid = fork();
   if (pid == 0) {
-    if (!std::freopen(stderr_path.c_str(), "w", stderr) || !std::freopen("/dev/null", "w", stdout)) _exit(126);
+    if (!std::freopen(stderr_path.c_str(), "w", stderr) || !std::freopen("/dev/null", "w", stdout))
+      _exit(126);
     std::vector<char*> argv;
     for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
     argv.push_back(nullptr);
@@ -72,12 +96,15 @@ int RunToEnd(const std::vector<std::string>& args, const fs::path& stderr_path) 
   return Wait(Start(args, stderr_path));
 }
 
-std::string Bytes(const fs::path& path) { return fs::exists(path) ? ReadTextFile(path) : std::string("<missing>"); }
+std::string Bytes(const fs::path& path) {
+  return fs::exists(path) ? ReadTextFile(path) : std::string("<missing>");
+}
 
 std::map<std::string, double> StageSeconds(const fs::path& ws) {
   std::map<std::string, double> seconds;
   const auto summary = nlohmann::json::parse(ReadTextFile(ws / "summary.json"));
-  for (const auto& row : summary["stages"]) seconds[row["stage"].get<std::string>()] = row["seconds"].get<double>();
+  for (const auto& row : summary["stages"])
+    seconds[row["stage"].get<std::string>()] = row["seconds"].get<double>();
   return seconds;
 }
 
@@ -93,7 +120,8 @@ void ExpectOutputsReadable(const Workspace& ws, const std::string& when) {
     readable(ws.Texture(), [&] { ReadMeshColors(ws.Texture(), mesh); });
     readable(ws.Albedo(), [&] { ReadMeshColors(ws.Albedo(), mesh); });
   }
-  for (const fs::path& ply : {ws.RefinedMesh(), ws.TexturePly(), ws.AlbedoPly(), ws.ExportDir() / "model.ply"}) {
+  for (const fs::path& ply :
+       {ws.RefinedMesh(), ws.TexturePly(), ws.AlbedoPly(), ws.ExportDir() / "model.ply"}) {
     readable(ply, [&] { ReadPly(ply); });
   }
   readable(ws.Lights(), [&] { ReadLightsJson(ws.Lights()); });
@@ -122,9 +150,7 @@ class GensceneChain : public ::testing::Test {
     delete dir_;
     dir_ = nullptr;
   }
-  void SetUp() override {
-    ASSERT_EQ(exit_code_, 0) << Bytes(*dir_ / "reference.err");
-  }
+  void SetUp() override { ASSERT_EQ(exit_code_, 0) << Bytes(*dir_ / "reference.err"); }
   static Workspace Reference() { return Workspace(*dir_ / "reference"); }
   static test::TempDir* dir_;
   static int exit_code_;
@@ -177,8 +203,9 @@ TEST_F(GensceneChain, KilledInEveryStageAndRestartedGivesTheUninterruptedModel) 
   ExpectOutputsReadable(ws, "at the end");
 
   // The same model as the uninterrupted run, file for file.
-  for (const char* file : {"trajectory.txt", "mesh.ply", "texture.mcol", "albedo.mcol", "mesh_refined.ply",
-                           "export/model.ply", "export/model.xml", "export/trajectory.txt"}) {
+  for (const char* file :
+       {"trajectory.txt", "mesh.ply", "texture.mcol", "albedo.mcol", "mesh_refined.ply",
+        "export/model.ply", "export/model.xml", "export/trajectory.txt"}) {
     EXPECT_TRUE(fs::exists(ws.root() / file)) << file;
     EXPECT_TRUE(Bytes(ws.root() / file) == Bytes(reference.root() / file)) << file << " differs";
   }
@@ -227,7 +254,8 @@ TEST_F(GensceneChain, ARerunAfterAChangedOptionRunsExactlyTheStagesThatDependOnI
     // The changed stage and every later one (each reads what the one before it wrote).
     const std::vector<std::string> expected(std::find(all.begin(), all.end(), first), all.end());
     EXPECT_EQ(StagesRun(ws), expected) << flags.front();
-    ASSERT_EQ(RunToEnd(args, tmp / (first + "_again.err")), 0) << Bytes(tmp / (first + "_again.err"));
+    ASSERT_EQ(RunToEnd(args, tmp / (first + "_again.err")), 0)
+        << Bytes(tmp / (first + "_again.err"));
     EXPECT_EQ(StagesRun(ws), std::vector<std::string>{}) << flags.front() << ", run again";
   }
   // Another recording in the same workspace (one depth image changed): every stage runs.
@@ -238,12 +266,34 @@ TEST_F(GensceneChain, ARerunAfterAChangedOptionRunsExactlyTheStagesThatDependOnI
   ImageDepth image = ReadDepthImage(first_depth);
   image(0, 0) += 0.01f;
   WriteDepthPng(first_depth, image);
-  const std::vector<std::string> args = {AppPath("genscene"), "run", "--input", (ws / "input").string(), "--out",
-                                         ws.string(), "--decimate-max-error", "0", "--lights-grid", "3",
-                                         "--lights-pixels-per-view", "300", "--lights-rounds", "2",
-                                         "--refine-iterations", "1", "--refine-pixels-per-view", "200",
-                                         "--refine-spp", "4", "--evaluate-views", "1", "--evaluate-truth-spp", "16",
-                                         "--evaluate-model-spp", "8", "--seed", "3"};
+  const std::vector<std::string> args = {AppPath("genscene"),
+                                         "run",
+                                         "--input",
+                                         (ws / "input").string(),
+                                         "--out",
+                                         ws.string(),
+                                         "--decimate-max-error",
+                                         "0",
+                                         "--lights-grid",
+                                         "3",
+                                         "--lights-pixels-per-view",
+                                         "300",
+                                         "--lights-rounds",
+                                         "2",
+                                         "--refine-iterations",
+                                         "1",
+                                         "--refine-pixels-per-view",
+                                         "200",
+                                         "--refine-spp",
+                                         "4",
+                                         "--evaluate-views",
+                                         "1",
+                                         "--evaluate-truth-spp",
+                                         "16",
+                                         "--evaluate-model-spp",
+                                         "8",
+                                         "--seed",
+                                         "3"};
   ASSERT_EQ(RunToEnd(args, tmp / "input.err"), 0) << Bytes(tmp / "input.err");
   EXPECT_EQ(StagesRun(ws), all);
 }
@@ -302,9 +352,10 @@ TEST_F(GensceneChain, OneThreadGivesTheSameModelAsAllCores) {
   std::vector<std::string> args = DemoArgs(ws.root());
   args.insert(args.end(), {"--threads", "1"});
   ASSERT_EQ(RunToEnd(args, tmp / "run.err"), 0) << Bytes(tmp / "run.err");
-  for (const char* file : {"input/rgb.txt", "input/depth.txt", "input/groundtruth.txt", "trajectory.txt", "tsdf.gsv",
-                           "mesh.ply", "texture.mcol", "albedo.mcol", "mesh_refined.ply", "export/model.ply",
-                           "export/model.xml", "lights/train_00.exr", "evaluation/novel_00_model.png"}) {
+  for (const char* file :
+       {"input/rgb.txt", "input/depth.txt", "input/groundtruth.txt", "trajectory.txt", "tsdf.gsv",
+        "mesh.ply", "texture.mcol", "albedo.mcol", "mesh_refined.ply", "export/model.ply",
+        "export/model.xml", "lights/train_00.exr", "evaluation/novel_00_model.png"}) {
     EXPECT_TRUE(fs::exists(ws.root() / file)) << file;
     EXPECT_TRUE(Bytes(ws.root() / file) == Bytes(reference.root() / file)) << file << " differs";
   }
@@ -329,7 +380,8 @@ TEST_F(GensceneChain, ExportedMitsubaXmlRendersTheSameImage) {
     per_face.values.push_back(mesh.albedo.Eval(mesh.mesh, f, 1.0f / 3.0f, 1.0f / 3.0f));
   }
   mesh.albedo = per_face;
-  for (render::SceneMesh& cube : render::VoxelCubeFaces(ReadLightsJson(ws.Lights()))) model.meshes.push_back(std::move(cube));
+  for (render::SceneMesh& cube : render::VoxelCubeFaces(ReadLightsJson(ws.Lights())))
+    model.meshes.push_back(std::move(cube));
 
   render::RenderOptions render;
   render.spp = 16;
@@ -343,7 +395,8 @@ TEST_F(GensceneChain, ExportedMitsubaXmlRendersTheSameImage) {
   }
   ASSERT_GT(norm, 0.0);
   std::printf("model vs re-imported export: relative RMSE %.3g\n", std::sqrt(diff / norm));
-  EXPECT_LT(std::sqrt(diff / norm), 1e-3) << "relative RMSE between the model and its re-imported export";
+  EXPECT_LT(std::sqrt(diff / norm), 1e-3)
+      << "relative RMSE between the model and its re-imported export";
 }
 
 // Acceptance 2 of issue 11: `genscene demo` as the README runs it (20 frames of 160 x 120); the
@@ -351,13 +404,17 @@ TEST_F(GensceneChain, ExportedMitsubaXmlRendersTheSameImage) {
 TEST(GensceneDemo, ModelMatchesTheGroundTruth) {
   test::TempDir tmp;
   const Workspace ws(tmp / "demo");
-  ASSERT_EQ(RunToEnd({AppPath("genscene"), "demo", "--out", ws.root().string(), "--no-report"}, tmp / "demo.err"), 0)
+  ASSERT_EQ(RunToEnd({AppPath("genscene"), "demo", "--out", ws.root().string(), "--no-report"},
+                     tmp / "demo.err"),
+            0)
       << Bytes(tmp / "demo.err");
-  const AteResult ate = ComputeAte(ReadTumTrajectory(ws.Trajectory()), ReadTumTrajectory(ws.Input() / "groundtruth.txt"));
+  const AteResult ate = ComputeAte(ReadTumTrajectory(ws.Trajectory()),
+                                   ReadTumTrajectory(ws.Input() / "groundtruth.txt"));
   const auto eval = nlohmann::json::parse(ReadTextFile(ws.EvaluationJson()));
   const double novel = eval["relative_rmse"].get<double>();
-  std::printf("demo: ATE %.4f cm over %zu poses; novel views: relative RMSE %.4f (noise taken out)\n", 100.0 * ate.rmse,
-              ate.pairs, novel);
+  std::printf(
+      "demo: ATE %.4f cm over %zu poses; novel views: relative RMSE %.4f (noise taken out)\n",
+      100.0 * ate.rmse, ate.pairs, novel);
   EXPECT_EQ(ate.pairs, 20u);
   EXPECT_LE(ate.rmse, 0.01);
   EXPECT_LE(novel, 0.10);
@@ -385,8 +442,9 @@ TEST(GensceneDemo, HeldOutFramesAreAlsoJudgedAgainstTheTruth) {
     EXPECT_TRUE(rmse > 0.0 && rmse < 10.0) << key << " " << rmse;
   }
   const double frame = truth["frame"]["relative_rmse"].get<double>();
-  std::printf("held out against the truth: frame %.4f, model %.4f, texture %.4f, ambient %.4f\n", frame,
-              truth["model"]["relative_rmse"].get<double>(), truth["texture_unlit"]["relative_rmse"].get<double>(),
+  std::printf("held out against the truth: frame %.4f, model %.4f, texture %.4f, ambient %.4f\n",
+              frame, truth["model"]["relative_rmse"].get<double>(),
+              truth["texture_unlit"]["relative_rmse"].get<double>(),
               truth["albedo_ambient"]["relative_rmse"].get<double>());
   EXPECT_LT(frame, truth["model"]["relative_rmse"].get<double>());
   EXPECT_LT(frame, truth["albedo_ambient"]["relative_rmse"].get<double>());

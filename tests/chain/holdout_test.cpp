@@ -13,7 +13,8 @@ ImageRgb Pattern(int w, int h) {
   ImageRgb image(w, h);
   for (int v = 0; v < h; ++v) {
     for (int u = 0; u < w; ++u) {
-      image(u, v) = Eigen::Vector3f(0.3f + 0.2f * std::sin(0.3f * u), 0.4f + 0.2f * std::cos(0.2f * v), 0.25f);
+      image(u, v) = Eigen::Vector3f(0.3f + 0.2f * std::sin(0.3f * u),
+                                    0.4f + 0.2f * std::cos(0.2f * v), 0.25f);
     }
   }
   return image;
@@ -26,7 +27,8 @@ TEST(HeldOutScore, GainTakesOutExposureAndWhiteBalance) {
   const ImageRgb reference = Pattern(40, 30);
   ImageRgb prediction = reference;
   Image<uint8_t> mask(40, 30, 1);
-  for (size_t i = 0; i < prediction.size(); ++i) prediction.data()[i] = prediction.data()[i].cwiseProduct(Eigen::Vector3f(2, 0.5f, 1));
+  for (size_t i = 0; i < prediction.size(); ++i)
+    prediction.data()[i] = prediction.data()[i].cwiseProduct(Eigen::Vector3f(2, 0.5f, 1));
   for (int v = 0; v < 30; ++v) mask(0, v) = 0, prediction(0, v) = Eigen::Vector3f(100, 100, 100);
   const HeldOutScore s = ScorePrediction(prediction, reference, mask);
   EXPECT_NEAR(s.gain.x(), 0.5, 1e-6);
@@ -49,7 +51,8 @@ TEST(HeldOutScore, NoiseAndUnrelatedImagesScoreWorse) {
     ref += reference.data()[i].cast<double>().squaredNorm();
   }
   const HeldOutScore s = ScorePrediction(noisy, reference, mask);
-  const double expected = 0.05 * std::sqrt(3.0 * reference.size() / ref);  // noise over the reference's RMS
+  const double expected =
+      0.05 * std::sqrt(3.0 * reference.size() / ref);  // noise over the reference's RMS
   EXPECT_NEAR(s.rmse, expected, 0.2 * expected);
   EXPECT_LT(s.ssim, 0.95);
   EXPECT_GT(s.ssim, 0.3);

@@ -29,10 +29,11 @@ struct ChainRun {
 
 ChainRun RunOn(const fs::path& recording, const fs::path& ws, const std::string& flags) {
   ChainRun run;
-  run.result = RunCommand(AppPath("genscene") + " run --input " + recording.string() + " --out " + ws.string() + " " +
-                              flags + kReduced,
+  run.result = RunCommand(AppPath("genscene") + " run --input " + recording.string() + " --out " +
+                              ws.string() + " " + flags + kReduced,
                           1100);
-  if (fs::exists(ws / "summary.json")) run.summary = nlohmann::json::parse(ReadTextFile(ws / "summary.json"));
+  if (fs::exists(ws / "summary.json"))
+    run.summary = nlohmann::json::parse(ReadTextFile(ws / "summary.json"));
   return run;
 }
 
@@ -50,11 +51,13 @@ void ExpectCompleteModel(const ChainRun& run, const fs::path& ws, bool evaluated
   for (const auto& row : run.summary["stages"]) {
     if (!row["skipped"].get<bool>()) ran.push_back(row["stage"].get<std::string>());
   }
-  std::vector<std::string> all = {"ingest", "fusion", "meshing", "texturing", "albedo", "lights", "refine", "export"};
+  std::vector<std::string> all = {"ingest", "fusion", "meshing", "texturing",
+                                  "albedo", "lights", "refine",  "export"};
   if (evaluated) all.push_back("evaluate");
   EXPECT_EQ(ran, all);
   EXPECT_GT(ReadPly(ws / "mesh_refined.ply").faces.size(), 1000u);
-  EXPECT_FALSE(ReadPly(ws / "mesh_refined.ply").vertex_colors.empty()) << "the refined mesh keeps its colours";
+  EXPECT_FALSE(ReadPly(ws / "mesh_refined.ply").vertex_colors.empty())
+      << "the refined mesh keeps its colours";
   EXPECT_TRUE(fs::exists(ws / "export" / "model.ply"));
   EXPECT_TRUE(fs::exists(ws / "export" / "model.xml"));
 }
@@ -94,7 +97,9 @@ TEST(RealChain, SlambookSparseViewsTrackedFromFeatures) {
   test::WriteFile(dir / "k.txt", "518.0 519.0 325.5 253.5 640 480\n");  // ch5/joinMap/joinMap.cpp
   // Frames 0.3-0.7 m apart: ICP starts from ORB features for every frame after the first. A mesh
   // simplified to 1 cm (reduced settings) keeps the sanitizer run short.
-  const ChainRun run = RunOn(slambook, dir / "ws", "--intrinsics " + (dir / "k.txt").string() + " --decimate-max-error 0.01");
+  const ChainRun run =
+      RunOn(slambook, dir / "ws",
+            "--intrinsics " + (dir / "k.txt").string() + " --decimate-max-error 0.01");
   ExpectCompleteModel(run, dir / "ws");
   EXPECT_CONTAINS(StageResult(run.summary, "fusion"), "ATE");
   const auto fusion = nlohmann::json::parse(ReadTextFile(dir / "ws" / "fusion.json"));
@@ -110,7 +115,8 @@ TEST(RealChain, SlambookSparseViewsTrackedFromFeatures) {
 TEST(RealChain, SevenScenesNativeLayout) {
   GS_REQUIRE_SHARED_DATA(data);
   test::TempDir dir;
-  const ChainRun run = RunOn(data / "real/7scenes-redkitchen-50f", dir / "ws", "--max-frames 20 --holdout 5");
+  const ChainRun run =
+      RunOn(data / "real/7scenes-redkitchen-50f", dir / "ws", "--max-frames 20 --holdout 5");
   ExpectCompleteModel(run, dir / "ws", true);
   EXPECT_CONTAINS(StageResult(run.summary, "ingest"), "20 frames 640x480");
   EXPECT_CONTAINS(StageResult(run.summary, "fusion"), "ATE");
@@ -119,10 +125,12 @@ TEST(RealChain, SevenScenesNativeLayout) {
   EXPECT_CONTAINS(run.result.output, "unregistered cameras");
   // Frames 4, 9, 14, 19 held out: the model is judged on them beside both baselines.
   EXPECT_CONTAINS(StageResult(run.summary, "fusion"), "4 held out");
-  const auto holdout = nlohmann::json::parse(ReadTextFile(dir / "ws" / "evaluation" / "holdout.json"));
+  const auto holdout =
+      nlohmann::json::parse(ReadTextFile(dir / "ws" / "evaluation" / "holdout.json"));
   ASSERT_EQ(holdout["frames"].size(), 4u);
   for (const char* key : {"model", "texture_unlit", "albedo_ambient"}) {
-    const double rmse = holdout["mean"][key]["relative_rmse"].get<double>(), ssim = holdout["mean"][key]["ssim"].get<double>();
+    const double rmse = holdout["mean"][key]["relative_rmse"].get<double>(),
+                 ssim = holdout["mean"][key]["ssim"].get<double>();
     EXPECT_TRUE(rmse > 0.0 && rmse < 10.0) << key << " " << rmse;
     EXPECT_TRUE(ssim > -1.0 && ssim <= 1.0) << key << " " << ssim;
   }
@@ -130,7 +138,8 @@ TEST(RealChain, SevenScenesNativeLayout) {
   // albedo under ambient light.
   EXPECT_LT(holdout["mean"]["texture_unlit"]["relative_rmse"].get<double>(),
             holdout["mean"]["albedo_ambient"]["relative_rmse"].get<double>());
-  for (const char* image : {"holdout_00_real.png", "holdout_00_model.png", "holdout_03_error.png"}) {
+  for (const char* image :
+       {"holdout_00_real.png", "holdout_00_model.png", "holdout_03_error.png"}) {
     EXPECT_TRUE(fs::exists(dir / "ws" / "evaluation" / image)) << image;
   }
   const auto report = RunCommand(AppPath("genscene") + " report " + (dir / "ws").string());

@@ -73,10 +73,11 @@ TEST(Camera, IntrinsicsFileRoundTrip) {
 
 TEST(Camera, RejectsAbsurdIntrinsics) {
   test::TempDir dir;
-  const std::vector<std::string> bad = {"0 500 319.5 239.5 640 480",      "500 500 319.5 239.5 0 480",
-                                        "500 500 319.5 239.5 99999 480",  "nan 500 319.5 239.5 640 480",
-                                        "500 500 5000 239.5 640 480",     "500 500 319.5 239.5 640",
-                                        "500 500 319.5 abc 640 480",      ""};
+  const std::vector<std::string> bad = {
+      "0 500 319.5 239.5 640 480",     "500 500 319.5 239.5 0 480",
+      "500 500 319.5 239.5 99999 480", "nan 500 319.5 239.5 640 480",
+      "500 500 5000 239.5 640 480",    "500 500 319.5 239.5 640",
+      "500 500 319.5 abc 640 480",     ""};
   for (const auto& line : bad) {
     std::ofstream(dir / "k.txt") << line << "\n";
     try {
@@ -105,11 +106,16 @@ TEST(Camera, RejectsMalformedOpen3dJson) {
   test::TempDir dir;
   const std::string matrix = R"("intrinsic_matrix": [525, 0, 0, 0, 525, 0, 319.5, 239.5, 1])";
   const std::vector<std::pair<std::string, std::string>> bad = {
-      {R"({"width": 640, "height": 4.8e101, )" + matrix + "}", "height: expected an integer, got 4.8e+101"},
-      {R"({"width": 640.5, "height": 480, )" + matrix + "}", "width: expected an integer, got 640.5"},
-      {R"({"width": 640, "height": 1099511627776, )" + matrix + "}", "height: 1099511627776 is out of range"},
-      {R"({"width": 640, "height": -4294967296, )" + matrix + "}", "height: -4294967296 is out of range"},
-      {R"({"width": 640, "height": 480, "intrinsic_matrix": [525, 0]})", "intrinsic_matrix must have 9 numbers"},
+      {R"({"width": 640, "height": 4.8e101, )" + matrix + "}",
+       "height: expected an integer, got 4.8e+101"},
+      {R"({"width": 640.5, "height": 480, )" + matrix + "}",
+       "width: expected an integer, got 640.5"},
+      {R"({"width": 640, "height": 1099511627776, )" + matrix + "}",
+       "height: 1099511627776 is out of range"},
+      {R"({"width": 640, "height": -4294967296, )" + matrix + "}",
+       "height: -4294967296 is out of range"},
+      {R"({"width": 640, "height": 480, "intrinsic_matrix": [525, 0]})",
+       "intrinsic_matrix must have 9 numbers"},
       {R"({"width": 640, "height": 480, "intrinsic_matrix": [525, 0, 0, 0, "x", 0, 319.5, 239.5, 1]})",
        "not an Open3D camera intrinsic file"}};
   for (const auto& [text, message] : bad) {
@@ -122,7 +128,8 @@ TEST(Camera, RejectsMalformedOpen3dJson) {
 
 TEST(Camera, ReadsOpen3dCameraJson) {
   GS_REQUIRE_SHARED_DATA(data);
-  const CameraIntrinsics k = ReadIntrinsicsFile(data / "real/open3d-testdata-rgbd/camera_primesense.json");
+  const CameraIntrinsics k =
+      ReadIntrinsicsFile(data / "real/open3d-testdata-rgbd/camera_primesense.json");
   EXPECT_EQ(k.width, 640);
   EXPECT_EQ(k.height, 480);
   EXPECT_DOUBLE_EQ(k.fx, 525.0);

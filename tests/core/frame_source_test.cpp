@@ -32,8 +32,10 @@ DepthRange RangeOf(const ImageDepth& d) {
   return r;
 }
 
-// Every frame: 640x480 depth, more than `min_valid` of it measured, within [lo, hi] meters, with a pose.
-void ExpectKinectFrames(const std::vector<RgbdFrame>& frames, double min_valid, double lo, double hi) {
+// Every frame: 640x480 depth, more than `min_valid` of it measured, within [lo, hi] meters, with a
+// pose.
+void ExpectKinectFrames(const std::vector<RgbdFrame>& frames, double min_valid, double lo,
+                        double hi) {
   for (const RgbdFrame& f : frames) {
     EXPECT_EQ(f.depth.width(), 640) << f.depth_path;
     EXPECT_EQ(f.depth.height(), 480) << f.depth_path;
@@ -64,7 +66,8 @@ TEST(FrameSourceReal, TumFr1Desk9Frames) {
     ASSERT_TRUE(gt.has_value()) << f.timestamp;
     EXPECT_LE(std::abs(gt->timestamp - f.timestamp), 0.010);
     ASSERT_TRUE(f.world_from_camera.has_value());
-    EXPECT_LT((f.world_from_camera->translation() - gt->world_from_camera.translation()).norm(), 0.02);
+    EXPECT_LT((f.world_from_camera->translation() - gt->world_from_camera.translation()).norm(),
+              0.02);
   }
   EXPECT_DOUBLE_EQ(frames.front().timestamp, 1305031453.359684);
 }
@@ -86,8 +89,10 @@ TEST(FrameSourceReal, TumExcerptReadsTheFramesThatAreThere) {
     EXPECT_EQ(frames[i].depth_path, expected[i].depth_path);
     EXPECT_DOUBLE_EQ(frames[i].timestamp, expected[i].timestamp);
   }
-  EXPECT_NE(log.text().find("an excerpt: rgb.txt and depth.txt list 613 and 595 frames, 9 and 9 of them are here"),
-            std::string::npos)
+  EXPECT_NE(
+      log.text().find(
+          "an excerpt: rgb.txt and depth.txt list 613 and 595 frames, 9 and 9 of them are here"),
+      std::string::npos)
       << log.text();
 }
 
@@ -133,7 +138,8 @@ TEST(FrameSourceReal, SevenScenesNativeLayout) {
   ASSERT_EQ(frames.size(), 50u);
   ExpectKinectFrames(frames, 0.5, 0.3, 8.0);  // 65535 (no data) decoded as 0, not 65.5 m
   // frame-000150.pose.txt: translation (-0.91287065, -0.34388667, 0.75986093).
-  EXPECT_TRUE(frames[0].world_from_camera->translation().isApprox(Eigen::Vector3d(-0.91287065, -0.34388667, 0.75986093), 1e-7));
+  EXPECT_TRUE(frames[0].world_from_camera->translation().isApprox(
+      Eigen::Vector3d(-0.91287065, -0.34388667, 0.75986093), 1e-7));
   EXPECT_NE(frames[49].depth_path.find("frame-000199.depth.png"), std::string::npos);
 }
 
@@ -149,7 +155,8 @@ TEST(FrameSource, SevenScenesLayoutAndItsBadInputs) {
     const std::string stem = Format("frame-", std::string(5, '0'), i);
     WriteDepthPng(frames / (stem + ".depth.png"), depth, 1000.0);
     WritePng(frames / (stem + ".color.png"), color);
-    test::WriteFile(frames / (stem + ".pose.txt"), Format("1 0 0 ", 0.1 * i, "\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"));
+    test::WriteFile(frames / (stem + ".pose.txt"),
+                    Format("1 0 0 ", 0.1 * i, "\n0 1 0 0\n0 0 1 0\n0 0 0 1\n"));
   }
   test::WriteFile(dir / "camera-intrinsics.txt", "6 0 3.5\n0 6 2.5\n0 0 1\n");
   {
@@ -164,16 +171,20 @@ TEST(FrameSource, SevenScenesLayoutAndItsBadInputs) {
     EXPECT_DOUBLE_EQ(read[1].timestamp, 1.0 / 30.0);
   }
   fs::remove(frames / "frame-000001.pose.txt");
-  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }), "2 of 3 frames have a .pose.txt");
+  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }),
+                  "2 of 3 frames have a .pose.txt");
   fs::remove(frames / "frame-000000.pose.txt");
   fs::remove(frames / "frame-000002.pose.txt");
   fs::remove(frames / "frame-000002.color.png");
-  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }), "frame-000002.depth.png: no colour image");
+  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }),
+                  "frame-000002.depth.png: no colour image");
   fs::remove(frames / "frame-000002.depth.png");
   test::WriteFile(dir / "camera-intrinsics.txt", "6 0 3.5\n0 6 2.5\n");
-  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }), "expected a 3x3 camera matrix (9 values), got 6");
+  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }),
+                  "expected a 3x3 camera matrix (9 values), got 6");
   fs::remove(dir / "camera-intrinsics.txt");
-  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }), "no camera-intrinsics.txt");
+  EXPECT_CONTAINS(test::ErrorOf([&] { OpenFrameSource(frames.string(), SourceOptions()); }),
+                  "no camera-intrinsics.txt");
 }
 
 TEST(FrameSourceReal, SlambookJoinMapFolder) {
@@ -203,7 +214,8 @@ TEST(FrameSourceReal, CornellViewSet) {
   EXPECT_EQ(frames[0].color.height(), 120);
   ASSERT_TRUE(frames[0].world_from_camera.has_value());
   EXPECT_NEAR(frames[0].world_from_camera->translation().y(), -2.1, 1e-9);
-  // Linear EXR radiance is taken as it is (no sRGB decode): some pixels are far above 1 (the light).
+  // Linear EXR radiance is taken as it is (no sRGB decode): some pixels are far above 1 (the
+  // light).
   float brightest = 0.0f;
   for (const auto& p : frames[0].color.pixels()) brightest = std::max(brightest, p.maxCoeff());
   EXPECT_GT(brightest, 1.0f);
@@ -216,7 +228,8 @@ class SyntheticSequence : public ::testing::Test {
     k_.width = 32, k_.height = 24, k_.fx = k_.fy = 30.0, k_.cx = 15.5, k_.cy = 11.5;
     const SyntheticScene scene = MakeCornellScene();
     const Trajectory orbit = MakeOrbitTrajectory({0, 0, 0.6}, 0.9, 1.0, 40.0, 4);
-    for (const auto& p : orbit.poses()) frames_.push_back(RenderSyntheticFrame(scene, k_, p.world_from_camera, p.timestamp));
+    for (const auto& p : orbit.poses())
+      frames_.push_back(RenderSyntheticFrame(scene, k_, p.world_from_camera, p.timestamp));
     WriteTumSequence(dir_ / "seq", frames_);
   }
   test::TempDir dir_;
@@ -234,7 +247,10 @@ TEST_F(SyntheticSequence, RoundTripThroughTumFolder) {
       EXPECT_NEAR(back[i].depth.pixels()[p], frames_[i].depth.pixels()[p], 0.5 / 5000 + 1e-6);
     }
     ASSERT_TRUE(back[i].world_from_camera.has_value());
-    EXPECT_LT((back[i].world_from_camera->matrix() - frames_[i].world_from_camera->matrix()).cwiseAbs().maxCoeff(), 1e-8);
+    EXPECT_LT((back[i].world_from_camera->matrix() - frames_[i].world_from_camera->matrix())
+                  .cwiseAbs()
+                  .maxCoeff(),
+              1e-8);
   }
   EXPECT_EQ(test::CountFilesContaining(dir_.path(), ".tmp-"), 0);
 }
@@ -282,7 +298,8 @@ TEST_F(SyntheticSequence, MissingImageBetweenPresentOnesIsAnError) {
   const auto depth = ListedFiles(dir_ / "seq/depth.txt");
   ASSERT_EQ(depth.size(), 4u);
   fs::remove(depth[1]);
-  ExpectOpenOrReadFails((dir_ / "seq").string(), "depth.txt: lists " + depth[1].string() + " which does not exist");
+  ExpectOpenOrReadFails((dir_ / "seq").string(),
+                        "depth.txt: lists " + depth[1].string() + " which does not exist");
 }
 
 TEST_F(SyntheticSequence, ExcerptOfTheListsReadsThePresentStretchWithAWarning) {
@@ -296,7 +313,8 @@ TEST_F(SyntheticSequence, ExcerptOfTheListsReadsThePresentStretchWithAWarning) {
   ASSERT_EQ(back.size(), 2u);
   EXPECT_NEAR(back[0].timestamp, frames_[1].timestamp, 1e-6);
   EXPECT_NEAR(back[1].timestamp, frames_[2].timestamp, 1e-6);
-  EXPECT_NE(log.text().find("an excerpt: rgb.txt and depth.txt list 4 and 4 frames, 3 and 3 of them are here"),
+  EXPECT_NE(log.text().find(
+                "an excerpt: rgb.txt and depth.txt list 4 and 4 frames, 3 and 3 of them are here"),
             std::string::npos)
       << log.text();
 }
@@ -328,7 +346,8 @@ TEST(FrameSource, LensDistortionIsTakenOutAtIngest) {
   k.distortion = {0.262383, -0.953104, -0.005358, 0.002628, 1.163314};
   // The pattern over normalised image coordinates (x, y), smooth at the pixel scale.
   const auto pattern = [](double x, double y) {
-    return Eigen::Vector3f(0.5f + 0.4f * std::sin(20.0 * x), 0.5f + 0.4f * std::cos(18.0 * y), 0.5f + 0.3f * x * y);
+    return Eigen::Vector3f(0.5f + 0.4f * std::sin(20.0 * x), 0.5f + 0.4f * std::cos(18.0 * y),
+                           0.5f + 0.3f * x * y);
   };
   // Undistorts a distorted normalised point by fixed-point iteration (the inverse of the model).
   const auto undistort = [&](double xd, double yd) {
@@ -336,7 +355,8 @@ TEST(FrameSource, LensDistortionIsTakenOutAtIngest) {
     double x = xd, y = yd;
     for (int i = 0; i < 50; ++i) {
       const double r2 = x * x + y * y, radial = 1.0 + r2 * (d[0] + r2 * (d[1] + r2 * d[4]));
-      const double dx = 2.0 * d[2] * x * y + d[3] * (r2 + 2.0 * x * x), dy = d[2] * (r2 + 2.0 * y * y) + 2.0 * d[3] * x * y;
+      const double dx = 2.0 * d[2] * x * y + d[3] * (r2 + 2.0 * x * x),
+                   dy = d[2] * (r2 + 2.0 * y * y) + 2.0 * d[3] * x * y;
       x = (xd - dx) / radial;
       y = (yd - dy) / radial;
     }
@@ -374,7 +394,8 @@ TEST(FrameSource, LensDistortionIsTakenOutAtIngest) {
   // The distortion moves the pattern by 0.046 RMS; what is left is resampling and 8-bit rounding.
   EXPECT_GT(std::sqrt(before / n), 0.04);
   EXPECT_LT(std::sqrt(err / n), 0.25 * std::sqrt(before / n));
-  std::printf("pattern error: %.4f distorted, %.4f undistorted\n", std::sqrt(before / n), std::sqrt(err / n));
+  std::printf("pattern error: %.4f distorted, %.4f undistorted\n", std::sqrt(before / n),
+              std::sqrt(err / n));
   EXPECT_EQ(frames[0].intrinsics.distortion, (std::array<double, 5>{}));
 }
 
@@ -387,8 +408,8 @@ TEST(FrameSource, UnknownSourcesAreErrors) {
 
 TEST(FrameSource, AssociationFollowsTumRule) {
   // rgb at 0.000, 0.030, 0.055; depth at 0.010, 0.040, 0.200 (max difference 0.02 s). Candidates by
-  // difference: (0.030, 0.040) 0.010, (0.000, 0.010) 0.010, (0.055, 0.040) 0.015, (0.030, 0.010) 0.020
-  // (not < 0.02). Greedy: 0.040 goes to 0.030, the closer one, so 0.055 stays unmatched.
+  // difference: (0.030, 0.040) 0.010, (0.000, 0.010) 0.010, (0.055, 0.040) 0.015, (0.030, 0.010)
+  // 0.020 (not < 0.02). Greedy: 0.040 goes to 0.030, the closer one, so 0.055 stays unmatched.
   test::TempDir dir;
   ImageRgb color(4, 4, Eigen::Vector3f::Constant(0.5f));
   ImageDepth depth(4, 4, 1.0f);

@@ -31,7 +31,8 @@ TEST(Color, SrgbRoundTripAndKnownValues) {
 ImageRgb RandomImage(int w, int h) {
   ImageRgb image(w, h);
   CounterRng rng(5, 6);
-  for (auto& p : image.pixels()) p = Eigen::Vector3f(rng.Uniform(), rng.Uniform() * 4.0f, rng.Uniform() * 1e-3f);
+  for (auto& p : image.pixels())
+    p = Eigen::Vector3f(rng.Uniform(), rng.Uniform() * 4.0f, rng.Uniform() * 1e-3f);
   return image;
 }
 
@@ -53,7 +54,8 @@ TEST(ImageIo, PngRoundTripWithinQuantisation) {
   for (size_t i = 0; i < image.size(); ++i) {
     for (int c = 0; c < 3; ++c) {
       // Half an 8-bit step in the encoded domain.
-      EXPECT_NEAR(LinearToSrgb(back.pixels()[i][c]), LinearToSrgb(image.pixels()[i][c]), 0.5 / 255 + 1e-6);
+      EXPECT_NEAR(LinearToSrgb(back.pixels()[i][c]), LinearToSrgb(image.pixels()[i][c]),
+                  0.5 / 255 + 1e-6);
     }
   }
 }
@@ -80,7 +82,8 @@ TEST(ImageIo, DepthPngRoundTripAtScale5000) {
 TEST(ImageIo, DepthExrRoundTripIsExact) {
   test::TempDir dir;
   ImageDepth depth(11, 7, 0.0f);
-  for (size_t i = 0; i < depth.size(); ++i) depth.pixels()[i] = 0.1f * static_cast<float>(i) + 1e-4f;
+  for (size_t i = 0; i < depth.size(); ++i)
+    depth.pixels()[i] = 0.1f * static_cast<float>(i) + 1e-4f;
   WriteDepthExr(dir / "d.exr", depth);
   const ImageDepth back = ReadDepthImage(dir / "d.exr");
   for (size_t i = 0; i < depth.size(); ++i) EXPECT_EQ(back.pixels()[i], depth.pixels()[i]);
@@ -94,7 +97,8 @@ TEST(ImageIo, DepthTooFarFor16BitsIsAnError) {
   EXPECT_EQ(test::CountFilesContaining(dir.path(), ".tmp-"), 0);
 }
 
-void ExpectErrorNaming(const std::function<void()>& f, const std::string& needle, const std::string& file) {
+void ExpectErrorNaming(const std::function<void()>& f, const std::string& needle,
+                       const std::string& file) {
   try {
     f();
     ADD_FAILURE() << "no error for " << file;
@@ -108,7 +112,8 @@ void ExpectErrorNaming(const std::function<void()>& f, const std::string& needle
 
 TEST(ImageIo, BadFilesGiveOneLineErrorsNamingTheFile) {
   test::TempDir dir;
-  ExpectErrorNaming([&] { ReadColorImage(dir / "missing.png", CameraResponse()); }, "not found", "missing.png");
+  ExpectErrorNaming([&] { ReadColorImage(dir / "missing.png", CameraResponse()); }, "not found",
+                    "missing.png");
   std::ofstream(dir / "empty.png").close();
   ExpectErrorNaming([&] { ReadDepthImage(dir / "empty.png"); }, "empty", "empty.png");
   // A PNG cut after its first 100 bytes.
@@ -121,7 +126,8 @@ TEST(ImageIo, BadFilesGiveOneLineErrorsNamingTheFile) {
     std::ofstream(dir / "garbage.png", std::ios::binary) << "this is not an image at all";
   }
   ExpectErrorNaming([&] { ReadDepthImage(dir / "cut.png"); }, "cannot decode", "cut.png");
-  ExpectErrorNaming([&] { ReadColorImage(dir / "garbage.png", CameraResponse()); }, "cannot decode", "garbage.png");
+  ExpectErrorNaming([&] { ReadColorImage(dir / "garbage.png", CameraResponse()); }, "cannot decode",
+                    "garbage.png");
   // A colour image is not a depth image.
   WritePng(dir / "color.png", ImageRgb(4, 4, Eigen::Vector3f(0.5f, 0.5f, 0.5f)));
   ExpectErrorNaming([&] { ReadDepthImage(dir / "color.png"); }, "channels", "color.png");
@@ -129,7 +135,8 @@ TEST(ImageIo, BadFilesGiveOneLineErrorsNamingTheFile) {
 
 TEST(ImageIo, NanInfNegativeDepthAreRejected) {
   test::TempDir dir;
-  for (float bad : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), -1.0f}) {
+  for (float bad :
+       {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(), -1.0f}) {
     ImageDepth depth(8, 8, 1.0f);
     depth(3, 5) = bad;
     WriteDepthExr(dir / "bad.exr", depth);
@@ -139,14 +146,17 @@ TEST(ImageIo, NanInfNegativeDepthAreRejected) {
 
 TEST(ImageIo, NanAndInfiniteColourAreRejectedNegativeKept) {
   test::TempDir dir;
-  for (float bad : {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
+  for (float bad :
+       {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
     for (int c = 0; c < 3; ++c) {
       ImageRgb image(8, 8, Eigen::Vector3f(0.5f, 0.25f, 0.125f));
       image(3, 5)[c] = bad;
       image(6, 7)[c] = bad;
       WriteExr(dir / "bad.exr", image);
-      ExpectErrorNaming([&] { ReadColorImage(dir / "bad.exr", CameraResponse()); }, "2 pixels", "bad.exr");
-      ExpectErrorNaming([&] { ReadColorImage(dir / "bad.exr", CameraResponse()); }, "pixel (3, 5)", "bad.exr");
+      ExpectErrorNaming([&] { ReadColorImage(dir / "bad.exr", CameraResponse()); }, "2 pixels",
+                        "bad.exr");
+      ExpectErrorNaming([&] { ReadColorImage(dir / "bad.exr", CameraResponse()); }, "pixel (3, 5)",
+                        "bad.exr");
     }
   }
   // A negative value is a valid observation of a linear image (filters with negative lobes).
@@ -170,7 +180,9 @@ TEST(ImageIo, RealFormatsDecode) {
   DepthEncoding sun;
   sun.kind = DepthEncoding::Kind::kSunRotated;
   for (const auto& [path, encoding] : std::vector<std::pair<std::filesystem::path, DepthEncoding>>{
-           {other / "TUM_depth.png", DepthEncoding()}, {other / "NYU_depth.pgm", nyu}, {other / "SUN_depth.png", sun}}) {
+           {other / "TUM_depth.png", DepthEncoding()},
+           {other / "NYU_depth.pgm", nyu},
+           {other / "SUN_depth.png", sun}}) {
     const ImageDepth d = ReadDepthImage(path, encoding);
     double lo = 1e9, hi = 0.0;
     size_t valid = 0;
@@ -191,21 +203,23 @@ TEST(ImageIo, RealFormatsDecode) {
 }
 
 // An EXR written by OpenEXR itself, with the named FLOAT channels; channel c holds c + x / 10 + y.
-void WriteExrChannels(const std::filesystem::path& path, int width, int height, const std::vector<std::string>& names) {
+void WriteExrChannels(const std::filesystem::path& path, int width, int height,
+                      const std::vector<std::string>& names) {
   Imf::Header header(width, height);
   std::vector<std::vector<float>> planes;
   for (size_t c = 0; c < names.size(); ++c) {
     header.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
     planes.emplace_back(static_cast<size_t>(width * height));
     for (int y = 0; y < height; ++y) {
-      for (int x = 0; x < width; ++x) planes[c][y * width + x] = static_cast<float>(c) + 0.1f * x + y;
+      for (int x = 0; x < width; ++x)
+        planes[c][y * width + x] = static_cast<float>(c) + 0.1f * x + y;
     }
   }
   Imf::OutputFile file(path.c_str(), header);
   Imf::FrameBuffer buffer;
   for (size_t c = 0; c < names.size(); ++c) {
-    buffer.insert(names[c], Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(planes[c].data()), sizeof(float),
-                                       sizeof(float) * width));
+    buffer.insert(names[c], Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(planes[c].data()),
+                                       sizeof(float), sizeof(float) * width));
   }
   file.setFrameBuffer(buffer);
   file.writePixels(height);

@@ -1,11 +1,12 @@
 // lights.json (core/light_set.h): round trip, checked reading, the voxel model's figures.
+#include "core/light_set.h"
+
 #include <gtest/gtest.h>
 
 #include <fstream>
 
 #include "core/check.h"
 #include "core/color.h"
-#include "core/light_set.h"
 #include "tests/test_util.h"
 
 namespace genscene {
@@ -76,10 +77,14 @@ TEST(LightSet, BadLightsJsonIsAnErrorNamingTheFile) {
   expect_error(R"({"genscene_lights": 2, "voxel_lights": {}})", "not a genscene lights file");
   expect_error(R"({"genscene_lights": 1, "surprise": 1})", "unknown key 'surprise'");
   expect_error(R"({"genscene_lights": 1})", "missing \"voxel_lights\"");
-  expect_error(R"({"genscene_lights": 1, "voxel_lights": {"bounds_min": [0,0,0], "bounds_max": [1,1,1],
-      "dims": [1,1,1], "intensity": [[-1, 0, 0]], "weights": [[1,1,1,1,1,1]]}})", "must be finite and >= 0");
-  expect_error(R"({"genscene_lights": 1, "voxel_lights": {"bounds_min": [0,0,0], "bounds_max": [1,1,1],
-      "dims": [2,1,1], "intensity": [[1, 0, 0]], "weights": [[1,1,1,1,1,1]]}})", "1 intensities and 1 weight sets for 2 voxels");
+  expect_error(
+      R"({"genscene_lights": 1, "voxel_lights": {"bounds_min": [0,0,0], "bounds_max": [1,1,1],
+      "dims": [1,1,1], "intensity": [[-1, 0, 0]], "weights": [[1,1,1,1,1,1]]}})",
+      "must be finite and >= 0");
+  expect_error(
+      R"({"genscene_lights": 1, "voxel_lights": {"bounds_min": [0,0,0], "bounds_max": [1,1,1],
+      "dims": [2,1,1], "intensity": [[1, 0, 0]], "weights": [[1,1,1,1,1,1]]}})",
+      "1 intensities and 1 weight sets for 2 voxels");
   EXPECT_THROW(ReadLightsJson(dir / "missing.json"), Error);
 }
 

@@ -1,7 +1,7 @@
 #include "core/mesh_colors.h"
 
-#include <fstream>
 #include <cmath>
+#include <fstream>
 #include <limits>
 #include <map>
 #include <random>
@@ -115,7 +115,8 @@ TEST(MeshColors, LinearFieldRoundTripsWithLinearLookup) {
       if (k == 1) b1 = 0.5f, b2 = 0.5f;
       if (k == 2) b1 = 0.25f, b2 = 0.0f;
       const Eigen::Vector3f want = Field(PointOf(m, f, b1, b2));
-      worst = std::max(worst, static_cast<double>((c.Linear(f, b1, b2) - want).cwiseAbs().maxCoeff()));
+      worst =
+          std::max(worst, static_cast<double>((c.Linear(f, b1, b2) - want).cwiseAbs().maxCoeff()));
     }
   }
   EXPECT_LT(worst, 2e-6) << "a linear field must come back up to float rounding";
@@ -160,12 +161,14 @@ TEST(MeshColors, SubdividedMeshIsClosedAndCarriesTheColours) {
   EXPECT_EQ(sub.faces.size(), m.faces.size() * 16);
   std::map<std::pair<int, int>, int> uses;
   for (const Eigen::Vector3i& f : sub.faces) {
-    for (int k = 0; k < 3; ++k) ++uses[{std::min(f[k], f[(k + 1) % 3]), std::max(f[k], f[(k + 1) % 3])}];
+    for (int k = 0; k < 3; ++k)
+      ++uses[{std::min(f[k], f[(k + 1) % 3]), std::max(f[k], f[(k + 1) % 3])}];
   }
   for (const auto& [edge, n] : uses) EXPECT_EQ(n, 2) << edge.first << "-" << edge.second;
   // V - E + F = 2 for the subdivided sphere too.
   EXPECT_EQ(static_cast<long>(sub.vertices.size()) - static_cast<long>(uses.size()) +
-                static_cast<long>(sub.faces.size()), 2);
+                static_cast<long>(sub.faces.size()),
+            2);
   for (size_t s = 0; s < sub.vertices.size(); ++s) {
     EXPECT_LT((sub.vertex_colors[s] - Field(sub.vertices[s])).norm(), 1e-5);
   }
@@ -202,14 +205,16 @@ TEST(MeshColors, FileRoundTripIsExactAndRefusesAnotherMesh) {
   TriangleMesh other = m;
   std::swap(other.faces[0][0], other.faces[0][1]);
   EXPECT_CONTAINS(test::ErrorOf([&] { ReadMeshColors(dir / "a.mcol", other); }), "another mesh");
-  EXPECT_CONTAINS(test::ErrorOf([&] { ReadMeshColors(dir / "a.mcol", Icosphere(1)); }), "made for a mesh of 162 vertices");
+  EXPECT_CONTAINS(test::ErrorOf([&] { ReadMeshColors(dir / "a.mcol", Icosphere(1)); }),
+                  "made for a mesh of 162 vertices");
   // Truncated and foreign files.
   std::ifstream in(dir / "a.mcol", std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   test::WriteFile(dir / "cut.mcol", bytes.substr(0, bytes.size() - 5));
   EXPECT_CONTAINS(test::ErrorOf([&] { ReadMeshColors(dir / "cut.mcol", m); }), "cut.mcol: holds");
   test::WriteFile(dir / "x.mcol", "ply\nformat ascii 1.0\n");
-  EXPECT_CONTAINS(test::ErrorOf([&] { ReadMeshColors(dir / "x.mcol", m); }), "not a Mesh Colors file");
+  EXPECT_CONTAINS(test::ErrorOf([&] { ReadMeshColors(dir / "x.mcol", m); }),
+                  "not a Mesh Colors file");
   EXPECT_CONTAINS(test::ErrorOf([&] { ReadMeshColors(dir / "missing.mcol", m); }), "cannot open");
 }
 
@@ -225,8 +230,10 @@ TEST(MeshColorsProperty, LocateInLatticeStaysInTheFaceForAnyInput) {
       double x = 0.0, y = 0.0;
       for (int k = 0; k < 3; ++k) {
         ASSERT_TRUE(c.i[k] >= 0 && c.j[k] >= 0 && c.i[k] + c.j[k] <= r)
-            << "r " << r << " (" << b1 << ", " << b2 << ") gives (" << c.i[k] << ", " << c.j[k] << ")";
-        ASSERT_TRUE(c.w[k] >= 0.0f && c.w[k] <= 1.0f) << "r " << r << " (" << b1 << ", " << b2 << ") weight " << c.w[k];
+            << "r " << r << " (" << b1 << ", " << b2 << ") gives (" << c.i[k] << ", " << c.j[k]
+            << ")";
+        ASSERT_TRUE(c.w[k] >= 0.0f && c.w[k] <= 1.0f)
+            << "r " << r << " (" << b1 << ", " << b2 << ") weight " << c.w[k];
         sum += c.w[k];
         x += c.w[k] * c.i[k];
         y += c.w[k] * c.j[k];
@@ -249,7 +256,8 @@ TEST(MeshColorsProperty, LookupsOfEveryResolutionTakeAnyBarycentrics) {
   std::vector<int> resolution;
   for (int r = 1; r <= MeshColors::kMaxResolution; r *= 2) {
     const int v = static_cast<int>(mesh.vertices.size());
-    mesh.vertices.insert(mesh.vertices.end(), {{0, 0, float(r)}, {1, 0, float(r)}, {0, 1, float(r)}});
+    mesh.vertices.insert(mesh.vertices.end(),
+                         {{0, 0, float(r)}, {1, 0, float(r)}, {0, 1, float(r)}});
     mesh.faces.emplace_back(v, v + 1, v + 2);
     resolution.push_back(r);
   }
@@ -259,11 +267,14 @@ TEST(MeshColorsProperty, LookupsOfEveryResolutionTakeAnyBarycentrics) {
   for (int f = 0; f < static_cast<int>(mesh.faces.size()); ++f) {
     for (const auto& [b1, b2] : test::HardBarycentrics(rng, 20000, 20000)) {
       Eigen::Vector3f linear, nearest;
-      ASSERT_NO_THROW(linear = colors.Linear(f, b1, b2)) << "face " << f << " (" << b1 << ", " << b2 << ")";
-      ASSERT_NO_THROW(nearest = colors.Nearest(f, b1, b2)) << "face " << f << " (" << b1 << ", " << b2 << ")";
+      ASSERT_NO_THROW(linear = colors.Linear(f, b1, b2))
+          << "face " << f << " (" << b1 << ", " << b2 << ")";
+      ASSERT_NO_THROW(nearest = colors.Nearest(f, b1, b2))
+          << "face " << f << " (" << b1 << ", " << b2 << ")";
       ASSERT_TRUE(linear.allFinite() && nearest.allFinite());
       if (b1 >= 0.0f && b2 >= 0.0f && b1 + b2 <= 1.0f) {
-        ASSERT_LT((linear - Field(PointOf(mesh, f, b1, b2))).norm(), 1e-4f) << "face " << f << " (" << b1 << ", " << b2 << ")";
+        ASSERT_LT((linear - Field(PointOf(mesh, f, b1, b2))).norm(), 1e-4f)
+            << "face " << f << " (" << b1 << ", " << b2 << ")";
       }
     }
   }

@@ -1,10 +1,11 @@
 // Point-to-mesh distances (the surface error of a reconstruction against a ground truth).
+#include "core/mesh_distance.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 
 #include "core/check.h"
-#include "core/mesh_distance.h"
 
 namespace genscene {
 namespace {
@@ -19,13 +20,13 @@ TriangleMesh OneTriangle() {
 TEST(MeshDistance, EveryVoronoiRegionOfATriangle) {
   const TriangleMesh t = OneTriangle();
   const MeshDistance d(t, 10.0);
-  EXPECT_NEAR(d.Distance({0.2, 0.2, 0.5}), 0.5, 1e-12);                          // above the face
-  EXPECT_NEAR(d.Distance({-1, -1, 0}), std::sqrt(2.0), 1e-12);                   // beyond vertex a
-  EXPECT_NEAR(d.Distance({2, -1, 0}), std::sqrt(2.0), 1e-12);                    // beyond vertex b
-  EXPECT_NEAR(d.Distance({0.5, -2, 0}), 2.0, 1e-12);                             // beyond edge ab
-  EXPECT_NEAR(d.Distance({1, 1, 0}), std::sqrt(0.5), 1e-12);                     // beyond edge bc
-  EXPECT_NEAR(d.Distance({-3, 0.5, 4}), 5.0, 1e-12);                             // beyond edge ca
-  EXPECT_NEAR(MeshDistance(t, 0.25).Distance({0.2, 0.2, 3}), 0.25, 1e-12);       // cut off
+  EXPECT_NEAR(d.Distance({0.2, 0.2, 0.5}), 0.5, 1e-12);                     // above the face
+  EXPECT_NEAR(d.Distance({-1, -1, 0}), std::sqrt(2.0), 1e-12);              // beyond vertex a
+  EXPECT_NEAR(d.Distance({2, -1, 0}), std::sqrt(2.0), 1e-12);               // beyond vertex b
+  EXPECT_NEAR(d.Distance({0.5, -2, 0}), 2.0, 1e-12);                        // beyond edge ab
+  EXPECT_NEAR(d.Distance({1, 1, 0}), std::sqrt(0.5), 1e-12);                // beyond edge bc
+  EXPECT_NEAR(d.Distance({-3, 0.5, 4}), 5.0, 1e-12);                        // beyond edge ca
+  EXPECT_NEAR(MeshDistance(t, 0.25).Distance({0.2, 0.2, 3}), 0.25, 1e-12);  // cut off
 }
 
 TEST(MeshDistance, SurfaceErrorOfAShiftedMesh) {

@@ -42,12 +42,14 @@ TEST(Options, UnknownSectionAndWrongTypeAndBadJson) {
   test::TempDir dir;
   std::ofstream(dir / "a.json") << R"({"sorce": {}})";
   ConfigFile a(dir / "a.json");
-  EXPECT_NE(ErrorOf([&] { a.CheckNoUnknown(); }).find("unknown section 'sorce'"), std::string::npos);
+  EXPECT_NE(ErrorOf([&] { a.CheckNoUnknown(); }).find("unknown section 'sorce'"),
+            std::string::npos);
 
   std::ofstream(dir / "b.json") << R"({"source": {"max_frames": "ten"}})";
   ConfigFile b(dir / "b.json");
   SourceOptions source;
-  EXPECT_NE(ErrorOf([&] { b.Apply(source); }).find("'source.max_frames' must be an integer"), std::string::npos);
+  EXPECT_NE(ErrorOf([&] { b.Apply(source); }).find("'source.max_frames' must be an integer"),
+            std::string::npos);
 
   // 2^64 - 1 once wrapped to -1 through long long, and -1 was taken without an error.
   for (const char* big : {"18446744073709551615", "4294967297"}) {
@@ -58,8 +60,10 @@ TEST(Options, UnknownSectionAndWrongTypeAndBadJson) {
   }
 
   std::ofstream(dir / "c.json") << R"({"source": {"max_frames": 3)";
-  EXPECT_NE(ErrorOf([&] { ConfigFile c(dir / "c.json"); }).find("not valid JSON"), std::string::npos);
-  EXPECT_NE(ErrorOf([&] { ConfigFile d(dir / "missing.json"); }).find("not found"), std::string::npos);
+  EXPECT_NE(ErrorOf([&] { ConfigFile c(dir / "c.json"); }).find("not valid JSON"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf([&] { ConfigFile d(dir / "missing.json"); }).find("not found"),
+            std::string::npos);
 }
 
 TEST(Options, ValidateRejectsOutOfRangeWithTheValue) {

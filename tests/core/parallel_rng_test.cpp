@@ -3,8 +3,8 @@
 #include <cmath>
 #include <vector>
 
-#include "core/parallel.h"
 #include "core/check.h"
+#include "core/parallel.h"
 #include "core/rng.h"
 
 namespace genscene {
@@ -34,7 +34,8 @@ TEST(Parallel, ReductionIsBitIdenticalWithOneAndTwoThreads) {
 
 TEST(Parallel, ForVisitsEveryIndexOnce) {
   std::vector<int> hits(10007, 0);
-  ParallelFor(0, hits.size(), [&](size_t i) { hits[i] += 1; }, 64);
+  ParallelFor(
+      0, hits.size(), [&](size_t i) { hits[i] += 1; }, 64);
   for (int h : hits) EXPECT_EQ(h, 1);
   EXPECT_THROW(SetThreadCount(-1), Error);
 }

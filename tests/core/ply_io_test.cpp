@@ -271,9 +271,11 @@ TEST_F(PlyIoTest, BadFacesAndValuesAreErrors) {
       {"out_of_range.ply", header + vertices + "3 0 1 7\n", "vertex 7"},
       {"negative.ply", header + vertices + "3 0 -1 2\n", "face 0"},
       // OpenMesh's ASCII reader misparses (and could loop on) these; they are caught first.
-      {"nan.ply", header + "0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n", "vertex 1: value 'nan' of property y is not a finite number"},
+      {"nan.ply", header + "0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n",
+       "vertex 1: value 'nan' of property y is not a finite number"},
       {"inf.ply", header + "0 0 0\n1 0 0\n0 1 -inf\n3 0 1 2\n", "value '-inf' of property z"},
-      {"letter.ply", header + vertices + "3 0 x 2\n", "face 0: value 'x' of property vertex_indices is not an integer"},
+      {"letter.ply", header + vertices + "3 0 x 2\n",
+       "face 0: value 'x' of property vertex_indices is not an integer"},
       {"fraction.ply", header + vertices + "3 0 1.5 2\n", "value '1.5' of property vertex_indices"},
   };
   for (const auto& c : cases) {

@@ -32,7 +32,8 @@ TEST(Trajectory, TumRoundTrip) {
   for (size_t i = 0; i < back.size(); ++i) {
     // Timestamps to the microsecond (TUM's 6 decimals), poses to 9 significant digits.
     EXPECT_NEAR(back.poses()[i].timestamp, original.poses()[i].timestamp, 1e-6);
-    EXPECT_LT((back.poses()[i].world_from_camera.matrix() - original.poses()[i].world_from_camera.matrix())
+    EXPECT_LT((back.poses()[i].world_from_camera.matrix() -
+               original.poses()[i].world_from_camera.matrix())
                   .cwiseAbs()
                   .maxCoeff(),
               1e-8);
@@ -59,9 +60,9 @@ TEST(Trajectory, NearestAndInterpolate) {
 
 TEST(Trajectory, MalformedLinesNameFileAndLine) {
   test::TempDir dir;
-  const std::vector<std::string> bad = {"1.0 0 0 0 0 0 0",          // 7 values
-                                        "1.0 0 0 0 0 0 0 x",        // not a number
-                                        "1.0 0 0 0 0 0 0 0",        // zero quaternion
+  const std::vector<std::string> bad = {"1.0 0 0 0 0 0 0",                        // 7 values
+                                        "1.0 0 0 0 0 0 0 x",                      // not a number
+                                        "1.0 0 0 0 0 0 0 0",                      // zero quaternion
                                         "1.0 0 0 0 0 0 0 1\n1.0 0 0 0 0 0 0 1"};  // duplicate stamp
   for (const auto& text : bad) {
     std::ofstream(dir / "gt.txt") << "# header\n" << text << "\n";

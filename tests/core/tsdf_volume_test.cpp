@@ -2,8 +2,8 @@
 
 #include <fstream>
 
-#include "core/trajectory_metrics.h"
 #include "core/se3.h"
+#include "core/trajectory_metrics.h"
 #include "tests/test_util.h"
 
 namespace genscene {
@@ -18,7 +18,8 @@ TsdfVolume MakeVolume() {
   p.origin = Eigen::Vector3d(1000.25, -3.5, 0.125);
   TsdfVolume volume(p);
   int n = 0;
-  for (const Eigen::Vector3i& key : {Eigen::Vector3i(0, 0, 0), Eigen::Vector3i(-1, 2, -3), Eigen::Vector3i(5, -7, 1)}) {
+  for (const Eigen::Vector3i& key :
+       {Eigen::Vector3i(0, 0, 0), Eigen::Vector3i(-1, 2, -3), Eigen::Vector3i(5, -7, 1)}) {
     TsdfBlock& block = volume.block(volume.AllocateBlock(key));
     for (int i = 0; i < kTsdfBlockVoxels; ++i) {
       TsdfVoxel& v = block.voxels[i];
@@ -71,7 +72,8 @@ TEST(TsdfVolume, HashTableKeepsThousandsOfBlocks) {
   TsdfVolumeParams p;
   p.memory_cap_bytes = 0;
   TsdfVolume volume(p);
-  for (int i = 0; i < 3000; ++i) volume.AllocateBlock(Eigen::Vector3i(i % 17 - 8, i / 17 - 90, (i * 7) % 13));
+  for (int i = 0; i < 3000; ++i)
+    volume.AllocateBlock(Eigen::Vector3i(i % 17 - 8, i / 17 - 90, (i * 7) % 13));
   for (int i = 0; i < 3000; ++i) {
     const auto found = volume.FindBlock(Eigen::Vector3i(i % 17 - 8, i / 17 - 90, (i * 7) % 13));
     ASSERT_TRUE(found.has_value());
@@ -83,7 +85,8 @@ TEST(TsdfVolume, HashTableKeepsThousandsOfBlocks) {
 TEST(TsdfVolume, TrilinearInterpolationIsExactForLinearFields) {
   TsdfVolumeParams p;
   TsdfVolume volume(p);
-  for (int i = 0; i < 8; ++i) volume.AllocateBlock(Eigen::Vector3i(i & 1, (i >> 1) & 1, (i >> 2) & 1));
+  for (int i = 0; i < 8; ++i)
+    volume.AllocateBlock(Eigen::Vector3i(i & 1, (i >> 1) & 1, (i >> 2) & 1));
   for (size_t b = 0; b < volume.num_blocks(); ++b) {
     for (int z = 0; z < 8; ++z)
       for (int y = 0; y < 8; ++y)
@@ -101,7 +104,8 @@ TEST(TsdfVolume, TrilinearInterpolationIsExactForLinearFields) {
   const auto g = volume.SdfGradient(p0);
   ASSERT_TRUE(g.has_value());
   EXPECT_NEAR((*g - Eigen::Vector3f(0.5f, -0.25f, 0.125f)).norm(), 0.0f, 1e-5);
-  EXPECT_FALSE(volume.InterpolateSdf(Eigen::Vector3f(15.5f, 1.0f, 1.0f)).has_value());  // unallocated
+  EXPECT_FALSE(
+      volume.InterpolateSdf(Eigen::Vector3f(15.5f, 1.0f, 1.0f)).has_value());  // unallocated
 }
 
 TEST(TsdfVolume, MemoryCapIsAClearError) {
@@ -109,7 +113,8 @@ TEST(TsdfVolume, MemoryCapIsAClearError) {
   p.memory_cap_bytes = 3.5 * sizeof(TsdfBlock);
   TsdfVolume volume(p);
   for (int i = 0; i < 3; ++i) volume.AllocateBlock(Eigen::Vector3i(i, 0, 0));
-  EXPECT_CONTAINS(test::ErrorOf([&] { volume.AllocateBlock(Eigen::Vector3i(9, 0, 0)); }), "memory cap");
+  EXPECT_CONTAINS(test::ErrorOf([&] { volume.AllocateBlock(Eigen::Vector3i(9, 0, 0)); }),
+                  "memory cap");
   EXPECT_EQ(volume.num_blocks(), 3u);
 }
 
@@ -118,7 +123,8 @@ TEST(TsdfVolume, CorruptFilesAreClearErrors) {
   WriteTsdfVolume(dir / "good.gsv", MakeVolume());
   const std::string good = Bytes(dir / "good.gsv");
   test::WriteFile(dir / "magic.gsv", "PLY nonsense");
-  EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "magic.gsv"); }), "magic.gsv: not a genscene TSDF volume");
+  EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "magic.gsv"); }),
+                  "magic.gsv: not a genscene TSDF volume");
   test::WriteFile(dir / "short.gsv", good.substr(0, good.size() - 7));
   EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "short.gsv"); }), "short.gsv");
   // A header declaring 10^12 blocks must be refused before allocating anything.
@@ -126,20 +132,24 @@ TEST(TsdfVolume, CorruptFilesAreClearErrors) {
   const uint64_t count = 1000000000000ull;
   std::memcpy(&huge[8 + 8 + 8 + 4 + 24], &count, sizeof(count));
   test::WriteFile(dir / "huge.gsv", huge);
-  EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "huge.gsv"); }), "declares 1000000000000 blocks");
+  EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "huge.gsv"); }),
+                  "declares 1000000000000 blocks");
   std::string nan = good;
   const float bad = std::numeric_limits<float>::quiet_NaN();
   std::memcpy(&nan[nan.size() - 4], &bad, sizeof(bad));
   test::WriteFile(dir / "nan.gsv", nan);
   EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "nan.gsv"); }), "non-finite");
-  EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "missing.gsv"); }), "missing.gsv: cannot open");
+  EXPECT_CONTAINS(test::ErrorOf([&] { ReadTsdfVolume(dir / "missing.gsv"); }),
+                  "missing.gsv: cannot open");
 }
 
 TEST(TrajectoryMetrics, AteIsZeroForARigidlyMovedTrajectoryAndSeesNoise) {
   Trajectory gt, moved, noisy;
-  const Eigen::Isometry3d offset = ExpSE3((Vector6d() << 3.0, -2.0, 1000.0, 0.3, -0.2, 1.1).finished());
+  const Eigen::Isometry3d offset =
+      ExpSE3((Vector6d() << 3.0, -2.0, 1000.0, 0.3, -0.2, 1.1).finished());
   for (int i = 0; i < 50; ++i) {
-    const Eigen::Isometry3d pose = ExpSE3((Vector6d() << 0.05 * i, std::sin(0.2 * i), 0.01 * i * i, 0.02 * i, 0.0, 0.1).finished());
+    const Eigen::Isometry3d pose = ExpSE3(
+        (Vector6d() << 0.05 * i, std::sin(0.2 * i), 0.01 * i * i, 0.02 * i, 0.0, 0.1).finished());
     gt.Add(i / 30.0, pose);
     moved.Add(i / 30.0 + 0.004, offset * pose);  // within the 20 ms association window
     Eigen::Isometry3d shifted = pose;
@@ -151,7 +161,8 @@ TEST(TrajectoryMetrics, AteIsZeroForARigidlyMovedTrajectoryAndSeesNoise) {
   EXPECT_LT(exact.rmse, 1e-6);
   const AteResult n = ComputeAte(noisy, gt);
   EXPECT_NEAR(n.rmse, 0.01, 1e-3);
-  std::cout << "ATE of a 1 km offset copy: " << exact.rmse << " m; of +-1 cm noise: " << n.rmse << " m\n";
+  std::cout << "ATE of a 1 km offset copy: " << exact.rmse << " m; of +-1 cm noise: " << n.rmse
+            << " m\n";
   Trajectory far;
   far.Add(100.0, Eigen::Isometry3d::Identity());
   EXPECT_CONTAINS(test::ErrorOf([&] { ComputeAte(far, gt); }), "only 0 of 1");

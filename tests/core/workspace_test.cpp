@@ -39,7 +39,8 @@ TEST(Workspace, ContentFingerprintFollowsContentNotTimes) {
   Touch(dir / "a" / "w.txt", 1);
   EXPECT_NE(ContentFingerprint(dir / "a"), a);
   EXPECT_EQ(ContentFingerprint(dir / "a" / "sub" / "y.txt"), Fnv1a64("x"));
-  EXPECT_CONTAINS(test::ErrorOf([&] { ContentFingerprint(dir / "missing"); }), "missing: cannot read");
+  EXPECT_CONTAINS(test::ErrorOf([&] { ContentFingerprint(dir / "missing"); }),
+                  "missing: cannot read");
 }
 
 TEST(Workspace, AtomicWriteLeavesNothingWhenTheWriterFails) {

@@ -20,8 +20,9 @@ TEST(FusionReal, TumFr1DeskNineFramesWithinTwoCentimetres) {
   while (auto frame = source->Next()) {
     const FrameReport r = fusion.ProcessFrame(*frame);
     tracked += r.status == FrameStatus::kTracked;
-    std::cout << "frame " << r.index << ": " << ToString(r.status) << " inliers " << r.icp.inlier_ratio
-              << " rms " << r.icp.rms_residual << " m condition " << r.icp.condition << " " << r.reason << "\n";
+    std::cout << "frame " << r.index << ": " << ToString(r.status) << " inliers "
+              << r.icp.inlier_ratio << " rms " << r.icp.rms_residual << " m condition "
+              << r.icp.condition << " " << r.reason << "\n";
   }
   EXPECT_EQ(tracked, 8);
   const AteResult ate = ComputeAte(fusion.trajectory(), source->KnownPoses());
@@ -51,9 +52,9 @@ TEST(FusionReal, SlambookFramesFarApartAreTrackedFromFeatures) {
       const FrameReport r = fusion.ProcessFrame(*frame);
       lost += r.status == FrameStatus::kLost;
       from_features += r.feature_start;
-      std::cout << "features " << features << " frame " << r.index << ": " << ToString(r.status) << " ORB inliers "
-                << r.features.inliers << " of " << r.features.matches << ", ICP inliers " << r.icp.inlier_ratio << " "
-                << r.reason << "\n";
+      std::cout << "features " << features << " frame " << r.index << ": " << ToString(r.status)
+                << " ORB inliers " << r.features.inliers << " of " << r.features.matches
+                << ", ICP inliers " << r.icp.inlier_ratio << " " << r.reason << "\n";
     }
     if (!features) {
       EXPECT_EQ(lost, 4);
@@ -62,7 +63,8 @@ TEST(FusionReal, SlambookFramesFarApartAreTrackedFromFeatures) {
     EXPECT_EQ(lost, 0);
     EXPECT_EQ(from_features, 4);
     const AteResult ate = ComputeAte(fusion.trajectory(), source->KnownPoses());
-    std::cout << "slambook joinMap, feature starts: ATE " << 100 * ate.rmse << " cm, max " << 100 * ate.max << " cm\n";
+    std::cout << "slambook joinMap, feature starts: ATE " << 100 * ate.rmse << " cm, max "
+              << 100 * ate.max << " cm\n";
     EXPECT_EQ(ate.pairs, 5u);
     EXPECT_LE(ate.rmse, 0.03);
   }

@@ -18,7 +18,9 @@
 namespace genscene::fusion {
 namespace {
 
-CameraIntrinsics Camera(int width, int height) { return CameraIntrinsics::Centered(width, height, 0.9 * width); }
+CameraIntrinsics Camera(int width, int height) {
+  return CameraIntrinsics::Centered(width, height, 0.9 * width);
+}
 
 // The Cornell-like room of core/synthetic.h, translated by `offset`.
 SyntheticScene Room(const Eigen::Vector3d& offset = Eigen::Vector3d::Zero()) {
@@ -78,7 +80,8 @@ RgbdFrame KeyframeCandidate(int index, double x, float contrast = 1.0f) {
   f.timestamp = index;
   f.color = ImageRgb(16, 12);
   for (int v = 0; v < 12; ++v) {
-    for (int u = 0; u < 16; ++u) f.color(u, v) = Eigen::Vector3f::Constant(0.5f + 0.5f * contrast * (((u + v) % 2) - 0.5f));
+    for (int u = 0; u < 16; ++u)
+      f.color(u, v) = Eigen::Vector3f::Constant(0.5f + 0.5f * contrast * (((u + v) % 2) - 0.5f));
   }
   f.world_from_camera = Eigen::Isometry3d(Eigen::Translation3d(x, 0, 0));
   return f;
@@ -126,7 +129,8 @@ TEST(Keyframes, LongRecordingKeyframesFollowTheMotionAndSharpness) {
   // The sharp frames win every full window (the recording's end may cut the last one short).
   for (size_t k = 0; k < t.size(); ++k) {
     if (t[k] < 400 - 5) {
-      EXPECT_EQ(static_cast<int>(t[k]) % 5, 2) << "keyframe " << k << " of " << t.size() << ": frame " << t[k];
+      EXPECT_EQ(static_cast<int>(t[k]) % 5, 2)
+          << "keyframe " << k << " of " << t.size() << ": frame " << t[k];
     }
   }
 }
@@ -166,7 +170,8 @@ TEST(Keyframes, MinAboveMaxIsAClearError) {
   KeyframeOptions o;
   o.min_keyframes = 10;
   o.max_keyframes = 5;
-  EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }), "min_keyframes = 10 exceeds max_keyframes = 5");
+  EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }),
+                  "min_keyframes = 10 exceeds max_keyframes = 5");
 }
 
 TEST(Preprocess, MasksInvalidDepthAndKeepsEdgesSharp) {
@@ -195,7 +200,8 @@ TEST(Preprocess, NormalsOfAPlaneFaceTheCamera) {
   ImageDepth depth(80, 60);
   // Plane z = 1 + 0.5 x seen by the camera: planar depth solves z = 1 + 0.5 z (u - cx) / fx.
   for (int v = 0; v < 60; ++v)
-    for (int u = 0; u < 80; ++u) depth(u, v) = static_cast<float>(1.0 / (1.0 - 0.5 * (u - k.cx) / k.fx));
+    for (int u = 0; u < 80; ++u)
+      depth(u, v) = static_cast<float>(1.0 / (1.0 - 0.5 * (u - k.cx) / k.fx));
   const auto pyramid = BuildPyramid(depth, k, PreprocessOptions());
   ASSERT_EQ(pyramid.size(), 3u);
   EXPECT_EQ(pyramid[2].depth.width(), 20);
@@ -213,10 +219,12 @@ TEST(Preprocess, NormalsOfAPlaneFaceTheCamera) {
 TEST(Fusion, RaycastOfSphereAndBoxIsWithinHalfAVoxel) {
   SyntheticScene scene;
   scene.spheres.push_back({Eigen::Vector3d(0.0, 0.0, 0.5), 0.3, Eigen::Vector3f(0.8f, 0.2f, 0.2f)});
-  scene.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(0.4, -0.3, 0.0), Eigen::Vector3d(0.8, 0.1, 0.35)),
-                         Eigen::Vector3f(0.2f, 0.8f, 0.2f)});
+  scene.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(0.4, -0.3, 0.0), Eigen::Vector3d(0.8, 0.1, 0.35)),
+       Eigen::Vector3f(0.2f, 0.8f, 0.2f)});
   const CameraIntrinsics k = Camera(160, 120);
-  const Trajectory trajectory = MakeOrbitTrajectory(Eigen::Vector3d(0.2, 0.0, 0.3), 1.4, 1.0, 300.0, 24);
+  const Trajectory trajectory =
+      MakeOrbitTrajectory(Eigen::Vector3d(0.2, 0.0, 0.3), 1.4, 1.0, 300.0, 24);
   FusionOptions options = DefaultOptions();
   options.voxel_size = 0.01;
   options.truncation = 0.04;
@@ -249,8 +257,9 @@ TEST(Fusion, RaycastOfSphereAndBoxIsWithinHalfAVoxel) {
     }
   }
   std::cout << "raycast: " << hits << " surface pixels, worst distance to the true surface "
-            << worst / options.voxel_size << " voxel; " << near_edges << " pixels near box edges, worst "
-            << worst_near_edges / options.voxel_size << " voxel\n";
+            << worst / options.voxel_size << " voxel; " << near_edges
+            << " pixels near box edges, worst " << worst_near_edges / options.voxel_size
+            << " voxel\n";
   EXPECT_GT(hits, 5000u);
   EXPECT_LT(near_edges, hits / 5);
   EXPECT_LT(worst, 0.5 * options.voxel_size);
@@ -267,8 +276,8 @@ TEST(Fusion, TracksTheRoomWithExactDepth) {
   EXPECT_GE(run.fusion->keyframes().size(), 2u);
   // Memory follows the surface: the room's walls, not its 2 x 2 x 2 m bounding volume.
   const double bounding_blocks = std::pow(2.0 / (8 * 0.02), 3);
-  std::cout << "allocated " << run.fusion->volume().num_blocks() << " blocks; the bounding volume holds "
-            << bounding_blocks << "\n";
+  std::cout << "allocated " << run.fusion->volume().num_blocks()
+            << " blocks; the bounding volume holds " << bounding_blocks << "\n";
   EXPECT_LT(run.fusion->volume().num_blocks(), bounding_blocks);
 }
 
@@ -285,7 +294,8 @@ TEST(Fusion, TracksTheRoomWithTheModelAtHalfAndFullResolution) {
     EXPECT_EQ(run.fusion->model().depth.width(), 160 / subsample);
     EXPECT_EQ(run.fusion->model().depth.height(), 120 / subsample);
     const AteResult ate = ComputeAte(run.fusion->trajectory(), GroundTruth(frames));
-    std::cout << "room, 40 frames 160x120, model 1/" << subsample << ": ATE " << 100 * ate.rmse << " cm\n";
+    std::cout << "room, 40 frames 160x120, model 1/" << subsample << ": ATE " << 100 * ate.rmse
+              << " cm\n";
     EXPECT_LT(ate.rmse, 0.01);
   }
   o.model_subsample = 0;
@@ -359,18 +369,23 @@ TEST(Fusion, NoiseWeightsTrustTheNearMeasurement) {
     for (const double distance : {0.8, 3.0}) {
       const Eigen::Isometry3d pose(Eigen::Translation3d(0.0, 0.0, 0.8 - distance));
       ImageDepth depth(k.width, k.height);
-      for (float& d : depth.pixels()) d = static_cast<float>(distance + (distance > 1.0 ? 0.02 : 0.0));
+      for (float& d : depth.pixels())
+        d = static_cast<float>(distance + (distance > 1.0 ? 0.02 : 0.0));
       IntegrateFrame(volume, depth, ImageRgb(), k, pose, options);
     }
     // The fused wall's position on the optical axis: where the sdf crosses zero along z.
     const Eigen::Vector3d lattice = volume.WorldToLattice(Eigen::Vector3d(0.0, 0.0, 0.8));
-    const auto before = volume.InterpolateSdf(Eigen::Vector3f(lattice.x(), lattice.y(), std::floor(lattice.z())));
-    const auto after = volume.InterpolateSdf(Eigen::Vector3f(lattice.x(), lattice.y(), std::floor(lattice.z()) + 1));
+    const auto before =
+        volume.InterpolateSdf(Eigen::Vector3f(lattice.x(), lattice.y(), std::floor(lattice.z())));
+    const auto after = volume.InterpolateSdf(
+        Eigen::Vector3f(lattice.x(), lattice.y(), std::floor(lattice.z()) + 1));
     ASSERT_TRUE(before && after);
     const double t = *before / (*before - *after);
-    const double wall = volume.VoxelToWorld(Eigen::Vector3i(0, 0, static_cast<int>(std::floor(lattice.z())))).z() +
-                        t * params.voxel_size;
-    std::cout << (noise ? "noise" : "uniform") << " weights: wall at " << wall << " m (truth 0.8)\n";
+    const double wall =
+        volume.VoxelToWorld(Eigen::Vector3i(0, 0, static_cast<int>(std::floor(lattice.z())))).z() +
+        t * params.voxel_size;
+    std::cout << (noise ? "noise" : "uniform") << " weights: wall at " << wall
+              << " m (truth 0.8)\n";
     if (noise) {
       EXPECT_NEAR(wall, 0.8, 0.001);
     } else {
@@ -388,7 +403,8 @@ void CheckEveryVoxelFollowsTheKernel(bool nan_colour) {
   const CameraIntrinsics k = Camera(64, 48);
   std::vector<RgbdFrame> frames = Render(Room(), Orbit(8), k);
   if (nan_colour) {
-    for (Eigen::Vector3f& c : frames[5].color.pixels()) c.setConstant(std::numeric_limits<float>::quiet_NaN());
+    for (Eigen::Vector3f& c : frames[5].color.pixels())
+      c.setConstant(std::numeric_limits<float>::quiet_NaN());
   }
   TsdfVolumeParams params;
   params.voxel_size = 0.02;
@@ -396,7 +412,8 @@ void CheckEveryVoxelFollowsTheKernel(bool nan_colour) {
   params.max_weight = 1.5f;  // the second measurement of near voxels saturates
   TsdfVolume volume(params);
   IntegrationOptions options;
-  IntegrateFrame(volume, frames[0].depth, frames[0].color, k, *frames[0].world_from_camera, options);
+  IntegrateFrame(volume, frames[0].depth, frames[0].color, k, *frames[0].world_from_camera,
+                 options);
   // Blocks keep their index when more are allocated: block i of the volume after the second
   // frame was block i before it, or new (i >= before.size()).
   std::vector<TsdfBlock> before;
@@ -405,8 +422,8 @@ void CheckEveryVoxelFollowsTheKernel(bool nan_colour) {
   IntegrateFrame(volume, frame.depth, frame.color, k, *frame.world_from_camera, options);
   // Only the blocks of this frame's band are updated, the others keep their voxels.
   std::set<std::tuple<int, int, int>> band;
-  for (const Eigen::Vector3i& key :
-       BlocksInTruncationBand(volume, frame.depth, k, *frame.world_from_camera, options.allocation_stride)) {
+  for (const Eigen::Vector3i& key : BlocksInTruncationBand(
+           volume, frame.depth, k, *frame.world_from_camera, options.allocation_stride)) {
     band.insert({key.x(), key.y(), key.z()});
   }
 
@@ -427,7 +444,8 @@ void CheckEveryVoxelFollowsTheKernel(bool nan_colour) {
           const Eigen::Vector3f& c0 = was.colors[index];
           const Eigen::Vector3f& c1 = now.colors[index];
           const Eigen::Vector3d p =
-              camera_from_world * volume.VoxelToWorld(kTsdfBlockSide * key + Eigen::Vector3i(x, y, z));
+              camera_from_world *
+              volume.VoxelToWorld(kTsdfBlockSide * key + Eigen::Vector3i(x, y, z));
           const double u = k.fx * p.x() / p.z() + k.cx + 0.5, v = k.fy * p.y() / p.z() + k.cy + 0.5;
           // Voxels on a pixel footprint's edge may fall either side in float: not checked.
           const auto near_edge = [](double t) { return std::abs(t - std::round(t)) < 1e-3; };
@@ -441,7 +459,8 @@ void CheckEveryVoxelFollowsTheKernel(bool nan_colour) {
           }
           const double lambda = (p / p.z()).norm();
           const double eta = (depth - p.z()) * lambda;
-          if (band.count({key.x(), key.y(), key.z()}) && depth > 0.0 && (std::abs(eta + trunc) < 1e-5 || std::abs(eta - trunc) < 1e-5)) {
+          if (band.count({key.x(), key.y(), key.z()}) && depth > 0.0 &&
+              (std::abs(eta + trunc) < 1e-5 || std::abs(eta - trunc) < 1e-5)) {
             ++borderline;
             continue;
           }
@@ -462,8 +481,10 @@ void CheckEveryVoxelFollowsTheKernel(bool nan_colour) {
           saturated += w_new > params.max_weight;
           ++updated;
           if (eta < trunc) {
-            const Eigen::Vector3d observed = frame.color(static_cast<int>(u), static_cast<int>(v)).cast<double>();
-            const Eigen::Vector3d colour = (v0.weight * c0.cast<double>() + w_obs * observed) / w_new;
+            const Eigen::Vector3d observed =
+                frame.color(static_cast<int>(u), static_cast<int>(v)).cast<double>();
+            const Eigen::Vector3d colour =
+                (v0.weight * c0.cast<double>() + w_obs * observed) / w_new;
             if (nan_colour) {
               ASSERT_TRUE(c1.array().isNaN().all()) << "block " << i << " voxel " << index;
             } else {
@@ -478,8 +499,9 @@ void CheckEveryVoxelFollowsTheKernel(bool nan_colour) {
       }
     }
   }
-  std::cout << volume.num_blocks() << " blocks: " << updated << " voxels updated (" << coloured << " coloured, "
-            << saturated << " saturated), " << kept << " kept, " << borderline << " on an edge\n";
+  std::cout << volume.num_blocks() << " blocks: " << updated << " voxels updated (" << coloured
+            << " coloured, " << saturated << " saturated), " << kept << " kept, " << borderline
+            << " on an edge\n";
   EXPECT_GT(updated, 10000u);
   EXPECT_GT(coloured, 2000u);
   EXPECT_GT(saturated, 1000u);
@@ -487,15 +509,20 @@ void CheckEveryVoxelFollowsTheKernel(bool nan_colour) {
   EXPECT_LT(borderline, (updated + kept) / 50);
 }
 
-TEST(Fusion, EveryVoxelFollowsTheKernel) { CheckEveryVoxelFollowsTheKernel(false); }
+TEST(Fusion, EveryVoxelFollowsTheKernel) {
+  CheckEveryVoxelFollowsTheKernel(false);
+}
 
-TEST(Fusion, NanColourStaysInTheVoxelsItColours) { CheckEveryVoxelFollowsTheKernel(true); }
+TEST(Fusion, NanColourStaysInTheVoxelsItColours) {
+  CheckEveryVoxelFollowsTheKernel(true);
+}
 
 // Hard case: a pure plane leaves three pose directions unconstrained.
 TEST(FusionHardCases, PurePlaneIsDetectedAsDegenerateNotAWildPose) {
   SyntheticScene scene;
-  scene.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-20, -20, -1), Eigen::Vector3d(20, 20, 0)),
-                         Eigen::Vector3f::Constant(0.5f)});
+  scene.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(-20, -20, -1), Eigen::Vector3d(20, 20, 0)),
+       Eigen::Vector3f::Constant(0.5f)});
   Trajectory trajectory;
   for (int i = 0; i < 10; ++i) {  // sliding sideways 1 cm per frame, 1.2 m above the plane
     const Eigen::Vector3d eye(0.01 * i, 0.0, 1.2);
@@ -528,8 +555,8 @@ TEST(FusionHardCases, AllInvalidFrameIsSkippedAndTrackingGoesOn) {
 TEST(FusionHardCases, FarAwayFrameIsLostAndTrackingRecovers) {
   std::vector<RgbdFrame> frames = Render(Room(), Orbit(16), Camera(160, 120));
   // Frame 8 is seen from the opposite corner, looking elsewhere: a jump no ICP can follow.
-  frames[8] = RenderSyntheticFrame(Room(), Camera(160, 120), LookAt({0.7, 0.7, 1.5}, {-0.8, 0.5, 0.2}),
-                                   frames[8].timestamp);
+  frames[8] = RenderSyntheticFrame(Room(), Camera(160, 120),
+                                   LookAt({0.7, 0.7, 1.5}, {-0.8, 0.5, 0.2}), frames[8].timestamp);
   FusionOptions options = DefaultOptions();
   const FusionRun run = Fuse(frames, options);
   EXPECT_EQ(run.fusion->reports()[8].status, FrameStatus::kLost) << run.fusion->reports()[8].reason;
@@ -604,8 +631,10 @@ TEST(Fusion, SameOutputWithOneAndTwoThreads) {
     const Workspace ws(dir / ("ws" + std::to_string(threads)));
     SaveFusionOutputs(*run.fusion, ws);
     std::ifstream tsdf(ws.Tsdf(), std::ios::binary), traj(ws.Trajectory());
-    bytes[threads - 1] = std::string((std::istreambuf_iterator<char>(tsdf)), std::istreambuf_iterator<char>());
-    trajectories[threads - 1] = std::string((std::istreambuf_iterator<char>(traj)), std::istreambuf_iterator<char>());
+    bytes[threads - 1] =
+        std::string((std::istreambuf_iterator<char>(tsdf)), std::istreambuf_iterator<char>());
+    trajectories[threads - 1] =
+        std::string((std::istreambuf_iterator<char>(traj)), std::istreambuf_iterator<char>());
   }
   SetThreadCount(0);
   EXPECT_GT(bytes[0].size(), 1000u);

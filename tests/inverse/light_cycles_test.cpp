@@ -8,14 +8,13 @@
 
 #include "core/frame_source.h"
 #include "inverse/lights/light_estimation.h"
-#include "render/path_tracer.h"
 #include "render/formats/scene_io.h"
+#include "render/path_tracer.h"
 #include "tests/test_util.h"
 
 namespace genscene::inverse {
 using namespace genscene::render;  // the renderer the inverse stages are built on
 namespace {
-
 
 TEST(LightEstimationCycles, ActiveVoxelsConcentrateUnderTheTrueLight) {
   GS_REQUIRE_SHARED_DATA(data);
@@ -33,7 +32,8 @@ TEST(LightEstimationCycles, ActiveVoxelsConcentrateUnderTheTrueLight) {
   ASSERT_EQ(train.size(), 3u);
   ASSERT_EQ(novel.size(), 2u);
 
-  const LightEstimationOptions options;  // 7^3 voxels refined once, 3000 pixels per view, penalty 1e-3
+  const LightEstimationOptions
+      options;  // 7^3 voxels refined once, 3000 pixels per view, penalty 1e-3
   const LightEstimate e = EstimateLights(scene, train, options, 7);
   ASSERT_GT(e.active_voxels, 0);
 
@@ -41,8 +41,8 @@ TEST(LightEstimationCycles, ActiveVoxelsConcentrateUnderTheTrueLight) {
   const Eigen::Vector3d centroid = e.lights.PowerCentroid();
   const double spacing = (e.lights.VoxelCenter(1) - e.lights.VoxelCenter(0)).norm();
   const double distance = (centroid - light.center()).norm();
-  EXPECT_LT(distance, spacing) << "power-weighted centroid (" << centroid.transpose() << ") vs light centre ("
-                               << light.center().transpose() << ")";
+  EXPECT_LT(distance, spacing) << "power-weighted centroid (" << centroid.transpose()
+                               << ") vs light centre (" << light.center().transpose() << ")";
 
   // Novel views: relative RMSE of the expected images (render noise and Cycles' 0.0028 RMS noise
   // taken out), against the acceptance's goal of 0.05. With adaptive refinement (the default) the
@@ -51,9 +51,12 @@ TEST(LightEstimationCycles, ActiveVoxelsConcentrateUnderTheTrueLight) {
   lit.voxel_lights = e.lights;
   const PathTracer lit_tracer(lit);
   double error = 0.0;
-  for (const TrainingView& v : novel) error += CompareRender(lit_tracer, v, options, 256, 5, 0.0028).rmse_bias / 2.0;
-  std::printf("Cycles box: %d active voxels, centroid %.3f voxel from the light, novel relative RMSE %.4f\n",
-              e.active_voxels, distance / spacing, error);
+  for (const TrainingView& v : novel)
+    error += CompareRender(lit_tracer, v, options, 256, 5, 0.0028).rmse_bias / 2.0;
+  std::printf(
+      "Cycles box: %d active voxels, centroid %.3f voxel from the light, novel relative RMSE "
+      "%.4f\n",
+      e.active_voxels, distance / spacing, error);
   EXPECT_LT(error, 0.05);
 }
 

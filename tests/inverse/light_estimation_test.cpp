@@ -1,5 +1,7 @@
 // Light estimation: the cache against renders, the cost's gradient against finite
 // differences, recovery of known lights, and the hard cases.
+#include "inverse/lights/light_estimation.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -8,7 +10,6 @@
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "core/synthetic.h"
-#include "inverse/lights/light_estimation.h"
 #include "render/procedural.h"
 
 namespace genscene::inverse {
@@ -25,7 +26,7 @@ struct SmallScene {
   SmallScene() {
     grid.intensity[22] = Eigen::Vector3f(2.0f, 1.5f, 1.0f);  // top layer, centre: (0, 0, 1.67)
     grid.weights[22] = {0.2f, 0.2f, 0.2f, 0.2f, 0.0f, 1.0f};
-    grid.intensity[4] = Eigen::Vector3f(0.3f, 0.3f, 0.6f);   // bottom layer, centre
+    grid.intensity[4] = Eigen::Vector3f(0.3f, 0.3f, 0.6f);  // bottom layer, centre
     grid.weights[4] = {1, 1, 1, 1, 1, 1};
   }
   // The geometry lit by `lights` (default: this scene's grid).
@@ -46,7 +47,8 @@ int StrongestVoxel(const VoxelLightGrid& grid) {
 
 std::vector<TrainingView> Views(const std::vector<View>& views) {
   std::vector<TrainingView> out;
-  for (const View& v : views) out.push_back({v, ImageRgb(v.intrinsics.width, v.intrinsics.height, Eigen::Vector3f::Ones())});
+  for (const View& v : views)
+    out.push_back({v, ImageRgb(v.intrinsics.width, v.intrinsics.height, Eigen::Vector3f::Ones())});
   return out;
 }
 
@@ -59,18 +61,20 @@ TEST(LightCache, PredictionEqualsAFreshRenderWithTheSameSamples) {
   o.pixels_per_view = 40;
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
   for (const VoxelSplitting& splitting : {VoxelSplitting{}, [] {
-         VoxelSplitting v;
-         std::vector<double> pmf(27, 1.0);
-         pmf[22] = 20.0;
-         v.SetPmf(pmf, 5);
-         return v;
-       }()}) {
+                                            VoxelSplitting v;
+                                            std::vector<double> pmf(27, 1.0);
+                                            pmf[22] = 20.0;
+                                            v.SetPmf(pmf, 5);
+                                            return v;
+                                          }()}) {
     const LightCache cache = TraceLightCache(tracer, s.grid, splitting, views, pixels, o, 11);
     const std::vector<Eigen::Vector3f> predicted = cache.Predict(s.grid);
     double worst = 0.0;
     for (size_t i = 0; i < pixels.size(); ++i) {
-      const Eigen::Vector3f fresh = RenderSampledPixel(tracer, s.grid, splitting, pixels[i], views, o, 11);
-      worst = std::max<double>(worst, (fresh - predicted[i]).norm() / std::max(1e-6f, fresh.norm()));
+      const Eigen::Vector3f fresh =
+          RenderSampledPixel(tracer, s.grid, splitting, pixels[i], views, o, 11);
+      worst =
+          std::max<double>(worst, (fresh - predicted[i]).norm() / std::max(1e-6f, fresh.norm()));
     }
     EXPECT_LT(worst, 1e-5) << "the cached prediction differs from the walk it was recorded from";
   }
@@ -87,13 +91,19 @@ TEST(MakeVoxelGrid, OuterCentresLieTheInsetInsideTheBox) {
       EXPECT_NEAR(g.bounds.sizes()[axis] / g.dims[axis], voxel, 1e-6) << "inset " << inset;
     }
     const Eigen::Vector3d first = g.VoxelCenter(0), last = g.VoxelCenter(g.VoxelCount() - 1);
-    EXPECT_LT((first - Eigen::Vector3d(-1.0, -1.0, 0.0) - Eigen::Vector3d::Constant(inset * voxel)).norm(), 1e-5)
+    EXPECT_LT((first - Eigen::Vector3d(-1.0, -1.0, 0.0) - Eigen::Vector3d::Constant(inset * voxel))
+                  .norm(),
+              1e-5)
         << "inset " << inset << ": first centre " << first.transpose();
-    EXPECT_LT((last - Eigen::Vector3d(1.0, 1.0, 2.0) + Eigen::Vector3d::Constant(inset * voxel)).norm(), 1e-5)
+    EXPECT_LT(
+        (last - Eigen::Vector3d(1.0, 1.0, 2.0) + Eigen::Vector3d::Constant(inset * voxel)).norm(),
+        1e-5)
         << "inset " << inset << ": last centre " << last.transpose();
   }
   // One voxel: its centre is the box's.
-  EXPECT_LT((MakeVoxelGrid(geometry, 1, 0.1).VoxelCenter(0) - Eigen::Vector3d(0.0, 0.0, 1.0)).norm(), 1e-6);
+  EXPECT_LT(
+      (MakeVoxelGrid(geometry, 1, 0.1).VoxelCenter(0) - Eigen::Vector3d(0.0, 0.0, 1.0)).norm(),
+      1e-6);
 }
 
 // The cache's estimator (splitting over voxels) and the path tracer's (one light sample per
@@ -123,15 +133,16 @@ TEST(LightCache, AgreesWithThePathTracerOnAverage) {
   }
 }
 
-
 // Renders `views` of `lit` (direct + indirect) as training views.
-std::vector<TrainingView> Render(const Scene& lit, const std::vector<View>& views, int spp, int max_depth = -1) {
+std::vector<TrainingView> Render(const Scene& lit, const std::vector<View>& views, int spp,
+                                 int max_depth = -1) {
   const PathTracer tracer(lit);
   RenderOptions ro;
   ro.spp = spp;
   ro.max_depth = max_depth;
   std::vector<TrainingView> out;
-  for (size_t i = 0; i < views.size(); ++i) out.push_back({views[i], tracer.Render(views[i], ro, 100 + i).radiance});
+  for (size_t i = 0; i < views.size(); ++i)
+    out.push_back({views[i], tracer.Render(views[i], ro, 100 + i).radiance});
   return out;
 }
 
@@ -152,7 +163,8 @@ LightEstimationOptions SmallOptions() {
 }
 
 // Normal equations of the small scene from 2 x 4 paths per pixel.
-NormalEquations SmallEquations(const SmallScene& s, const std::vector<TrainingView>& views, double correction) {
+NormalEquations SmallEquations(const SmallScene& s, const std::vector<TrainingView>& views,
+                               double correction) {
   const PathTracer tracer(s.geometry);
   LightEstimationOptions o;
   o.pixels_per_view = 150;
@@ -194,7 +206,8 @@ TEST(LightCost, GradientEqualsCentralDifferences) {
       worst = std::max(worst, error);
       mean += error / x.size();
     }
-    EXPECT_LT(worst, 1e-4) << "mean relative error " << mean << (&x == &dense ? " (all lit)" : " (three lit)");
+    EXPECT_LT(worst, 1e-4) << "mean relative error " << mean
+                           << (&x == &dense ? " (all lit)" : " (three lit)");
   }
 }
 
@@ -285,14 +298,17 @@ TEST(NormalEquations, KnownPartOfAMergedCacheGivesTheSameEquations) {
   const double n = static_cast<double>(whole.used.size());
   ASSERT_GT(whole.used.size(), known.used.size());
   // Dense rows (the sparse ones are always computed whole).
-  ASSERT_GE(static_cast<double>(a.NonZeros() + b.NonZeros()), 0.2 * n * static_cast<double>(pixels.size()));
+  ASSERT_GE(static_cast<double>(a.NonZeros() + b.NonZeros()),
+            0.2 * n * static_cast<double>(pixels.size()));
   EXPECT_EQ(grown.used, whole.used);
   for (int c = 0; c < 3; ++c) {
     const double scale = whole.gram[c].cwiseAbs().maxCoeff();
     ASSERT_GT(scale, 0.0);
-    EXPECT_LE((grown.gram[c] - whole.gram[c]).cwiseAbs().maxCoeff(), 1e-6 * scale) << "channel " << c;
+    EXPECT_LE((grown.gram[c] - whole.gram[c]).cwiseAbs().maxCoeff(), 1e-6 * scale)
+        << "channel " << c;
     EXPECT_EQ(grown.gram[c], grown.gram[c].transpose()) << "channel " << c;
-    EXPECT_LE((grown.rhs[c] - whole.rhs[c]).cwiseAbs().maxCoeff(), 1e-9 * whole.rhs[c].cwiseAbs().maxCoeff());
+    EXPECT_LE((grown.rhs[c] - whole.rhs[c]).cwiseAbs().maxCoeff(),
+              1e-9 * whole.rhs[c].cwiseAbs().maxCoeff());
     EXPECT_EQ(grown.observed_sq[c], whole.observed_sq[c]);
   }
 }
@@ -302,7 +318,8 @@ TEST(NormalEquations, KnownPartOfAMergedCacheGivesTheSameEquations) {
 TEST(VoxelSplitting, NeverDrawsAVoxelOfProbabilityZero) {
   VoxelSplitting v;
   std::vector<double> pmf(50, 0.0);
-  pmf[3] = 0.1, pmf[17] = 0.2, pmf[29] = 0.3;  // normalised, their running sum is 1 - 2^-53; the last ones are 0
+  pmf[3] = 0.1, pmf[17] = 0.2,
+  pmf[29] = 0.3;  // normalised, their running sum is 1 - 2^-53; the last ones are 0
   v.SetPmf(pmf, 4);
   for (double u : {0.0, 0.25, 0.5, 0.999999, std::nextafter(1.0, 0.0)}) {
     const int j = v.Choose(u);
@@ -334,8 +351,10 @@ TEST(NormalEquations, DenseAndSparseRowsAndThreadCountsAgree) {
     for (int c = 0; c < 3; ++c) {
       Eigen::MatrixXd ma = Eigen::MatrixXd::Zero(pixels.size(), n), mb = ma;
       for (size_t i = 0; i < pixels.size(); ++i) {
-        for (size_t e = a.row_begin[i]; e < a.row_begin[i + 1]; ++e) ma(i, compact[a.index[e]]) = a.coefficient[e][c];
-        for (size_t e = b.row_begin[i]; e < b.row_begin[i + 1]; ++e) mb(i, compact[b.index[e]]) = b.coefficient[e][c];
+        for (size_t e = a.row_begin[i]; e < a.row_begin[i + 1]; ++e)
+          ma(i, compact[a.index[e]]) = a.coefficient[e][c];
+        for (size_t e = b.row_begin[i]; e < b.row_begin[i + 1]; ++e)
+          mb(i, compact[b.index[e]]) = b.coefficient[e][c];
       }
       const Eigen::MatrixXd mean = 0.5 * (ma + mb), half = 0.5 * (ma - mb);
       const Eigen::MatrixXd expected = mean.transpose() * mean - 0.5 * half.transpose() * half;
@@ -344,7 +363,8 @@ TEST(NormalEquations, DenseAndSparseRowsAndThreadCountsAgree) {
     SetThreadCount(1);
     const NormalEquations one = NormalEquations::FromCaches(a, b, 0.5);
     SetThreadCount(0);
-    for (int c = 0; c < 3; ++c) EXPECT_EQ(one.gram[c], eq.gram[c]) << "thread count changed the sums";
+    for (int c = 0; c < 3; ++c)
+      EXPECT_EQ(one.gram[c], eq.gram[c]) << "thread count changed the sums";
   }
 }
 
@@ -363,7 +383,8 @@ TEST(EstimateLights, RecoversAVoxelLight) {
   const Eigen::Vector3d centroid = e.lights.PowerCentroid();
   const double total = e.lights.TotalPowerLuminance();
   const double voxel = 2.0 / 3.0;
-  EXPECT_LT((centroid - truth.VoxelCenter(22)).norm(), 0.5 * voxel) << "centroid " << centroid.transpose();
+  EXPECT_LT((centroid - truth.VoxelCenter(22)).norm(), 0.5 * voxel)
+      << "centroid " << centroid.transpose();
   EXPECT_NEAR(total / Luminance(truth.Power(22)), 1.0, 0.25);
   EXPECT_LT(e.train_rmse, 0.35);  // the cache's own paths are noisy (8 per half-pixel)
   EXPECT_LE(e.active_voxels, 6);
@@ -376,7 +397,8 @@ TEST(EstimateLights, RecoversAVoxelLight) {
 TEST(EstimateLights, RefinementPutsALightInItsFinerVoxel) {
   SmallScene s;
   VoxelLightGrid truth = MakeVoxelGrid(s.geometry, 6, kSmallInset);
-  const int light = 2 + 6 * 3 + 36 * 5;  // centre (-0.17, 0.17, 1.83); the coarse voxel's is (0, 0, 1.67)
+  const int light =
+      2 + 6 * 3 + 36 * 5;  // centre (-0.17, 0.17, 1.83); the coarse voxel's is (0, 0, 1.67)
   truth.intensity[light] = Eigen::Vector3f(2.0f, 1.5f, 1.0f);
   truth.weights[light] = {0.1f, 0.1f, 0.1f, 0.1f, 0.0f, 1.0f};
   const Scene lit = s.Lit(&truth);
@@ -392,7 +414,8 @@ TEST(EstimateLights, RefinementPutsALightInItsFinerVoxel) {
   ASSERT_GE(fine.rounds.size(), 2u);
   EXPECT_EQ(fine.rounds.back().level, 1);
   EXPECT_GT(fine.rounds.back().candidates, 0);
-  EXPECT_LT(fine.rounds.back().candidates, 216) << "refinement traces only the voxels near the lights";
+  EXPECT_LT(fine.rounds.back().candidates, 216)
+      << "refinement traces only the voxels near the lights";
   EXPECT_EQ(StrongestVoxel(fine.lights), light) << "the light is in the wrong finer voxel";
   EXPECT_LT((fine.lights.PowerCentroid() - truth.VoxelCenter(light)).norm(), 0.5 * 2.0 / 6.0)
       << "centroid " << fine.lights.PowerCentroid().transpose();
@@ -400,12 +423,13 @@ TEST(EstimateLights, RefinementPutsALightInItsFinerVoxel) {
   const auto error = [&](const VoxelLightGrid& lights) {
     const PathTracer tracer(s.Lit(&lights));
     double sum = 0.0;
-    for (size_t i = 0; i < views.size(); ++i) sum += CompareRender(tracer, views[i], o, 64, 9 + i).rmse_bias;
+    for (size_t i = 0; i < views.size(); ++i)
+      sum += CompareRender(tracer, views[i], o, 64, 9 + i).rmse_bias;
     return sum / views.size();
   };
   const double coarse_error = error(coarse.lights), fine_error = error(fine.lights);
-  std::printf("training views' error: coarse %.4f, refined %.4f; %d candidate voxels\n", coarse_error, fine_error,
-              fine.rounds.back().candidates);
+  std::printf("training views' error: coarse %.4f, refined %.4f; %d candidate voxels\n",
+              coarse_error, fine_error, fine.rounds.back().candidates);
   EXPECT_LT(fine_error, 0.75 * coarse_error);
 }
 
@@ -463,7 +487,8 @@ TEST(EstimateLights, SameSeedSameLightsWithOneOrTwoThreads) {
   EXPECT_GT(results[0].active_voxels, 0);
   ASSERT_EQ(results[0].lights.VoxelCount(), results[1].lights.VoxelCount());
   for (int j = 0; j < results[0].lights.VoxelCount(); ++j) {
-    ASSERT_EQ(results[0].lights.intensity[j], results[1].lights.intensity[j]) << "voxel " << j;  // bit for bit
+    ASSERT_EQ(results[0].lights.intensity[j], results[1].lights.intensity[j])
+        << "voxel " << j;  // bit for bit
     ASSERT_EQ(results[0].lights.weights[j], results[1].lights.weights[j]) << "voxel " << j;
   }
   EXPECT_EQ(results[0].train_rmse, results[1].train_rmse);
@@ -495,7 +520,8 @@ TEST(SolveLights, MovesALightIntoItsVoxel) {
     const SolveReport r = SolveLights(eq, o, &grid);
     const int strongest = StrongestVoxel(grid);
     if (passes == 0) {
-      EXPECT_NE(strongest, 22) << "without moves the start should stay stuck (else this test proves nothing)";
+      EXPECT_NE(strongest, 22)
+          << "without moves the start should stay stuck (else this test proves nothing)";
     } else {
       EXPECT_EQ(strongest, 22);
       EXPECT_GE(r.moves, 1);
@@ -536,8 +562,9 @@ TEST(EstimateLights, UnreachableVoxelStaysDark) {
   SmallScene s;
   Scene lit = s.geometry;
   SyntheticScene closed;
-  closed.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(-0.2, -0.2, 0.2), Eigen::Vector3d(0.2, 0.2, 0.5)),
-                          Eigen::Vector3f::Constant(0.5f)});
+  closed.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(-0.2, -0.2, 0.2), Eigen::Vector3d(0.2, 0.2, 0.5)),
+       Eigen::Vector3f::Constant(0.5f)});
   SceneMesh box;
   box.name = "closed box";
   box.mesh = closed.ToMesh(1);
@@ -590,7 +617,8 @@ TEST(EstimateLights, FindsALightSeenOnlyThroughBounces) {
 TEST(EstimateLights, AlbedoFixesTheScaleGauge) {
   SmallScene s;
   const Scene lit = s.Lit();
-  const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0], CornellLightViews(16, 12)[1]}, 32, 2);
+  const std::vector<TrainingView> views =
+      Render(lit, {CornellLightViews(16, 12)[0], CornellLightViews(16, 12)[1]}, 32, 2);
   LightEstimationOptions o;
   o.grid = 3;
   o.boundary_inset = kSmallInset;
@@ -602,7 +630,8 @@ TEST(EstimateLights, AlbedoFixesTheScaleGauge) {
   };
   Scene half = lit;
   for (auto& a : half.meshes[0].albedo.values) a *= 0.5f;
-  if (half.meshes[0].albedo.kind == SurfaceAlbedo::Kind::kConstant) half.meshes[0].albedo.constant *= 0.5f;
+  if (half.meshes[0].albedo.kind == SurfaceAlbedo::Kind::kConstant)
+    half.meshes[0].albedo.constant *= 0.5f;
   EXPECT_NEAR(total_power(half) / total_power(lit), 2.0, 0.1);
 }
 
@@ -654,7 +683,8 @@ TEST(CompareRender, TilesKeepTheErrorAndShrinkTheNoise) {
   const ViewError pixels = CompareRender(lit, reference, o, 16, 3, reference_noise_rms, nullptr, 1);
   const ViewError tiles = CompareRender(lit, reference, o, 16, 3, reference_noise_rms, nullptr, 4);
   std::printf("pixels: rmse %.4f noise %.4f bias %.4f; 4x4 tiles: rmse %.4f noise %.4f bias %.4f\n",
-              pixels.rmse, pixels.noise, pixels.rmse_bias, tiles.rmse, tiles.noise, tiles.rmse_bias);
+              pixels.rmse, pixels.noise, pixels.rmse_bias, tiles.rmse, tiles.noise,
+              tiles.rmse_bias);
   EXPECT_EQ(tiles.pixels, pixels.pixels);
   EXPECT_GT(pixels.noise, 0.0);
   EXPECT_LT(tiles.noise, pixels.noise / 2.5);
@@ -673,7 +703,8 @@ TEST(EstimateLights, BadInputIsAClearError) {
     SamplePixels(tracer, views, o, 1);
     FAIL() << "a size mismatch was accepted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("image 8x6 but intrinsics say 16x12"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("image 8x6 but intrinsics say 16x12"), std::string::npos)
+        << e.what();
   }
   views = Views({CornellLightViews(16, 12)[0]});
   views[0].image(3, 4) = Eigen::Vector3f(NAN, 0, 0);
@@ -704,7 +735,7 @@ TEST(EstimateLights, MemoryCapIsAClearError) {
   o.rounds = 1;
   o.pixels_per_view = 150;
   o.refine_levels = 0;  // the coarse grid's caps first; the refinement level's at the end
-  o.grid = 20;  // 48000 parameters: 2 x 3 dense 48000^2 Gram matrices = 110 GB
+  o.grid = 20;          // 48000 parameters: 2 x 3 dense 48000^2 Gram matrices = 110 GB
   EXPECT_NEAR(NormalEquationsBoundBytes(20), 2.0 * 3.0 * 48000.0 * 48000.0 * 8.0, 1.0);
   try {
     EstimateLights(s.geometry, views, o, 1);
@@ -720,14 +751,18 @@ TEST(EstimateLights, MemoryCapIsAClearError) {
   o.boundary_inset = kSmallInset;
   const PathTracer tracer(s.geometry);
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 1);
-  const LightCache full = TraceLightCache(tracer, MakeVoxelGrid(s.geometry, 3, kSmallInset), VoxelSplitting{}, views, pixels, o, 1);
+  const LightCache full = TraceLightCache(tracer, MakeVoxelGrid(s.geometry, 3, kSmallInset),
+                                          VoxelSplitting{}, views, pixels, o, 1);
   ASSERT_GT(full.NonZeros(), 10000u);
-  o.memory_cap = 1.0 + 0.5 * static_cast<double>(full.Bytes()) / 1e6;  // equations fit, caches do not
+  o.memory_cap =
+      1.0 + 0.5 * static_cast<double>(full.Bytes()) / 1e6;  // equations fit, caches do not
   try {
     EstimateLights(s.geometry, views, o, 1);
-    FAIL() << "a cache of " << full.Bytes() << " bytes was accepted under a cap of " << o.memory_cap << " MB";
+    FAIL() << "a cache of " << full.Bytes() << " bytes was accepted under a cap of " << o.memory_cap
+           << " MB";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("path-coefficient cache outgrew the memory cap"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("path-coefficient cache outgrew the memory cap"),
+              std::string::npos)
         << e.what();
   }
   o.memory_cap = 1.5 + 4.0 * static_cast<double>(full.Bytes()) / 1e6;
@@ -740,7 +775,9 @@ TEST(EstimateLights, MemoryCapIsAClearError) {
     EstimateLights(s.geometry, views, o, 1);
     FAIL() << "a refinement level over the cap of " << o.memory_cap << " MB was accepted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("normal equations of refinement level 1"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("normal equations of refinement level 1"),
+              std::string::npos)
+        << e.what();
     EXPECT_NE(std::string(e.what()).find("refine_max_voxels"), std::string::npos) << e.what();
   }
   o.memory_cap = 0.5;

@@ -1,5 +1,7 @@
 // Vertex refinement: the paper's Fig. 4 replica (two perturbed vertices of an icosphere
 // in the Cornell box, one 106 x 80 view rendered by our path tracer), the prior, bad input.
+#include "inverse/refine/vertex_refinement.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,7 +13,6 @@
 #include "core/rng.h"
 #include "core/synthetic.h"
 #include "render/procedural.h"
-#include "inverse/refine/vertex_refinement.h"
 
 namespace genscene::inverse {
 using namespace genscene::render;  // the renderer the inverse stages are built on
@@ -33,7 +34,8 @@ struct Replica {
   // 20 % of the radius along the normals of the two vertices that face the camera: a spike out
   // and a dent in.
   SpikeAndDent Perturbed() const {
-    return PerturbFacingVertices(box.scene.meshes[box.sphere].mesh, box.center, box.radius, eye, 0.2 * box.radius);
+    return PerturbFacingVertices(box.scene.meshes[box.sphere].mesh, box.center, box.radius, eye,
+                                 0.2 * box.radius);
   }
 };
 
@@ -64,8 +66,11 @@ TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   const RefineResult result = RefineVertices(tracer, replica.targets, options);
   ASSERT_GE(result.history.size(), 2u);
   EXPECT_LT(result.history.back().data_rmse, 0.9 * result.history.front().data_rmse);
-  const auto error = [&](int v) { return (result.positions.segment<3>(3 * v) - truth.segment<3>(3 * v)).norm(); };
-  std::printf("spike: error %.4f m, dent: error %.4f m, of %.4f m perturbations\n", error(a), error(b), size);
+  const auto error = [&](int v) {
+    return (result.positions.segment<3>(3 * v) - truth.segment<3>(3 * v)).norm();
+  };
+  std::printf("spike: error %.4f m, dent: error %.4f m, of %.4f m perturbations\n", error(a),
+              error(b), size);
   EXPECT_LT(error(a), 0.5 * size);
   EXPECT_LT(error(b), 0.5 * size);
   EXPECT_LT(std::max(error(a), error(b)), 0.15 * size);
@@ -74,7 +79,8 @@ TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   for (int v = 0; v < tracer.VertexCount(); ++v) {
     const Eigen::Vector3d p = truth.segment<3>(3 * v);
     if ((p - replica.box.center).normalized().dot((replica.eye - p).normalized()) < -0.7) {
-      EXPECT_LT((result.positions - start).segment<3>(3 * v).norm(), 0.05 * size) << "hidden vertex " << v << " moved";
+      EXPECT_LT((result.positions - start).segment<3>(3 * v).norm(), 0.05 * size)
+          << "hidden vertex " << v << " moved";
     }
   }
 }
@@ -95,7 +101,9 @@ TEST(VertexRefinement, SameSeedSameVerticesWithOneOrTwoThreads) {
     results.push_back(RefineVertices(tracer, replica.targets, options, 9).positions);
   }
   SetThreadCount(0);
-  EXPECT_GT((results[0] - DifferentiablePathTracer(replica.box.scene, replica.refined).Positions()).norm(), 0.0);
+  EXPECT_GT((results[0] - DifferentiablePathTracer(replica.box.scene, replica.refined).Positions())
+                .norm(),
+            0.0);
   EXPECT_EQ(results[0], results[1]);  // bit for bit
 }
 
@@ -131,16 +139,23 @@ TEST(VertexRefinement, BadTargetsAreClearErrors) {
   RefineOptions options;
   options.spp = 1;
   std::vector<TrainingView> wrong_size = {{replica.box.view, ImageRgb(10, 10)}};
-  EXPECT_NE(test::ErrorOf([&] { RefineVertices(tracer, wrong_size, options); }).find("is 10x10 but its view is 106x80"),
+  EXPECT_NE(test::ErrorOf([&] {
+              RefineVertices(tracer, wrong_size, options);
+            }).find("is 10x10 but its view is 106x80"),
             std::string::npos);
   std::vector<TrainingView> nan = replica.targets;
   nan[0].image(3, 4) = Eigen::Vector3f(NAN, 0, 0);
-  EXPECT_NE(test::ErrorOf([&] { RefineVertices(tracer, nan, options); }).find("pixel (3, 4) is not finite"),
+  EXPECT_NE(test::ErrorOf([&] {
+              RefineVertices(tracer, nan, options);
+            }).find("pixel (3, 4) is not finite"),
             std::string::npos);
-  EXPECT_NE(test::ErrorOf([&] { RefineVertices(tracer, {}, options); }).find("no reference images"), std::string::npos);
-  DifferentiablePathTracer nothing(replica.box.scene, std::vector<bool>(replica.box.scene.meshes.size(), false));
-  EXPECT_NE(test::ErrorOf([&] { RefineVertices(nothing, replica.targets, options); }).find("no vertices"),
+  EXPECT_NE(test::ErrorOf([&] { RefineVertices(tracer, {}, options); }).find("no reference images"),
             std::string::npos);
+  DifferentiablePathTracer nothing(replica.box.scene,
+                                   std::vector<bool>(replica.box.scene.meshes.size(), false));
+  EXPECT_NE(
+      test::ErrorOf([&] { RefineVertices(nothing, replica.targets, options); }).find("no vertices"),
+      std::string::npos);
 }
 
 TEST(VertexRefinement, FlippedFacesAreCounted) {
@@ -166,14 +181,15 @@ TEST(VertexRefinement, StepsThatWouldTurnFacesOverHoldThoseVertices) {
   for (int v = 0; v < n; ++v) start.segment<3>(3 * v) = mesh.vertices[v].cast<double>();
   // Every vertex 1 % of the radius outwards: no face turns over.
   Eigen::VectorXd step(3 * n);
-  for (int v = 0; v < n; ++v) step.segment<3>(3 * v) = 0.01 * (start.segment<3>(3 * v) - box.center);
+  for (int v = 0; v < n; ++v)
+    step.segment<3>(3 * v) = 0.01 * (start.segment<3>(3 * v) - box.center);
   const Eigen::VectorXd outwards = step;
   EXPECT_EQ(HoldFoldingVertices(mesh.faces, start, start, &step), 0);
   EXPECT_EQ(step, outwards);
   // Vertex 0 pushed through the centre as well: its one-ring would turn over.
   step.segment<3>(0) = -2.0 * (start.segment<3>(0) - box.center);
   const int held = HoldFoldingVertices(mesh.faces, start, start, &step);
-  EXPECT_GE(held, 6);    // vertex 0 and its one-ring (5 or 6 neighbours)
+  EXPECT_GE(held, 6);  // vertex 0 and its one-ring (5 or 6 neighbours)
   EXPECT_LE(held, 7);
   EXPECT_TRUE(step.segment<3>(0).isZero());
   int moving = 0;
@@ -191,7 +207,8 @@ TEST(VertexRefinement, StepsThatWouldTurnFacesOverHoldThoseVertices) {
 
 // Refines the replica's sphere from `start` with `options`; expects no flipped face; returns the
 // refined positions.
-Eigen::VectorXd RefinedFrom(const Replica& replica, const Eigen::VectorXd& start, const RefineOptions& options) {
+Eigen::VectorXd RefinedFrom(const Replica& replica, const Eigen::VectorXd& start,
+                            const RefineOptions& options) {
   DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
   tracer.SetPositions(start);
   const TriangleMesh start_mesh = tracer.scene().meshes[replica.box.sphere].mesh;
@@ -209,7 +226,8 @@ Eigen::VectorXd RefinedFrom(const Replica& replica, const Eigen::VectorXd& start
 // firmly as the relaxation pulled them (11.9 mm relaxed, 11.8 mm not).
 TEST(VertexRefinement, TheRelaxationUndoesSlidesAcrossTheSurface) {
   Replica replica(256, 2);
-  const Eigen::VectorXd truth = DifferentiablePathTracer(replica.box.scene, replica.refined).Positions();
+  const Eigen::VectorXd truth =
+      DifferentiablePathTracer(replica.box.scene, replica.refined).Positions();
   const int vertices = static_cast<int>(truth.size() / 3);
   Eigen::VectorXd start = truth;
   CounterRng rng(7, 3);
@@ -235,9 +253,11 @@ TEST(VertexRefinement, TheRelaxationUndoesSlidesAcrossTheSurface) {
     options.relax_sigma = relax_sigma;
     return rms(RefinedFrom(replica, start, options));
   };
-  const double before = rms(start), relaxed = refined(RefineOptions().relax_sigma), not_relaxed = refined(0.0);
-  std::printf("RMS error of the %zu facing vertices: %.4f m at the start, %.4f m relaxed, %.4f m not\n", facing.size(),
-              before, relaxed, not_relaxed);
+  const double before = rms(start), relaxed = refined(RefineOptions().relax_sigma),
+               not_relaxed = refined(0.0);
+  std::printf(
+      "RMS error of the %zu facing vertices: %.4f m at the start, %.4f m relaxed, %.4f m not\n",
+      facing.size(), before, relaxed, not_relaxed);
   EXPECT_GT(RefineOptions().relax_sigma, 0.0);
   EXPECT_LT(relaxed, 0.6 * before);
   EXPECT_LT(relaxed, 0.8 * not_relaxed);
@@ -255,17 +275,22 @@ TEST(VertexRefinement, TheBendingTermKeepsSingleVerticesFromWalkingAlongTheNorma
   RenderOptions render;
   render.spp = 256;
   render.max_depth = 2;
-  for (const Eigen::Vector3d& eye : {Eigen::Vector3d(-0.42, 0.42, 0.8), Eigen::Vector3d(0.42, 0.42, 0.8)}) {
+  for (const Eigen::Vector3d& eye :
+       {Eigen::Vector3d(-0.42, 0.42, 0.8), Eigen::Vector3d(0.42, 0.42, 0.8)}) {
     View view = replica.box.view;
     view.intrinsics = CameraIntrinsics{70.0, 70.0, 52.5, 39.5, 106, 80};
     view.world_from_camera = LookAt(eye, replica.box.center);
-    replica.targets.push_back({view, PathTracer(replica.box.scene).Render(view, render, 1235).radiance});
+    replica.targets.push_back(
+        {view, PathTracer(replica.box.scene).Render(view, render, 1235).radiance});
   }
-  const Eigen::VectorXd truth = DifferentiablePathTracer(replica.box.scene, replica.refined).Positions();
+  const Eigen::VectorXd truth =
+      DifferentiablePathTracer(replica.box.scene, replica.refined).Positions();
   Eigen::VectorXd start = truth;
   CounterRng rng(5, 1);
   for (int i = 0; i < start.size(); ++i) start[i] += 0.05 * replica.box.radius * rng.Normal();
-  const auto rms = [&](const Eigen::VectorXd& x) { return std::sqrt((x - truth).squaredNorm() / (x.size() / 3)); };
+  const auto rms = [&](const Eigen::VectorXd& x) {
+    return std::sqrt((x - truth).squaredNorm() / (x.size() / 3));
+  };
   const auto refined = [&](double smooth_sigma) {
     RefineOptions options;
     options.spp = 32;
@@ -274,8 +299,10 @@ TEST(VertexRefinement, TheBendingTermKeepsSingleVerticesFromWalkingAlongTheNorma
     options.smooth_sigma = smooth_sigma;
     return rms(RefinedFrom(replica, start, options));
   };
-  const double before = rms(start), bending = refined(RefineOptions().smooth_sigma), none = refined(0.0);
-  std::printf("RMS vertex error: %.4f m at the start, %.4f m with bending, %.4f m without\n", before, bending, none);
+  const double before = rms(start), bending = refined(RefineOptions().smooth_sigma),
+               none = refined(0.0);
+  std::printf("RMS vertex error: %.4f m at the start, %.4f m with bending, %.4f m without\n",
+              before, bending, none);
   EXPECT_GT(RefineOptions().smooth_sigma, 0.0);
   EXPECT_LT(bending, 0.5 * before);
   EXPECT_LT(bending, 0.85 * none);
@@ -288,7 +315,8 @@ double LargerErrorOfTheReplica(const Replica& replica, const RefineOptions& opti
   const SpikeAndDent perturbed = replica.Perturbed();
   tracer.SetPositions(perturbed.positions);
   const Eigen::VectorXd x = RefineVertices(tracer, replica.targets, options).positions;
-  return std::max((x - truth).segment<3>(3 * perturbed.spike).norm(), (x - truth).segment<3>(3 * perturbed.dent).norm());
+  return std::max((x - truth).segment<3>(3 * perturbed.spike).norm(),
+                  (x - truth).segment<3>(3 * perturbed.dent).norm());
 }
 
 // The prior's cost is Huber's loss of the distance from the start (prior_robust standard
@@ -306,7 +334,8 @@ TEST(VertexRefinement, ARobustPriorLetsAWellSupportedMoveGoAllTheWay) {
   const double robust = LargerErrorOfTheReplica(replica, options);
   options.prior_robust = 0.0;
   const double quadratic = LargerErrorOfTheReplica(replica, options);
-  std::printf("larger error of spike and dent: %.4f m robust prior, %.4f m quadratic\n", robust, quadratic);
+  std::printf("larger error of spike and dent: %.4f m robust prior, %.4f m quadratic\n", robust,
+              quadratic);
   EXPECT_GT(RefineOptions().prior_robust, 0.0);
   EXPECT_LT(robust, 0.6 * quadratic);
 }
@@ -321,11 +350,12 @@ TEST(VertexRefinement, VerticesNoPixelSeesDirectlyStayPut) {
     tracer.SetPositions(perturbed.positions);
     RefineOptions options;
     options.spp = 4;
-    options.max_depth = -1;  // indirect light: every vertex has derivatives
+    options.max_depth = -1;           // indirect light: every vertex has derivatives
     options.jacobian_max_depth = -1;  // ... in the Jacobian too
     options.iterations = 2;
     options.refine_unseen = refine_unseen;
-    const Eigen::VectorXd moved = RefineVertices(tracer, replica.targets, options).positions - perturbed.positions;
+    const Eigen::VectorXd moved =
+        RefineVertices(tracer, replica.targets, options).positions - perturbed.positions;
     std::vector<double> m(tracer.VertexCount());
     for (int v = 0; v < tracer.VertexCount(); ++v) m[v] = moved.segment<3>(3 * v).norm();
     return m;
@@ -335,8 +365,8 @@ TEST(VertexRefinement, VerticesNoPixelSeesDirectlyStayPut) {
   // on two rings of vertices around it; what lies beyond is seen only through indirect light.
   int still = 0, still_free = 0;
   for (size_t v = 0; v < held.size(); ++v) still += held[v] < 1e-9, still_free += free[v] < 1e-9;
-  std::printf("vertices that moved less than 1 nm: %d of %zu held, %d with refine_unseen\n", still, held.size(),
-              still_free);
+  std::printf("vertices that moved less than 1 nm: %d of %zu held, %d with refine_unseen\n", still,
+              held.size(), still_free);
   EXPECT_GE(still, 3);
   EXPECT_EQ(still_free, 0);
   EXPECT_GT(*std::max_element(held.begin(), held.end()), 1e-3);  // the seen vertices did move
@@ -358,11 +388,14 @@ TEST(VertexRefinement, TheJacobianFromShortPathsKeepsTheFullPathsResiduals) {
   options.spp = 16;
   options.max_depth = -1;
   options.jacobian_max_depth = -1;
-  const RefineLinearization full = LinearizeRefinement(tracer, replica.targets, options, 1, &to_truth);
+  const RefineLinearization full =
+      LinearizeRefinement(tracer, replica.targets, options, 1, &to_truth);
   options.jacobian_max_depth = 3;
-  const RefineLinearization short_paths = LinearizeRefinement(tracer, replica.targets, options, 1, &to_truth);
-  std::printf("cost %.6g and %.6g; curvature towards the truth %.4g full, %.4g from paths of 3 segments\n", full.cost,
-              short_paths.cost, full.curvature, short_paths.curvature);
+  const RefineLinearization short_paths =
+      LinearizeRefinement(tracer, replica.targets, options, 1, &to_truth);
+  std::printf(
+      "cost %.6g and %.6g; curvature towards the truth %.4g full, %.4g from paths of 3 segments\n",
+      full.cost, short_paths.cost, full.curvature, short_paths.curvature);
   EXPECT_EQ(full.cost, short_paths.cost);
   EXPECT_GT((full.gradient - short_paths.gradient).norm(), 0.0);
   EXPECT_GT(full.curvature, 1.2 * short_paths.curvature);  // measured 1.5 times
@@ -396,10 +429,11 @@ TEST(VertexRefinement, LaterStepsAreAveraged) {
     options.average_after = average_after;
     std::vector<Eigen::VectorXd> x;
     std::vector<int> rejected;
-    RefineVertices(tracer, replica.targets, options, 1, [&](const RefineIteration& it, const DifferentiablePathTracer& t) {
-      x.push_back(t.Positions());
-      rejected.push_back(it.rejected);
-    });
+    RefineVertices(tracer, replica.targets, options, 1,
+                   [&](const RefineIteration& it, const DifferentiablePathTracer& t) {
+                     x.push_back(t.Positions());
+                     rejected.push_back(it.rejected);
+                   });
     EXPECT_EQ(rejected, std::vector<int>(4, 0));  // every step taken at once: the same damping
     return x;
   };

@@ -9,11 +9,11 @@
 #include <iterator>
 #include <set>
 
+#include "core/analytic_volume.h"
 #include "core/parallel.h"
 #include "core/ply_io.h"
 #include "meshing/cube_cases.h"
 #include "meshing/mesh_cleanup.h"
-#include "core/analytic_volume.h"
 #include "tests/test_util.h"
 
 namespace genscene::meshing {
@@ -87,7 +87,8 @@ std::vector<ShapeCase> Shapes(double voxel) {
   const Eigen::Matrix3d box_from_world =
       Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix().transpose();
   return {
-      {"sphere", [=](const Eigen::Vector3d& p) { return analytic::SphereSdf(p, c, 0.3); }, 2, nullptr},
+      {"sphere", [=](const Eigen::Vector3d& p) { return analytic::SphereSdf(p, c, 0.3); }, 2,
+       nullptr},
       {"torus", [=](const Eigen::Vector3d& p) { return analytic::TorusSdf(p, c, 0.28, 0.11); }, 0,
        nullptr},
       {"box",
@@ -120,8 +121,8 @@ TEST(MarchingCubes, ClosedFormShapesAreClosedWithTheRightGenusAndOnTheSurface) {
     double max_distance = 0.0, min_normal_dot = 1.0, max_color_error = 0.0;
     for (size_t v = 0; v < mesh.vertices.size(); ++v) {
       const Eigen::Vector3d p = mesh.vertices[v].cast<double>();
-      max_color_error =
-          std::max(max_color_error, double((mesh.vertex_colors[v] - analytic::TestColor(p)).norm()));
+      max_color_error = std::max(max_color_error,
+                                 double((mesh.vertex_colors[v] - analytic::TestColor(p)).norm()));
       if (shape.near_feature && shape.near_feature(p)) continue;
       max_distance = std::max(max_distance, std::abs(shape.sdf(p)) / spec.voxel_size);
       // Normals: against the exact gradient by central differences of the closed form.

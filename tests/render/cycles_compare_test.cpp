@@ -13,9 +13,9 @@
 
 #include "core/file_util.h"
 #include "core/frame_source.h"
+#include "render/formats/scene_io.h"
 #include "render/path_tracer.h"
 #include "render/render_compare.h"
-#include "render/formats/scene_io.h"
 #include "tests/test_util.h"
 
 namespace genscene::render {
@@ -46,7 +46,8 @@ TEST_P(CyclesComparison, RegionMeansAndPixelNoiseAgree) {
   const Scene scene = LoadCyclesScene(root / c.scene_folder);
   std::vector<bool> emitters;
   for (const SceneMesh& m : scene.meshes) emitters.push_back(m.IsEmitter());
-  const nlohmann::json stats = nlohmann::json::parse(ReadTextFile(root / c.scene_folder / "stats.json"));
+  const nlohmann::json stats =
+      nlohmann::json::parse(ReadTextFile(root / c.scene_folder / "stats.json"));
   const PathTracer tracer(scene);
   RenderOptions options;
   options.spp = 256;
@@ -69,20 +70,24 @@ TEST_P(CyclesComparison, RegionMeansAndPixelNoiseAgree) {
     // reads 0 to 7e-5 there, from pixels touching the light) are compared in absolute terms,
     // to 0.1 % of the brightest region.
     double brightest = 0.0;
-    for (const RegionComparison& r : cmp.regions) brightest = std::max(brightest, r.mean_reference.maxCoeff());
+    for (const RegionComparison& r : cmp.regions)
+      brightest = std::max(brightest, r.mean_reference.maxCoeff());
     const double unlit = 1e-3 * brightest;
     for (const RegionComparison& r : cmp.regions) {
       for (int ch = 0; ch < 3; ++ch) {
         if (r.mean_reference[ch] < unlit) {
-          EXPECT_NEAR(r.mean_ours[ch], r.mean_reference[ch], unlit) << "mesh " << scene.meshes[r.mesh].name;
+          EXPECT_NEAR(r.mean_ours[ch], r.mean_reference[ch], unlit)
+              << "mesh " << scene.meshes[r.mesh].name;
           continue;
         }
         EXPECT_LE(r.RelativeBias()[ch], 0.01)
-            << "mesh " << scene.meshes[r.mesh].name << " channel " << ch << ": ours " << r.mean_ours[ch]
-            << " vs Cycles " << r.mean_reference[ch] << " over " << r.pixels << " pixels";
+            << "mesh " << scene.meshes[r.mesh].name << " channel " << ch << ": ours "
+            << r.mean_ours[ch] << " vs Cycles " << r.mean_reference[ch] << " over " << r.pixels
+            << " pixels";
       }
     }
-    const double cycles_noise = stats.at("noise").at(c.noise_key).at(view_name).at("brighter_half").at("rel_rms_lum");
+    const double cycles_noise =
+        stats.at("noise").at(c.noise_key).at(view_name).at("brighter_half").at("rel_rms_lum");
     const double predicted = std::hypot(cmp.ours_relative_noise, cycles_noise);
     double worst = 0.0;
     for (const RegionComparison& r : cmp.regions) {
@@ -90,28 +95,31 @@ TEST_P(CyclesComparison, RegionMeansAndPixelNoiseAgree) {
         if (r.mean_reference[ch] >= unlit) worst = std::max(worst, r.RelativeBias()[ch]);
       }
     }
-    std::printf("[ cycles   ] %-30s %-9s regions %zu, worst bias %.3f%%, rms diff %.3f%% vs predicted %.3f%%\n",
-                c.views, view_name.c_str(), cmp.regions.size(), 100 * worst, 100 * cmp.rms_relative_difference,
-                100 * predicted);
+    std::printf(
+        "[ cycles   ] %-30s %-9s regions %zu, worst bias %.3f%%, rms diff %.3f%% vs predicted "
+        "%.3f%%\n",
+        c.views, view_name.c_str(), cmp.regions.size(), 100 * worst,
+        100 * cmp.rms_relative_difference, 100 * predicted);
     EXPECT_LE(cmp.rms_relative_difference, 1.25 * predicted)
-        << "ours noise " << cmp.ours_relative_noise << ", Cycles noise " << cycles_noise << ", over "
-        << cmp.pixels << " pixels";
+        << "ours noise " << cmp.ours_relative_noise << ", Cycles noise " << cycles_noise
+        << ", over " << cmp.pixels << " pixels";
   }
   EXPECT_GT(index, 0);
 }
 
 INSTANTIATE_TEST_SUITE_P(
     CboxCycles, CyclesComparison,
-    ::testing::Values(CyclesCase{"", "views/train", "rgb", 10, "box"},
-                      CyclesCase{"", "views/novel", "rgb", 10, "box"},
-                      CyclesCase{"", "views/train_direct", "rgb_direct", 2, "box"},
-                      CyclesCase{"", "views/novel_direct", "rgb_direct", 2, "box"},
-                      CyclesCase{"", "views/train_center", "rgb_center", 10, "center"},
-                      CyclesCase{"", "views/novel_center", "rgb_center", 10, "center"},
-                      CyclesCase{"icosphere_flat", "icosphere_flat/views/full", "rgb", 10, "box"},
-                      CyclesCase{"icosphere_flat", "icosphere_flat/views/direct", "rgb_direct", 2, "box"},
-                      CyclesCase{"icosphere_smooth", "icosphere_smooth/views/full", "rgb", 10, "box"},
-                      CyclesCase{"icosphere_smooth", "icosphere_smooth/views/direct", "rgb_direct", 2, "box"}),
+    ::testing::Values(
+        CyclesCase{"", "views/train", "rgb", 10, "box"},
+        CyclesCase{"", "views/novel", "rgb", 10, "box"},
+        CyclesCase{"", "views/train_direct", "rgb_direct", 2, "box"},
+        CyclesCase{"", "views/novel_direct", "rgb_direct", 2, "box"},
+        CyclesCase{"", "views/train_center", "rgb_center", 10, "center"},
+        CyclesCase{"", "views/novel_center", "rgb_center", 10, "center"},
+        CyclesCase{"icosphere_flat", "icosphere_flat/views/full", "rgb", 10, "box"},
+        CyclesCase{"icosphere_flat", "icosphere_flat/views/direct", "rgb_direct", 2, "box"},
+        CyclesCase{"icosphere_smooth", "icosphere_smooth/views/full", "rgb", 10, "box"},
+        CyclesCase{"icosphere_smooth", "icosphere_smooth/views/direct", "rgb_direct", 2, "box"}),
     Name);
 
 }  // namespace

@@ -9,8 +9,8 @@
 #include <cstdio>
 
 #include "core/image_io.h"
-#include "render/path_tracer.h"
 #include "render/formats/scene_io.h"
+#include "render/path_tracer.h"
 #include "tests/test_util.h"
 
 namespace genscene::render {
@@ -54,7 +54,8 @@ TEST_P(MitsubaComparison, ImageMeanAgrees) {
     mean_ref += reference.pixels()[i].cast<double>();
   }
   const Eigen::Vector3d ratio = mean_ours.cwiseQuotient(mean_ref);
-  std::printf("[ mitsuba  ] %-60s ours/Mitsuba mean = %.4f %.4f %.4f\n", c.reference, ratio[0], ratio[1], ratio[2]);
+  std::printf("[ mitsuba  ] %-60s ours/Mitsuba mean = %.4f %.4f %.4f\n", c.reference, ratio[0],
+              ratio[1], ratio[2]);
   for (int ch = 0; ch < 3; ++ch) {
     ASSERT_GT(mean_ref[ch], 0.0);
     EXPECT_NEAR(mean_ours[ch] / mean_ref[ch], 1.0, c.tolerance)
@@ -63,25 +64,30 @@ TEST_P(MitsubaComparison, ImageMeanAgrees) {
   }
 }
 
-#define AD(name, depth) \
-  MitsubaCase { "ad-integrator-refs/" name ".xml", "ad-integrator-refs/refs/test_" name "_image_primal_ref.exr", depth, 0.01 }
+#define AD(name, depth)                                                           \
+  MitsubaCase {                                                                   \
+    "ad-integrator-refs/" name ".xml",                                            \
+        "ad-integrator-refs/refs/test_" name "_image_primal_ref.exr", depth, 0.01 \
+  }
 
 INSTANTIATE_TEST_SUITE_P(
     Mitsuba, MitsubaComparison,
-    ::testing::Values(AD("area_light_radiance", 0), AD("directly_visible_area_light_radiance", 0),
-                      AD("point_light_intensity", 0), AD("rotate_shading_normals_plane", 0),
-                      AD("scale_sphere_emitter_on_black", 0), AD("translate_occluder_area_light", 0),
-                      AD("translate_plane_and_area_emitter", 0), AD("translate_rectangle_emitter_on_black", 0),
-                      AD("translate_self_shadowing_right_angle", 0), AD("translate_shadow_receiver_area_light", 0),
-                      AD("translate_sphere_emitter_on_black", 0),
-                      MitsubaCase{"ignis-evaluation/evaluation/point.xml",
-                                  "ignis-evaluation/evaluation/references/ref-point-4096.exr", 0, 0.01},
-                      MitsubaCase{"ignis-evaluation/evaluation/emissive-plane.xml",
-                                  "ignis-evaluation/evaluation/references/ref-emissive-plane-4096.exr", 0, 0.01},
-                      MitsubaCase{"ignis-evaluation/evaluation/emissive-plane-scale.xml",
-                                  "ignis-evaluation/evaluation/references/ref-emissive-plane-scale-4096.exr", 0, 0.01},
-                      MitsubaCase{"cbox-rgb/cbox-rgb.xml", "cbox-rgb/refs/ref-cbox-d1-4096.exr", 1, 0.01},
-                      MitsubaCase{"cbox-rgb/cbox-rgb.xml", "cbox-rgb/refs/ref-cbox-d6-4096.exr", 6, 0.01}),
+    ::testing::Values(
+        AD("area_light_radiance", 0), AD("directly_visible_area_light_radiance", 0),
+        AD("point_light_intensity", 0), AD("rotate_shading_normals_plane", 0),
+        AD("scale_sphere_emitter_on_black", 0), AD("translate_occluder_area_light", 0),
+        AD("translate_plane_and_area_emitter", 0), AD("translate_rectangle_emitter_on_black", 0),
+        AD("translate_self_shadowing_right_angle", 0),
+        AD("translate_shadow_receiver_area_light", 0), AD("translate_sphere_emitter_on_black", 0),
+        MitsubaCase{"ignis-evaluation/evaluation/point.xml",
+                    "ignis-evaluation/evaluation/references/ref-point-4096.exr", 0, 0.01},
+        MitsubaCase{"ignis-evaluation/evaluation/emissive-plane.xml",
+                    "ignis-evaluation/evaluation/references/ref-emissive-plane-4096.exr", 0, 0.01},
+        MitsubaCase{"ignis-evaluation/evaluation/emissive-plane-scale.xml",
+                    "ignis-evaluation/evaluation/references/ref-emissive-plane-scale-4096.exr", 0,
+                    0.01},
+        MitsubaCase{"cbox-rgb/cbox-rgb.xml", "cbox-rgb/refs/ref-cbox-d1-4096.exr", 1, 0.01},
+        MitsubaCase{"cbox-rgb/cbox-rgb.xml", "cbox-rgb/refs/ref-cbox-d6-4096.exr", 6, 0.01}),
     Name);
 
 }  // namespace

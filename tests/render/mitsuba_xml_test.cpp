@@ -1,6 +1,6 @@
-// Mitsuba 3 XML import/export (render/formats/mitsuba_xml.h). Expected numbers are worked out by hand
-// from the XML files and ../shared/MITSUBA-XML.md, whose checks against Mitsuba's own reference
-// renders they repeat (camera projection, emitter side, default fov).
+// Mitsuba 3 XML import/export (render/formats/mitsuba_xml.h). Expected numbers are worked out by
+// hand from the XML files and ../shared/MITSUBA-XML.md, whose checks against Mitsuba's own
+// reference renders they repeat (camera projection, emitter side, default fov).
 #include "render/formats/mitsuba_xml.h"
 
 #include <gtest/gtest.h>

@@ -32,7 +32,8 @@ SceneMesh Square(double side, double height, bool facing_up, const Eigen::Vector
   return m;
 }
 
-View LookingDownAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int width, int height, double f) {
+View LookingDownAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int width, int height,
+                   double f) {
   View view;
   view.intrinsics.width = width;
   view.intrinsics.height = height;
@@ -69,7 +70,9 @@ TEST(PathTracer, PointLightOverPlaneIsExact) {
       // L = rho / pi * I cos(theta) / r^2
       const Eigen::Vector3d expected = albedo.cast<double>() / M_PI * cos_theta / r2;
       for (int c = 0; c < 3; ++c) {
-        EXPECT_NEAR(out.radiance(u, v)[c], expected[c] * intensity[c], 1e-4 * expected[c] * intensity[c]) << u << "," << v;
+        EXPECT_NEAR(out.radiance(u, v)[c], expected[c] * intensity[c],
+                    1e-4 * expected[c] * intensity[c])
+            << u << "," << v;
       }
     }
   }
@@ -81,7 +84,8 @@ TEST(PathTracer, VoxelLightOverPlaneFollowsEmissionModel) {
   scene.meshes.push_back(Square(40.0, 0.0, true, albedo));
   VoxelLightGrid grid;
   grid.dims = Eigen::Vector3i(1, 1, 1);
-  grid.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.1, -0.1, 0.9), Eigen::Vector3d(0.1, 0.1, 1.1));
+  grid.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.1, -0.1, 0.9), Eigen::Vector3d(0.1, 0.1, 1.1));
   grid.intensity = {Eigen::Vector3f(1.0f, 2.0f, 3.0f)};
   grid.weights = {{0.1f, 0.9f, 0.3f, 0.0f, 0.2f, 1.0f}};
   scene.voxel_lights = grid;
@@ -99,8 +103,9 @@ TEST(PathTracer, VoxelLightOverPlaneFollowsEmissionModel) {
       const Eigen::Vector3d w = (p - c).normalized();  // from the voxel to the receiver
       const auto& l = grid.weights[0];
       // I(w) = L sum_k lambda_k max(0, w . d_k); E = I cos / r^2; L_o = rho / pi E.
-      const double sum = l[0] * std::max(0.0, w.x()) + l[1] * std::max(0.0, -w.x()) + l[2] * std::max(0.0, w.y()) +
-                         l[3] * std::max(0.0, -w.y()) + l[4] * std::max(0.0, w.z()) + l[5] * std::max(0.0, -w.z());
+      const double sum = l[0] * std::max(0.0, w.x()) + l[1] * std::max(0.0, -w.x()) +
+                         l[2] * std::max(0.0, w.y()) + l[3] * std::max(0.0, -w.y()) +
+                         l[4] * std::max(0.0, w.z()) + l[5] * std::max(0.0, -w.z());
       const double r2 = (c - p).squaredNorm(), cos_theta = (c - p).z() / std::sqrt(r2);
       for (int ch = 0; ch < 3; ++ch) {
         const double expected = albedo[ch] / M_PI * grid.intensity[0][ch] * sum * cos_theta / r2;
@@ -128,7 +133,8 @@ struct AreaLightSetup {
   AreaLightSetup() {
     const double side = 0.3, height = 0.8, rho = 0.8, le = 5.0;
     scene.meshes.push_back(Square(10.0, 0.0, true, Eigen::Vector3f::Constant(rho)));
-    scene.meshes.push_back(Square(side, height, false, Eigen::Vector3f::Zero(), Eigen::Vector3f::Constant(le)));
+    scene.meshes.push_back(
+        Square(side, height, false, Eigen::Vector3f::Zero(), Eigen::Vector3f::Constant(le)));
     view = LookingDownAt({0.0, -0.5, 1.2}, {0.0, 0.0, 0.0}, 16, 16, 1e5);
     expected = rho * le * 4.0 * CornerFormFactor(side / 2, side / 2, height);
   }
@@ -153,8 +159,8 @@ TEST(PathTracer, SmallAreaLightMatchesFormFactor) {
   options.max_depth = 2;
   double mean = 0.0;
   RmsErrorOverPixels(tracer.Render(setup.view, options, 5), setup.expected, &mean);
-  std::printf("[ closed   ] area light: mean %.6f vs form factor %.6f (%.3f%%)\n", mean, setup.expected,
-              100.0 * (mean / setup.expected - 1.0));
+  std::printf("[ closed   ] area light: mean %.6f vs form factor %.6f (%.3f%%)\n", mean,
+              setup.expected, 100.0 * (mean / setup.expected - 1.0));
   EXPECT_NEAR(mean, setup.expected, 0.01 * setup.expected);
 }
 
@@ -166,12 +172,15 @@ TEST(PathTracer, ErrorFallsAsOneOverSqrtSpp) {
   options.max_depth = 2;
   double mean = 0.0;
   options.spp = 4;
-  const double error_4 = RmsErrorOverPixels(tracer.Render(setup.view, options, 7), setup.expected, &mean);
+  const double error_4 =
+      RmsErrorOverPixels(tracer.Render(setup.view, options, 7), setup.expected, &mean);
   options.spp = 64;
-  const double error_64 = RmsErrorOverPixels(tracer.Render(setup.view, options, 8), setup.expected, &mean);
+  const double error_64 =
+      RmsErrorOverPixels(tracer.Render(setup.view, options, 8), setup.expected, &mean);
   // 16x the samples: the error should fall 4x, within a factor of 1.5.
   const double ratio = error_4 / error_64;
-  std::printf("[ closed   ] RMS error 4 spp %.5f, 64 spp %.5f: ratio %.3f (1/sqrt(spp): 4)\n", error_4, error_64, ratio);
+  std::printf("[ closed   ] RMS error 4 spp %.5f, 64 spp %.5f: ratio %.3f (1/sqrt(spp): 4)\n",
+              error_4, error_64, ratio);
   EXPECT_GT(ratio, 4.0 / 1.5) << error_4 << " " << error_64;
   EXPECT_LT(ratio, 4.0 * 1.5) << error_4 << " " << error_64;
 }
@@ -199,8 +208,8 @@ TEST(PathTracer, WhiteFurnace) {
   for (const auto& p : out.radiance.pixels()) mean += p.cast<double>();
   mean /= out.radiance.size();
   const Eigen::Vector3d expected = walls.emission.cast<double>() / (1.0 - a);
-  std::printf("[ closed   ] furnace: mean %.5f %.5f %.5f vs Le/(1-a) %.5f %.5f %.5f\n", mean[0], mean[1], mean[2],
-              expected[0], expected[1], expected[2]);
+  std::printf("[ closed   ] furnace: mean %.5f %.5f %.5f vs Le/(1-a) %.5f %.5f %.5f\n", mean[0],
+              mean[1], mean[2], expected[0], expected[1], expected[2]);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c], expected[c], 0.01 * expected[c]);
 }
 
@@ -209,7 +218,8 @@ TEST(PathTracer, VoxelLightMatchesItsSixQuadExport) {
   voxel.meshes.push_back(Square(6.0, 0.0, true, Eigen::Vector3f::Constant(0.7f)));
   VoxelLightGrid grid;
   grid.dims = Eigen::Vector3i(2, 1, 1);
-  grid.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-0.4, -0.2, 0.8), Eigen::Vector3d(0.4, 0.2, 1.2));
+  grid.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.4, -0.2, 0.8), Eigen::Vector3d(0.4, 0.2, 1.2));
   grid.intensity = {Eigen::Vector3f(1.0f, 1.5f, 2.0f), Eigen::Vector3f(0.5f, 0.2f, 0.1f)};
   grid.weights = {{0.2f, 0.5f, 0.1f, 0.3f, 0.0f, 1.0f}, {1.0f, 0.0f, 0.4f, 0.4f, 0.6f, 0.8f}};
   grid.cube_size = 0.01;
@@ -230,9 +240,11 @@ TEST(PathTracer, VoxelLightMatchesItsSixQuadExport) {
   const RenderOutput b2 = quad_tracer.Render(view, options, 23);
   // Means over the image; the standard error of the quad render's mean from its two seeds.
   const double n = static_cast<double>(a.radiance.size());
-  Eigen::Vector3d mean_a = Eigen::Vector3d::Zero(), mean_b = Eigen::Vector3d::Zero(), var = Eigen::Vector3d::Zero();
+  Eigen::Vector3d mean_a = Eigen::Vector3d::Zero(), mean_b = Eigen::Vector3d::Zero(),
+                  var = Eigen::Vector3d::Zero();
   for (size_t i = 0; i < a.radiance.size(); ++i) {
-    const Eigen::Vector3d x1 = b1.radiance.pixels()[i].cast<double>(), x2 = b2.radiance.pixels()[i].cast<double>();
+    const Eigen::Vector3d x1 = b1.radiance.pixels()[i].cast<double>(),
+                          x2 = b2.radiance.pixels()[i].cast<double>();
     mean_a += a.radiance.pixels()[i].cast<double>() / n;
     mean_b += (x1 + x2) / (2.0 * n);
     var += (x1 - x2).cwiseAbs2() / 4.0;  // variance of (x1 + x2) / 2 per pixel
@@ -240,10 +252,11 @@ TEST(PathTracer, VoxelLightMatchesItsSixQuadExport) {
   for (int c = 0; c < 3; ++c) {
     const double standard_error = std::sqrt(var[c]) / n;
     // Noise (4 standard errors) plus 0.5 % for the cube's finite size (faces 5 mm off centre).
-    std::printf("[ closed   ] voxel light vs six quads, channel %d: %.6f vs %.6f (se %.6f)\n", c, mean_a[c], mean_b[c],
-                standard_error);
+    std::printf("[ closed   ] voxel light vs six quads, channel %d: %.6f vs %.6f (se %.6f)\n", c,
+                mean_a[c], mean_b[c], standard_error);
     EXPECT_LT(standard_error, 0.005 * mean_a[c]) << "too noisy to tell";
-    EXPECT_NEAR(mean_b[c], mean_a[c], 4.0 * standard_error + 0.005 * mean_a[c]) << c << " se " << standard_error;
+    EXPECT_NEAR(mean_b[c], mean_a[c], 4.0 * standard_error + 0.005 * mean_a[c])
+        << c << " se " << standard_error;
   }
 }
 
@@ -276,17 +289,19 @@ TEST(RayTracer, StreamOcclusionMatchesSingleRays) {
   CounterRng rng(7, 1);
   int blocked = 0, open = 0;
   for (int o = 0; o < 64; ++o) {
-    const Eigen::Vector3f origin(1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() + 0.05f);
+    const Eigen::Vector3f origin(1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() - 0.95f,
+                                 1.9f * rng.Uniform() + 0.05f);
     std::vector<Eigen::Vector3f> directions(343);
     std::vector<float> t_max(343);
     for (size_t i = 0; i < directions.size(); ++i) {
-      const Eigen::Vector3f target(1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() + 0.05f);
+      const Eigen::Vector3f target(1.9f * rng.Uniform() - 0.95f, 1.9f * rng.Uniform() - 0.95f,
+                                   1.9f * rng.Uniform() + 0.05f);
       directions[i] = (target - origin).normalized();
       t_max[i] = i % 50 == 0 ? 0.0f : (target - origin).norm();
     }
     std::vector<uint8_t> occluded(directions.size(), 7);
-    tracer.OccludedFrom(origin, directions.data(), t_max.data(), static_cast<int>(directions.size()), 0.0f,
-                        occluded.data());
+    tracer.OccludedFrom(origin, directions.data(), t_max.data(),
+                        static_cast<int>(directions.size()), 0.0f, occluded.data());
     for (size_t i = 0; i < directions.size(); ++i) {
       const bool single = tracer.Occluded(origin, directions[i], 0.0f, t_max[i]);
       ASSERT_EQ(occluded[i], single ? 1 : 0) << "origin " << o << " ray " << i;
@@ -300,7 +315,8 @@ TEST(RayTracer, StreamOcclusionMatchesSingleRays) {
 
 TEST(PathTracer, BadScenesAreRejected) {
   Scene scene;
-  scene.meshes.push_back(Square(1.0, 0.0, true, Eigen::Vector3f::Constant(0.5f), Eigen::Vector3f(-1, 1, 1)));
+  scene.meshes.push_back(
+      Square(1.0, 0.0, true, Eigen::Vector3f::Constant(0.5f), Eigen::Vector3f(-1, 1, 1)));
   EXPECT_THROW(PathTracer{scene}, Error);
   scene.meshes[0].emission = Eigen::Vector3f::Zero();
   scene.meshes[0].mesh.vertices[2].x() = NAN;

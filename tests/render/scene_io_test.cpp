@@ -1,6 +1,5 @@
-// Scene files (render/formats/scene_io.h): our JSON format, LoadScene, the cbox-cycles loader and the
-// mesh sources (OBJ, normals).
-#include "render/formats/mesh_sources.h"
+// Scene files (render/formats/scene_io.h): our JSON format, LoadScene, the cbox-cycles loader and
+// the mesh sources (OBJ, normals).
 #include "render/formats/scene_io.h"
 
 #include <gtest/gtest.h>
@@ -10,6 +9,7 @@
 
 #include "core/check.h"
 #include "core/ply_io.h"
+#include "render/formats/mesh_sources.h"
 #include "tests/test_util.h"
 
 namespace genscene::render {

@@ -13,12 +13,14 @@
 namespace genscene::texturing {
 namespace {
 
-Eigen::Vector3f ChromaOf(const Eigen::Vector3f& c) { return c / c.sum(); }
+Eigen::Vector3f ChromaOf(const Eigen::Vector3f& c) {
+  return c / c.sum();
+}
 
 struct CboxFigures {
-  int clusters = 0;          // clusters holding >= 0.5 % of the observed texels
-  int distinct_albedos = 0;  // in the ground truth of the faces the keyframes see
-  double worst_chroma = 0.0; // largest |chromaticity - truth| over those clusters and channels
+  int clusters = 0;           // clusters holding >= 0.5 % of the observed texels
+  int distinct_albedos = 0;   // in the ground truth of the faces the keyframes see
+  double worst_chroma = 0.0;  // largest |chromaticity - truth| over those clusters and channels
   double mislabelled = 0.0;  // fraction of observed texels in a cluster standing for another albedo
 };
 
@@ -31,7 +33,8 @@ CboxFigures RunCbox(const std::filesystem::path& data, const std::string& views)
   TexturingOptions to;
   to.texel_spacing = 0.01;
   const TexturingResult texture = TextureMesh(mesh, frames, to);
-  const AlbedoResult albedo = EstimateAlbedo(texture.texture, texture.texture.labels(), AlbedoOptions());
+  const AlbedoResult albedo =
+      EstimateAlbedo(texture.texture, texture.texture.labels(), AlbedoOptions());
 
   CboxFigures fig;
   std::map<std::tuple<float, float, float>, size_t> truth_seen;
@@ -58,23 +61,30 @@ CboxFigures RunCbox(const std::filesystem::path& data, const std::string& views)
   std::vector<Eigen::Vector3f> cluster_truth(albedo.clusters.size(), Eigen::Vector3f::Zero());
   for (const AlbedoCluster& c : albedo.clusters) {
     if (votes[c.id].empty()) continue;
-    const auto best = std::max_element(votes[c.id].begin(), votes[c.id].end(),
-                                       [](const auto& a, const auto& b) { return a.second < b.second; });
-    cluster_truth[c.id] = Eigen::Vector3f(std::get<0>(best->first), std::get<1>(best->first), std::get<2>(best->first));
-    log_balance += static_cast<double>(c.observed_texels) *
-                   (cluster_truth[c.id].cast<double>().array().log() - c.albedo.cast<double>().array().max(1e-6).log());
+    const auto best =
+        std::max_element(votes[c.id].begin(), votes[c.id].end(),
+                         [](const auto& a, const auto& b) { return a.second < b.second; });
+    cluster_truth[c.id] = Eigen::Vector3f(std::get<0>(best->first), std::get<1>(best->first),
+                                          std::get<2>(best->first));
+    log_balance +=
+        static_cast<double>(c.observed_texels) * (cluster_truth[c.id].cast<double>().array().log() -
+                                                  c.albedo.cast<double>().array().max(1e-6).log());
     balance_weight += static_cast<double>(c.observed_texels);
   }
   const Eigen::Vector3f balance = (log_balance / balance_weight).exp().cast<float>();
-  std::cout << "white balance (per-channel gauge): " << balance.transpose() / balance.maxCoeff() << "\n";
+  std::cout << "white balance (per-channel gauge): " << balance.transpose() / balance.maxCoeff()
+            << "\n";
   for (const AlbedoCluster& c : albedo.clusters) {
-    std::cout << "cluster " << c.id << ": albedo " << c.albedo.transpose() << ", " << c.texels << " texels ("
-              << c.observed_texels << " observed), " << c.pieces << " pieces" << (c.dark ? ", dark" : "") << "\n";
+    std::cout << "cluster " << c.id << ": albedo " << c.albedo.transpose() << ", " << c.texels
+              << " texels (" << c.observed_texels << " observed), " << c.pieces << " pieces"
+              << (c.dark ? ", dark" : "") << "\n";
     if (c.observed_texels < 0.005 * observed) continue;
     ++fig.clusters;
     const Eigen::Vector3f& truth = cluster_truth[c.id];
-    const double err = (ChromaOf(c.albedo.cwiseProduct(balance)) - ChromaOf(truth)).cwiseAbs().maxCoeff();
-    std::cout << "  truth " << truth.transpose() << ": chromaticity error " << err << " (without the balance "
+    const double err =
+        (ChromaOf(c.albedo.cwiseProduct(balance)) - ChromaOf(truth)).cwiseAbs().maxCoeff();
+    std::cout << "  truth " << truth.transpose() << ": chromaticity error " << err
+              << " (without the balance "
               << (ChromaOf(c.albedo) - ChromaOf(truth)).cwiseAbs().maxCoeff() << ")\n";
     fig.worst_chroma = std::max(fig.worst_chroma, err);
   }
@@ -88,10 +98,12 @@ CboxFigures RunCbox(const std::filesystem::path& data, const std::string& views)
     wrong += (cluster_truth[albedo.albedo.labels()[s]] - mesh.face_colors[f]).norm() > 1e-6f;
   }
   fig.mislabelled = static_cast<double>(wrong) / static_cast<double>(observed);
-  std::cout << views << ": " << 100.0 * fig.mislabelled << " % of the observed texels in a cluster of another albedo\n";
-  std::cout << views << ": " << fig.clusters << " clusters for " << fig.distinct_albedos << " distinct albedos; "
-            << albedo.stats.chroma_classes << " chromaticity classes, " << albedo.stats.pieces
-            << " pieces, worst chromaticity error " << fig.worst_chroma << "\n";
+  std::cout << views << ": " << 100.0 * fig.mislabelled
+            << " % of the observed texels in a cluster of another albedo\n";
+  std::cout << views << ": " << fig.clusters << " clusters for " << fig.distinct_albedos
+            << " distinct albedos; " << albedo.stats.chroma_classes << " chromaticity classes, "
+            << albedo.stats.pieces << " pieces, worst chromaticity error " << fig.worst_chroma
+            << "\n";
   return fig;
 }
 
@@ -114,10 +126,16 @@ TEST(Albedo, BadInputsAreClearErrors) {
   m.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
   m.faces = {{0, 1, 2}};
   const MeshColors c(m, {4});
-  EXPECT_CONTAINS(test::ErrorOf([&] { EstimateAlbedo(c, std::vector<int32_t>(c.SampleCount(), 0), AlbedoOptions()); }),
+  EXPECT_CONTAINS(test::ErrorOf([&] {
+                    EstimateAlbedo(c, std::vector<int32_t>(c.SampleCount(), 0), AlbedoOptions());
+                  }),
                   "no texel of the texture was observed");
-  EXPECT_CONTAINS(test::ErrorOf([&] { EstimateAlbedo(c, {1, 2}, AlbedoOptions()); }), "2 view counts for 15 texels");
-  EXPECT_CONTAINS(test::ErrorOf([&] { EstimateAlbedo(MeshColors(), {}, AlbedoOptions()); }), "no samples");
+  EXPECT_CONTAINS(test::ErrorOf([&] {
+                    EstimateAlbedo(c, {1, 2}, AlbedoOptions());
+                  }),
+                  "2 view counts for 15 texels");
+  EXPECT_CONTAINS(test::ErrorOf([&] { EstimateAlbedo(MeshColors(), {}, AlbedoOptions()); }),
+                  "no samples");
 }
 
 }  // namespace

@@ -14,13 +14,16 @@ namespace {
 
 using test::ErrorOf;
 
-CameraIntrinsics Intrinsics(int w, int h) { return CameraIntrinsics::Centered(w, h, 0.9 * w); }
+CameraIntrinsics Intrinsics(int w, int h) {
+  return CameraIntrinsics::Centered(w, h, 0.9 * w);
+}
 
 std::vector<RgbdFrame> WallViews(const SyntheticScene& scene, int count) {
   std::vector<RgbdFrame> frames;
   for (int i = 0; i < count; ++i) {
     const double x = -1.0 + 2.0 * i / (count - 1);
-    const Eigen::Isometry3d pose = LookAt(Eigen::Vector3d(x, -1.2, 1.1), Eigen::Vector3d(0.4 * x, 1.0, 1.0));
+    const Eigen::Isometry3d pose =
+        LookAt(Eigen::Vector3d(x, -1.2, 1.1), Eigen::Vector3d(0.4 * x, 1.0, 1.0));
     frames.push_back(RenderSyntheticFrame(scene, Intrinsics(240, 180), pose, i / 30.0));
   }
   return frames;
@@ -53,7 +56,7 @@ Truth TruthOf(const SyntheticScene& scene, const TriangleMesh& mesh, const MeshC
 struct ErrorFigures {
   double mean = 0.0, max = 0.0;  // |estimate - truth|, mean over channels
   size_t texels = 0;
-  double range = 0.0;            // max - min of the true values
+  double range = 0.0;  // max - min of the true values
 };
 // Over wall texels seen by at least `min_views` keyframes (by `seen`'s view counts; default: r's).
 ErrorFigures WallError(const TexturingResult& r, const Truth& truth, int min_views = 1,
@@ -89,7 +92,8 @@ TEST(Texturing, RasterizerDrawsWallsThatReachBehindTheCamera) {
   floor.vertices = {{-10, -10, 0}, {10, -10, 0}, {10, 10, 0}, {-10, 10, 0}};
   floor.faces = {{0, 1, 2}, {0, 2, 3}};
   const CameraIntrinsics k = Intrinsics(64, 48);
-  const Eigen::Isometry3d world_from_camera = LookAt(Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 5, 0.5));
+  const Eigen::Isometry3d world_from_camera =
+      LookAt(Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 5, 0.5));
   const ImageDepth depth = RenderDepth(floor, k, world_from_camera.inverse());
   int drawn = 0;
   double worst = 0.0;
@@ -119,9 +123,10 @@ TEST(Texturing, StripedWallBehindAnOccluderIsRecoveredWithoutContamination) {
   const TexturingResult r = TextureMesh(mesh, frames, TestOptions());
   const Truth truth = TruthOf(scene, mesh, r.texture);
   const ErrorFigures e = WallError(r, truth);
-  std::cout << "wall texels " << e.texels << ": mean error " << e.mean << " (" << 100 * e.mean / e.range
-            << " % of the range " << e.range << "), max " << e.max << "; filled " << r.stats.filled
-            << ", samples used " << r.stats.samples_used << ", rejected " << r.stats.samples_rejected << "\n";
+  std::cout << "wall texels " << e.texels << ": mean error " << e.mean << " ("
+            << 100 * e.mean / e.range << " % of the range " << e.range << "), max " << e.max
+            << "; filled " << r.stats.filled << ", samples used " << r.stats.samples_used
+            << ", rejected " << r.stats.samples_rejected << "\n";
   ASSERT_GT(e.texels, 5000u);
   EXPECT_LE(e.mean, 0.02 * e.range);
   // Contamination by the red occluder would show as errors of ~0.5 and more.
@@ -131,7 +136,9 @@ TEST(Texturing, StripedWallBehindAnOccluderIsRecoveredWithoutContamination) {
   for (size_t s = 0; s < truth.albedo.size(); ++s) {
     if (truth.on_wall[s] || r.texture.labels()[s] == 0) continue;
     if ((truth.albedo[s] - Eigen::Vector3f(0.9f, 0.05f, 0.05f)).norm() > 1e-6) continue;
-    worst_occluder = std::max(worst_occluder, static_cast<double>((r.texture.colors()[s] - truth.albedo[s]).cwiseAbs().maxCoeff()));
+    worst_occluder = std::max(
+        worst_occluder,
+        static_cast<double>((r.texture.colors()[s] - truth.albedo[s]).cwiseAbs().maxCoeff()));
   }
   EXPECT_LT(worst_occluder, 0.1);
 }
@@ -151,7 +158,8 @@ TEST(Texturing, SensorDepthStopsAnOccluderTheMeshLacks) {
   const ErrorFigures good = WallError(with_depth, truth);
   const ErrorFigures bad = WallError(without, truth);
   EXPECT_LT(good.max, 0.1);
-  EXPECT_GT(bad.max, 0.2) << "without the depth test the red box must leak in (else this test proves nothing)";
+  EXPECT_GT(bad.max, 0.2)
+      << "without the depth test the red box must leak in (else this test proves nothing)";
 }
 
 TEST(Texturing, SpecularHighlightsInSomeViewsAreRejected) {
@@ -176,12 +184,14 @@ TEST(Texturing, SpecularHighlightsInSomeViewsAreRejected) {
   // (A texel seen only in highlighted views cannot be cleaned by any average.)
   const ErrorFigures good = WallError(robust, truth, 4, &plain);
   const ErrorFigures bad = WallError(plain, truth, 4, &plain);
-  std::cout << "highlights: " << good.texels << " wall texels seen 4+ times: robust max error " << good.max << " (" << robust.stats.samples_rejected
+  std::cout << "highlights: " << good.texels << " wall texels seen 4+ times: robust max error "
+            << good.max << " (" << robust.stats.samples_rejected
             << " samples rejected), plain mean max error " << bad.max << "\n";
   EXPECT_GT(robust.stats.samples_rejected, 500u);
   EXPECT_LT(good.max, 0.1);
   EXPECT_LE(good.mean, 0.02 * good.range);
-  EXPECT_GT(bad.max, 0.15) << "without rejection the highlights must show (else this test proves nothing)";
+  EXPECT_GT(bad.max, 0.15)
+      << "without rejection the highlights must show (else this test proves nothing)";
 }
 
 TEST(Texturing, SameOutputWithOneAndTwoThreads) {
@@ -196,7 +206,8 @@ TEST(Texturing, SameOutputWithOneAndTwoThreads) {
   const TexturingResult b = TextureMesh(mesh, frames, o);
   SetThreadCount(0);
   ASSERT_EQ(a.texture.SampleCount(), b.texture.SampleCount());
-  for (size_t s = 0; s < a.texture.SampleCount(); ++s) ASSERT_EQ(a.texture.colors()[s], b.texture.colors()[s]) << s;
+  for (size_t s = 0; s < a.texture.SampleCount(); ++s)
+    ASSERT_EQ(a.texture.colors()[s], b.texture.colors()[s]) << s;
 }
 
 TEST(Texturing, BadInputsAreClearErrors) {
@@ -204,16 +215,20 @@ TEST(Texturing, BadInputsAreClearErrors) {
   const TriangleMesh mesh = scene.ToMesh();
   std::vector<RgbdFrame> frames = WallViews(scene, 3);
   const TexturingOptions o = TestOptions();
-  EXPECT_CONTAINS(ErrorOf([&] { TextureMesh(TriangleMesh(), frames, o); }), "the mesh has no faces");
+  EXPECT_CONTAINS(ErrorOf([&] { TextureMesh(TriangleMesh(), frames, o); }),
+                  "the mesh has no faces");
   EXPECT_CONTAINS(ErrorOf([&] { TextureMesh(mesh, {}, o); }), "no keyframes");
   std::vector<RgbdFrame> unposed = frames;
   unposed[1].world_from_camera.reset();
   unposed[1].color_path = "kf/1.png";
-  EXPECT_CONTAINS(ErrorOf([&] { TextureMesh(mesh, unposed, o); }), "keyframe 1 (kf/1.png) has no camera pose");
+  EXPECT_CONTAINS(ErrorOf([&] { TextureMesh(mesh, unposed, o); }),
+                  "keyframe 1 (kf/1.png) has no camera pose");
   // Keyframes that look away from the mesh: no overlap at all.
   std::vector<RgbdFrame> away = frames;
-  for (RgbdFrame& f : away) f.world_from_camera = LookAt(Eigen::Vector3d(0, -1.2, 1.1), Eigen::Vector3d(0, -5, 1.1));
-  EXPECT_CONTAINS(ErrorOf([&] { TextureMesh(mesh, away, o); }), "none of the 3 keyframes sees the mesh");
+  for (RgbdFrame& f : away)
+    f.world_from_camera = LookAt(Eigen::Vector3d(0, -1.2, 1.1), Eigen::Vector3d(0, -5, 1.1));
+  EXPECT_CONTAINS(ErrorOf([&] { TextureMesh(mesh, away, o); }),
+                  "none of the 3 keyframes sees the mesh");
   TexturingOptions bad = o;
   bad.max_resolution = 48;
   EXPECT_CONTAINS(ErrorOf([&] { TextureMesh(mesh, frames, bad); }), "max_resolution = 48");
@@ -230,7 +245,8 @@ TEST(Texturing, NonManifoldEdgesAndIsolatedVerticesAreHandled) {
   mesh.vertices.push_back(Eigen::Vector3f(5.0f, 5.0f, 5.0f));
   int front = -1;
   for (size_t f = 0; f < mesh.faces.size(); ++f) {
-    if (mesh.FaceNormalScaled(f).normalized().y() < -0.99f && mesh.vertices[mesh.faces[f][0]].y() < 1.01f) {
+    if (mesh.FaceNormalScaled(f).normalized().y() < -0.99f &&
+        mesh.vertices[mesh.faces[f][0]].y() < 1.01f) {
       front = static_cast<int>(f);
       break;
     }

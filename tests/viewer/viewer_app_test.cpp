@@ -2,10 +2,9 @@
 // (issue 10 acceptance 1, 2), and the messages for missing pieces and a missing display (4).
 #include <gtest/gtest.h>
 
-#include <random>
-
 #include <cmath>
 #include <memory>
+#include <random>
 
 #include "core/color.h"
 #include "core/image_io.h"
@@ -91,7 +90,8 @@ TEST(ViewerApp, CornellBoxScreenshotShowsRedLeftGreenRight) {
   WriteMeshColors(ws / "texture.mcol", observed);
 
   const std::string camera = PoseText(LookAt({0.0, -3.0, 1.0}, {0.0, 0.0, 1.0}));
-  const std::string common = ws.path().string() + " --size 160x120 --cull-back-faces --camera \"" + camera + "\"";
+  const std::string common =
+      ws.path().string() + " --size 160x120 --cull-back-faces --camera \"" + camera + "\"";
   for (const char* mode : {"albedo", "color", "shading", "clusters"}) {
     const fs::path png = ws / (std::string(mode) + ".png");
     const auto r = RunViewer(common + " --mode " + mode + " --screenshot " + png.string());
@@ -129,7 +129,8 @@ TEST(ViewerApp, LightGlyphsAppearWhereTheLightsAre) {
   test::TempDir ws;
   WritePly(ws / "mesh.ply", MakeCornellScene().ToMesh(1));
   const std::string camera = PoseText(LookAt({0.0, -3.0, 1.0}, {0.0, 0.0, 1.0}));
-  const std::string common = ws.path().string() + " --size 160x120 --cull-back-faces --camera \"" + camera + "\"";
+  const std::string common =
+      ws.path().string() + " --size 160x120 --cull-back-faces --camera \"" + camera + "\"";
   const auto before = RunViewer(common + " --screenshot " + (ws / "before.png").string());
   ASSERT_EQ(before.exit_code, 0) << before.output;
   EXPECT_CONTAINS(before.output, "lights.json: missing");
@@ -164,15 +165,16 @@ TEST(ViewerApp, LightGlyphsAppearWhereTheLightsAre) {
 // the unit square (R = 8 on both triangles of the quad), 0.1 / 0.9.
 class LookupField : public render::AlbedoField {
  public:
-  LookupField(std::shared_ptr<const MeshColors> colors, bool baked) : colors_(std::move(colors)), baked_(baked) {}
+  LookupField(std::shared_ptr<const MeshColors> colors, bool baked)
+      : colors_(std::move(colors)), baked_(baked) {}
   // Nearest = what the viewer must show; baked = the three vertex samples interpolated, i.e. what
   // vertex colours would show.
   Eigen::Vector3f Eval(int face, float b1, float b2) const override {
     if (!baked_) return colors_->Nearest(face, b1, b2);
     const int r = colors_->FaceResolution(face);
     const auto& c = colors_->colors();
-    return (1.0f - b1 - b2) * c[colors_->SampleIndex(face, 0, 0)] + b1 * c[colors_->SampleIndex(face, r, 0)] +
-           b2 * c[colors_->SampleIndex(face, 0, r)];
+    return (1.0f - b1 - b2) * c[colors_->SampleIndex(face, 0, 0)] +
+           b1 * c[colors_->SampleIndex(face, r, 0)] + b2 * c[colors_->SampleIndex(face, 0, r)];
   }
 
  private:
@@ -207,10 +209,12 @@ TEST(ViewerApp, MeshColorsCheckerboardIsSharpAndMatchesPathTracer) {
   view.intrinsics.cx = view.intrinsics.cy = 47.5;
   view.world_from_camera = LookAt({0.5, 0.45, 1.2}, {0.5, 0.5, 0.0});
   test::WriteFile(ws / "keyframes" / "intrinsics.txt", view.intrinsics.ToString() + "\n");
-  test::WriteFile(ws / "keyframes" / "groundtruth.txt", "0 " + PoseText(view.world_from_camera) + "\n");
+  test::WriteFile(ws / "keyframes" / "groundtruth.txt",
+                  "0 " + PoseText(view.world_from_camera) + "\n");
   const fs::path png = ws / "checker.png";
-  const auto r = RunViewer(ws.path().string() + " --mode albedo --camera keyframe:0 --size 96x96 --no-overlay --screenshot " +
-                           png.string());
+  const auto r = RunViewer(
+      ws.path().string() +
+      " --mode albedo --camera keyframe:0 --size 96x96 --no-overlay --screenshot " + png.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const ImageRgb shot = ReadColorImage(png, CameraResponse());
 
@@ -232,7 +236,8 @@ TEST(ViewerApp, MeshColorsCheckerboardIsSharpAndMatchesPathTracer) {
   field.kind = baked.kind = render::SurfaceAlbedo::Kind::kField;
   field.field = std::make_shared<LookupField>(colors, false);
   baked.field = std::make_shared<LookupField>(colors, true);
-  const render::RenderOutput white = render(render::SurfaceAlbedo::Constant(Eigen::Vector3f::Ones()));
+  const render::RenderOutput white =
+      render(render::SurfaceAlbedo::Constant(Eigen::Vector3f::Ones()));
   const render::RenderOutput sharp = render(field), smeared = render(baked);
 
   // Mean |difference| over the pattern's pixels, as a fraction of the pattern's contrast (0.8).
@@ -252,8 +257,9 @@ TEST(ViewerApp, MeshColorsCheckerboardIsSharpAndMatchesPathTracer) {
   ASSERT_GT(n, 96 * 96 / 2);  // the quad fills most of the view
   diff_sharp /= n;
   diff_baked /= n;
-  std::printf("checkerboard R=8: mean |viewer - path traced| = %.2f %%, vertex colours: %.2f %% (%d px)\n",
-              100 * diff_sharp, 100 * diff_baked, n);
+  std::printf(
+      "checkerboard R=8: mean |viewer - path traced| = %.2f %%, vertex colours: %.2f %% (%d px)\n",
+      100 * diff_sharp, 100 * diff_baked, n);
   EXPECT_LE(diff_sharp, 0.05);
   EXPECT_GT(diff_baked, 0.05);
 }
@@ -266,7 +272,9 @@ TEST(ViewerApp, MeshColorsCheckerboardIsSharpAndMatchesPathTracer) {
 class LinearField : public render::AlbedoField {
  public:
   explicit LinearField(std::shared_ptr<const MeshColors> colors) : colors_(std::move(colors)) {}
-  Eigen::Vector3f Eval(int face, float b1, float b2) const override { return colors_->Linear(face, b1, b2); }
+  Eigen::Vector3f Eval(int face, float b1, float b2) const override {
+    return colors_->Linear(face, b1, b2);
+  }
 
  private:
   std::shared_ptr<const MeshColors> colors_;
@@ -283,17 +291,21 @@ TEST(ViewerApp, LinearMeshColorsLookupMatchesTheCpuAtEveryResolution) {
   view.world_from_camera = LookAt({0.5, 0.45, 1.2}, {0.5, 0.5, 0.0});
   std::mt19937 rng(17);
   std::uniform_real_distribution<float> unit(0.1f, 0.9f);
-  for (const std::vector<int>& resolutions : std::vector<std::vector<int>>{{1, 1}, {4, 2}, {64, 64}}) {
+  for (const std::vector<int>& resolutions :
+       std::vector<std::vector<int>>{{1, 1}, {4, 2}, {64, 64}}) {
     test::TempDir ws;
     WritePly(ws / "mesh.ply", quad);
     auto colors = std::make_shared<MeshColors>(quad, resolutions);
     for (auto& c : colors->colors()) c = {unit(rng), unit(rng), unit(rng)};
     WriteMeshColors(ws / "albedo.mcol", *colors);
     test::WriteFile(ws / "keyframes" / "intrinsics.txt", view.intrinsics.ToString() + "\n");
-    test::WriteFile(ws / "keyframes" / "groundtruth.txt", "0 " + PoseText(view.world_from_camera) + "\n");
+    test::WriteFile(ws / "keyframes" / "groundtruth.txt",
+                    "0 " + PoseText(view.world_from_camera) + "\n");
     const fs::path png = ws / "linear.png";
-    const auto r = RunViewer(ws.path().string() + " --mode albedo --lookup linear --camera keyframe:0 --size 96x96 "
-                             "--no-overlay --screenshot " + png.string());
+    const auto r = RunViewer(ws.path().string() +
+                             " --mode albedo --lookup linear --camera keyframe:0 --size 96x96 "
+                             "--no-overlay --screenshot " +
+                             png.string());
     ASSERT_EQ(r.exit_code, 0) << r.output;
     const ImageRgb shot = ReadColorImage(png, CameraResponse());
 
@@ -307,13 +319,15 @@ TEST(ViewerApp, LinearMeshColorsLookupMatchesTheCpuAtEveryResolution) {
       m.mesh = quad;
       m.albedo = std::move(albedo);
       scene.meshes.push_back(m);
-      scene.point_lights.push_back({Eigen::Vector3d(0.5, 0.5, 1.5), Eigen::Vector3f::Constant(5.0f)});
+      scene.point_lights.push_back(
+          {Eigen::Vector3d(0.5, 0.5, 1.5), Eigen::Vector3f::Constant(5.0f)});
       return render::PathTracer(scene).Render(view, options, 7);
     };
     render::SurfaceAlbedo field;
     field.kind = render::SurfaceAlbedo::Kind::kField;
     field.field = std::make_shared<LinearField>(colors);
-    const render::RenderOutput white = render(render::SurfaceAlbedo::Constant(Eigen::Vector3f::Ones()));
+    const render::RenderOutput white =
+        render(render::SurfaceAlbedo::Constant(Eigen::Vector3f::Ones()));
     const render::RenderOutput linear = render(field);
     double diff = 0.0;
     int n = 0, far = 0;
@@ -328,8 +342,9 @@ TEST(ViewerApp, LinearMeshColorsLookupMatchesTheCpuAtEveryResolution) {
       }
     }
     ASSERT_GT(n, 96 * 96 / 2);
-    std::printf("R = %d / %d: mean |viewer - CPU lookup| %.4f, %d of %d pixels off by more than 0.1\n", resolutions[0],
-                resolutions[1], diff / n, far, n);
+    std::printf(
+        "R = %d / %d: mean |viewer - CPU lookup| %.4f, %d of %d pixels off by more than 0.1\n",
+        resolutions[0], resolutions[1], diff / n, far, n);
     EXPECT_LE(diff / n, 0.02) << "R = " << resolutions[0];
     EXPECT_LE(far, n / 200) << "R = " << resolutions[0];
   }
@@ -356,11 +371,13 @@ TEST(ViewerApp, MissingPiecesAndNoDisplayAreReportedClearly) {
   test::WriteFile(ws / "albedo.mcol", "not a mesh colors file");
   const fs::path png = ws / "mesh_only.png";
   r = RunViewer(ws.path().string() + " --mode albedo --size 64x48 --camera \"" +
-                PoseText(LookAt({0.5, 0.45, 1.5}, {0.5, 0.5, 0.0})) + "\" --screenshot " + png.string());
+                PoseText(LookAt({0.5, 0.45, 1.5}, {0.5, 0.5, 0.0})) + "\" --screenshot " +
+                png.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  for (const char* line : {"texture.mcol: missing (run genscene-texture)", "albedo.mcol: not shown:",
-                           "trajectory.txt: missing (run genscene-fuse)", "keyframes: missing",
-                           "lights.json: missing", "--mode albedo needs", "genscene-view: geometry, 64x48"}) {
+  for (const char* line : {"texture.mcol: missing (run genscene-texture)",
+                           "albedo.mcol: not shown:", "trajectory.txt: missing (run genscene-fuse)",
+                           "keyframes: missing", "lights.json: missing", "--mode albedo needs",
+                           "genscene-view: geometry, 64x48"}) {
     EXPECT_CONTAINS(r.output, line);
   }
   const ImageRgb image = ReadColorImage(png, CameraResponse());
@@ -369,7 +386,8 @@ TEST(ViewerApp, MissingPiecesAndNoDisplayAreReportedClearly) {
 
   // --refined shows mesh_refined.ply's vertices (the quad moved 0.6 m right: the middle is empty);
   // without one it is a clear error.
-  const std::string camera = " --size 64x48 --camera \"" + PoseText(LookAt({0.5, 0.45, 1.5}, {0.5, 0.5, 0.0})) + "\"";
+  const std::string camera =
+      " --size 64x48 --camera \"" + PoseText(LookAt({0.5, 0.45, 1.5}, {0.5, 0.5, 0.0})) + "\"";
   r = RunViewer(ws.path().string() + " --refined" + camera + " --screenshot " + png.string());
   EXPECT_NE(r.exit_code, 0);
   EXPECT_CONTAINS(r.output, "--refined: no mesh_refined.ply to show");
@@ -390,7 +408,8 @@ TEST(ViewerApp, MissingPiecesAndNoDisplayAreReportedClearly) {
 
   // No display, with and without --screenshot: one line, non-zero exit.
   for (const std::string extra : {"", " --screenshot x.png"}) {
-    r = RunCommand("env -u DISPLAY -u WAYLAND_DISPLAY " + AppPath("genscene-view") + " " + ws.path().string() + extra);
+    r = RunCommand("env -u DISPLAY -u WAYLAND_DISPLAY " + AppPath("genscene-view") + " " +
+                   ws.path().string() + extra);
     EXPECT_NE(r.exit_code, 0) << r.output;
     EXPECT_CONTAINS(r.output, "genscene-view: error: no display");
     EXPECT_CONTAINS(r.output, "xvfb-run -a genscene-view");

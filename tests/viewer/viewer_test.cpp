@@ -93,8 +93,11 @@ TEST(ViewCamera, ParsesCameraNamesAndRejectsOthers) {
   const CameraSpec pose = ParseCameraSpec("1 2 3 0 0 0.7071068 0.7071068");
   EXPECT_EQ(pose.kind, CameraSpec::Kind::kPose);
   EXPECT_LT((pose.world_from_camera.translation() - Eigen::Vector3d(1, 2, 3)).norm(), 1e-12);
-  EXPECT_LT((pose.world_from_camera.linear() * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitY()).norm(), 1e-6);
-  for (const char* bad : {"", "keyframe:", "keyframe:-1", "keyframe:2x", "1 2 3 0 0 0", "1 2 3 0 0 0 1 9", "top"}) {
+  EXPECT_LT((pose.world_from_camera.linear() * Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitY())
+                .norm(),
+            1e-6);
+  for (const char* bad :
+       {"", "keyframe:", "keyframe:-1", "keyframe:2x", "1 2 3 0 0 0", "1 2 3 0 0 0 1 9", "top"}) {
     EXPECT_CONTAINS(test::ErrorOf([&] { ParseCameraSpec(bad); }), "is not 'overview'") << bad;
   }
   EXPECT_EQ(ParseSize("320x240"), Eigen::Vector2i(320, 240));
@@ -127,7 +130,7 @@ TEST(LightGlyphs, SizeAndSpokesFollowPowerAndWeights) {
     return r;
   };
   EXPECT_NEAR(extent(1) / extent(0), 2.0, 1e-5);  // 8x the power, 2x the radius
-  EXPECT_FLOAT_EQ(overlay.triangles[3], 1.0f);     // colour = power / max channel
+  EXPECT_FLOAT_EQ(overlay.triangles[3], 1.0f);    // colour = power / max channel
   EXPECT_FLOAT_EQ(overlay.triangles[4], 0.5f);
   // Spokes of the dim light: +x as long as 3 radii, -z half of that.
   const float* s = overlay.lines.data();
