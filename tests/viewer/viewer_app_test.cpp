@@ -161,6 +161,40 @@ TEST(ViewerApp, LightGlyphsAppearWhereTheLightsAre) {
   EXPECT_LT(sv / changed, 50.0);
 }
 
+// A camera 1.2 m above the unit quad, looking down at it (96 x 96 pixels), written as the
+// workspace's keyframe 0; and the quad path-traced from it under a point light above, with
+// pixel-centre rays: that radiance over the radiance with albedo 1 is the albedo image (exact: a
+// delta light, one sample per pixel).
+PosedView QuadView() {
+  PosedView view;
+  view.intrinsics.width = view.intrinsics.height = 96;
+  view.intrinsics.fx = view.intrinsics.fy = 110.0;
+  view.intrinsics.cx = view.intrinsics.cy = 47.5;
+  view.world_from_camera = LookAt({0.5, 0.45, 1.2}, {0.5, 0.5, 0.0});
+  return view;
+}
+
+void WriteKeyframeCamera(const test::TempDir& ws, const PosedView& view) {
+  test::WriteFile(ws / "keyframes" / "intrinsics.txt", view.intrinsics.ToString() + "\n");
+  test::WriteFile(ws / "keyframes" / "groundtruth.txt",
+                  "0 " + PoseText(view.world_from_camera) + "\n");
+}
+
+render::RenderOutput RenderQuad(const TriangleMesh& quad, const PosedView& view,
+                                render::SurfaceAlbedo albedo) {
+  render::RenderOptions options;
+  options.spp = 1;
+  options.filter = "center";
+  options.max_depth = 2;
+  render::Scene scene;
+  render::SceneMesh m;
+  m.mesh = quad;
+  m.albedo = std::move(albedo);
+  scene.meshes.push_back(m);
+  scene.point_lights.push_back({Eigen::Vector3d(0.5, 0.5, 1.5), Eigen::Vector3f::Constant(5.0f)});
+  return render::PathTracer(scene).Render(view, options, 7);
+}
+
 // Albedo at the lattice point (i, j) of a face: a checkerboard of the samples on the 9 x 9 grid of
 // the unit square (R = 8 on both triangles of the quad), 0.1 / 0.9.
 class LookupField : public render::AlbedoField {
@@ -202,15 +236,8 @@ TEST(ViewerApp, MeshColorsCheckerboardIsSharpAndMatchesPathTracer) {
   WriteMeshColors(ws / "albedo.mcol", *colors);
 
   // The camera: keyframe 0 of the workspace, looking down at the quad.
-  PosedView view;
-  view.intrinsics.width = 96;
-  view.intrinsics.height = 96;
-  view.intrinsics.fx = view.intrinsics.fy = 110.0;
-  view.intrinsics.cx = view.intrinsics.cy = 47.5;
-  view.world_from_camera = LookAt({0.5, 0.45, 1.2}, {0.5, 0.5, 0.0});
-  test::WriteFile(ws / "keyframes" / "intrinsics.txt", view.intrinsics.ToString() + "\n");
-  test::WriteFile(ws / "keyframes" / "groundtruth.txt",
-                  "0 " + PoseText(view.world_from_camera) + "\n");
+  const PosedView view = QuadView();
+  WriteKeyframeCamera(ws, view);
   const fs::path png = ws / "checker.png";
   const auto r = RunViewer(
       ws.path().string() +
@@ -219,19 +246,7 @@ TEST(ViewerApp, MeshColorsCheckerboardIsSharpAndMatchesPathTracer) {
   const ImageRgb shot = ReadColorImage(png, CameraResponse());
 
   // Path-traced albedo images: field / constant 1, same view, pixel-centre rays.
-  render::RenderOptions options;
-  options.spp = 1;
-  options.filter = "center";
-  options.max_depth = 2;
-  auto render = [&](render::SurfaceAlbedo albedo) {
-    render::Scene scene;
-    render::SceneMesh m;
-    m.mesh = quad;
-    m.albedo = std::move(albedo);
-    scene.meshes.push_back(m);
-    scene.point_lights.push_back({Eigen::Vector3d(0.5, 0.5, 1.5), Eigen::Vector3f::Constant(5.0f)});
-    return render::PathTracer(scene).Render(view, options, 7);
-  };
+  const auto render = [&](render::SurfaceAlbedo albedo) { return RenderQuad(quad, view, albedo); };
   render::SurfaceAlbedo field, baked;
   field.kind = baked.kind = render::SurfaceAlbedo::Kind::kField;
   field.field = std::make_shared<LookupField>(colors, false);
@@ -284,11 +299,7 @@ TEST(ViewerApp, LinearMeshColorsLookupMatchesTheCpuAtEveryResolution) {
   TriangleMesh quad;
   quad.vertices = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
   quad.faces = {{0, 1, 2}, {0, 2, 3}};
-  PosedView view;
-  view.intrinsics.width = view.intrinsics.height = 96;
-  view.intrinsics.fx = view.intrinsics.fy = 110.0;
-  view.intrinsics.cx = view.intrinsics.cy = 47.5;
-  view.world_from_camera = LookAt({0.5, 0.45, 1.2}, {0.5, 0.5, 0.0});
+  const PosedView view = QuadView();
   std::mt19937 rng(17);
   std::uniform_real_distribution<float> unit(0.1f, 0.9f);
   for (const std::vector<int>& resolutions :
@@ -298,9 +309,7 @@ TEST(ViewerApp, LinearMeshColorsLookupMatchesTheCpuAtEveryResolution) {
     auto colors = std::make_shared<MeshColors>(quad, resolutions);
     for (auto& c : colors->colors()) c = {unit(rng), unit(rng), unit(rng)};
     WriteMeshColors(ws / "albedo.mcol", *colors);
-    test::WriteFile(ws / "keyframes" / "intrinsics.txt", view.intrinsics.ToString() + "\n");
-    test::WriteFile(ws / "keyframes" / "groundtruth.txt",
-                    "0 " + PoseText(view.world_from_camera) + "\n");
+    WriteKeyframeCamera(ws, view);
     const fs::path png = ws / "linear.png";
     const auto r = RunViewer(ws.path().string() +
                              " --mode albedo --lookup linear --camera keyframe:0 --size 96x96 "
@@ -309,19 +318,8 @@ TEST(ViewerApp, LinearMeshColorsLookupMatchesTheCpuAtEveryResolution) {
     ASSERT_EQ(r.exit_code, 0) << r.output;
     const ImageRgb shot = ReadColorImage(png, CameraResponse());
 
-    render::RenderOptions options;
-    options.spp = 1;
-    options.filter = "center";
-    options.max_depth = 2;
-    auto render = [&](render::SurfaceAlbedo albedo) {
-      render::Scene scene;
-      render::SceneMesh m;
-      m.mesh = quad;
-      m.albedo = std::move(albedo);
-      scene.meshes.push_back(m);
-      scene.point_lights.push_back(
-          {Eigen::Vector3d(0.5, 0.5, 1.5), Eigen::Vector3f::Constant(5.0f)});
-      return render::PathTracer(scene).Render(view, options, 7);
+    const auto render = [&](render::SurfaceAlbedo albedo) {
+      return RenderQuad(quad, view, albedo);
     };
     render::SurfaceAlbedo field;
     field.kind = render::SurfaceAlbedo::Kind::kField;
