@@ -202,7 +202,7 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
              Gained(hits.albedo, r.ambient.gain, ImageRgb(a.width(), a.height()), hits.mask));
     WritePng(dir / (std::string(stem) + "_error.png"), error);
     if (truth_tracer) {
-      RenderOptions paths = lights.Paths();
+      RenderOptions paths;  // the true scene's full light transport, as the evaluation renders it
       paths.spp = truth_spp;
       const ImageRgb true_render =
           truth_tracer->Render(frame.view, paths, seed + 4000 + f).radiance;
@@ -218,6 +218,7 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
                                     {"model", ToJson(r.model)},
                                     {"texture_unlit", ToJson(r.texture)},
                                     {"albedo_ambient", ToJson(r.ambient)}};
+    entry["images"] = stem;  // holdout_NN_*.png: NN is the frame's index in holdout/
     if (r.truth) entry["against_truth"] = ToJson(*r.truth);
     list.push_back(entry);
     out.frames.push_back(r);

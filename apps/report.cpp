@@ -375,8 +375,13 @@ void HeldOut(const Workspace& ws, const fs::path& dir, std::ostream& md) {
              {"error", "model error x4"},
              {"truth", "true scene"}}) {
       if (suffix == "truth" && !truth) continue;
-      char name[48];
-      std::snprintf(name, sizeof(name), "holdout_%02zu_%s.png", k, suffix.c_str());
+      // The images are named by the frame's index in holdout/ (a frame the model is not in view
+      // of has none), older workspaces by the list's.
+      char stem[32];
+      std::snprintf(stem, sizeof(stem), "holdout_%02zu", k);
+      const std::string name =
+          (f.contains("images") ? f["images"].get<std::string>() : std::string(stem)) + "_" +
+          suffix + ".png";
       row.push_back({label, CopyImage(ws.EvaluationDir() / name, dir, name)});
     }
     md << ImageRow(row);

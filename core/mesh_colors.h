@@ -118,17 +118,16 @@ class MeshColors {
   uint64_t fingerprint_ = 0;
 };
 
-// The sub-triangle of a resolution-R lattice that holds barycentric point (b1, b2), its three
-// lattice points (i[k], j[k]) and barycentric weights w (each in [0, 1], summing to 1 up to
-// rounding). Any input is accepted: NaN and negative coordinates count as 0, coordinates above 1
-// as 1, and a point past the hypotenuse is projected back along the ray from the first vertex, so
-// the lattice points always satisfy 0 <= i, j and i + j <= R. viewer/shaders.h repeats it in GLSL.
 // Barycentrics (b1, b2) moved into the triangle: NaN and negatives to 0, each at most 1, a sum
 // above 1 scaled back onto the long edge (along the ray from the first vertex). Every lookup by
 // barycentrics (Mesh Colors, per-vertex albedo) does this first: a ray hit on an edge, or a few
 // ulps past it, reads the face's own values.
 void ClampToFace(float* b1, float* b2);
 
+// The sub-triangle of a resolution-R lattice that holds barycentric point (b1, b2), its three
+// lattice points (i[k], j[k]) and barycentric weights w (each in [0, 1], summing to 1 up to
+// rounding). Any input is accepted (ClampToFace first), so the lattice points always satisfy
+// 0 <= i, j and i + j <= R. viewer/shaders.h repeats it in GLSL.
 struct LatticeCell {
   int i[3], j[3];
   float w[3];

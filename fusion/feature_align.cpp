@@ -1,10 +1,13 @@
 #include "fusion/feature_align.h"
 
+#include <algorithm>
+#include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/features2d.hpp>
 #include <vector>
 
+#include "core/check.h"
 #include "core/color.h"
 #include "core/options.h"
 
@@ -18,7 +21,8 @@ cv::Mat GrayImage(const ImageRgb& color) {
   for (int v = 0; v < color.height(); ++v) {
     auto* row = gray.ptr<unsigned char>(v);
     for (int u = 0; u < color.width(); ++u) {
-      const float y = LinearToSrgb(std::clamp(Luminance(color(u, v)), 0.0f, 1.0f));
+      const float l = Luminance(color(u, v));
+      const float y = std::isfinite(l) ? LinearToSrgb(std::clamp(l, 0.0f, 1.0f)) : 0.0f;
       row[u] = static_cast<unsigned char>(std::lround(255.0f * y));
     }
   }
@@ -63,9 +67,10 @@ float DepthAt(const ImageDepth& depth, const cv::Point2f& p) {
 
 void FeatureAlignOptions::Validate() const {
   RequireRange("feature_max", max_features, 50, 100000);
-  RequireRange("feature_ratio", ratio, 0.1, 1.0);
   RequireRange("feature_min_inliers", min_inliers, 6, 100000);
-  RequireRange("feature_reprojection_error", reprojection_error, 0.1, 100.0);
+  // Not options a user sets (fixed in the struct).
+  GS_CHECK(ratio > 0.0 && ratio <= 1.0);
+  GS_CHECK(reprojection_error > 0.0);
 }
 
 std::optional<Eigen::Isometry3d> AlignByFeatures(
@@ -93,7 +98,7 @@ std::optional<Eigen::Isometry3d> AlignByFeatures(
   for (const cv::DMatch& m : MutualRatioMatches(ref_descriptors, live_descriptors, options.ratio)) {
     const cv::Point2f p = ref_points[static_cast<size_t>(m.queryIdx)].pt;
     const float z = DepthAt(reference_depth, p);
-    if (!(z > 0.0f)) continue;
+    if (!(z > 0.0f) || !std::isfinite(z)) continue;
     const Eigen::Vector3d x = k.Unproject(p.x, p.y, z);
     object.emplace_back(static_cast<float>(x.x()), static_cast<float>(x.y()),
                         static_cast<float>(x.z()));

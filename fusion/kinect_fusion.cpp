@@ -176,13 +176,10 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     std::optional<Eigen::Isometry3d> feature_pose;
     if ((!report.reason.empty() || icp.degenerate) && options_.feature_tracking) {
       start = std::chrono::steady_clock::now();
-      feature_pose = TrackFromFeatures(pyramid, frame, &report);
+      std::string why;
+      feature_pose = TrackFromFeatures(pyramid, frame, &report, &why);
       report.seconds_track += SecondsSince(start);
-      if (!feature_pose && !report.reason.empty()) {
-        report.reason +=
-            Format("; features: ", report.features.inliers, " of ", report.features.matches,
-                   " matches agree (", options_.features.min_inliers, " needed)");
-      }
+      if (!feature_pose && !report.reason.empty()) report.reason += "; features: " + why;
     }
     if (!report.reason.empty() && !feature_pose) {
       report.status = FrameStatus::kLost;
@@ -201,6 +198,10 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
       report.reason = Format("only ", icp.constrained_directions,
                              " of 6 pose directions constrained (condition ", icp.condition, ")");
       report.world_from_camera = pose;
+      // The next frame tracks from this pose: against the model as seen from here.
+      start = std::chrono::steady_clock::now();
+      model_ = RaycastModel(pose);
+      report.seconds_raycast = SecondsSince(start);
       last_good_ = pose;
       held_out_pose_.reset();
       trajectory_.Add(frame.timestamp, pose);
@@ -251,12 +252,24 @@ RaycastResult KinectFusion::RaycastModel(const Eigen::Isometry3d& pose) const {
 }
 
 std::optional<Eigen::Isometry3d> KinectFusion::TrackFromFeatures(
-    const std::vector<PyramidLevel>& pyramid, const RgbdFrame& frame, FrameReport* report) const {
-  if (frame.color.empty() || !last_fused_.world_from_camera) return std::nullopt;
+    const std::vector<PyramidLevel>& pyramid, const RgbdFrame& frame, FrameReport* report,
+    std::string* why) const {
+  if (frame.color.empty()) {
+    *why = "the frame has no colour";
+    return std::nullopt;
+  }
+  if (!last_fused_.world_from_camera) {
+    *why = "no fused frame with colour to match against";
+    return std::nullopt;
+  }
   const auto reference_from_live =
       AlignByFeatures(last_fused_.color, last_fused_.depth, frame.color, intrinsics_,
                       options_.features, &report->features);
-  if (!reference_from_live) return std::nullopt;
+  if (!reference_from_live) {
+    *why = Format(report->features.inliers, " of ", report->features.matches,
+                  " matches agree with one pose (", options_.features.min_inliers, " needed)");
+    return std::nullopt;
+  }
   const Eigen::Isometry3d start = *last_fused_.world_from_camera * *reference_from_live;
   // ICP against the model as seen from the features' pose: it must converge (the residual test)
   // on enough of the frame and stay near that pose (the two agree), else the frame stays lost.
@@ -268,9 +281,14 @@ std::optional<Eigen::Isometry3d> KinectFusion::TrackFromFeatures(
       TrackFrameToModel(pyramid, RaycastModel(start), model_intrinsics_, options_.icp, &correction);
   constexpr double kMinOverlap = 0.05;
   constexpr double kMaxCorrection = 0.15, kMaxCorrectionDeg = 5.0;  // m, degrees
+  const double corrected = correction.translation().norm();
+  const double turned = RotationAngle(correction) * 180.0 / M_PI;
   if (icp.inlier_ratio < kMinOverlap || icp.rms_residual > options_.icp.max_rms_residual ||
-      correction.translation().norm() > kMaxCorrection ||
-      RotationAngle(correction) * 180.0 / M_PI > kMaxCorrectionDeg) {
+      corrected > kMaxCorrection || turned > kMaxCorrectionDeg) {
+    *why =
+        Format(report->features.inliers, " of ", report->features.matches,
+               " matches agree, but ICP from that pose does not (overlap ", icp.inlier_ratio,
+               ", RMS ", icp.rms_residual, " m, correction ", corrected, " m / ", turned, " deg)");
     return std::nullopt;
   }
   report->icp = icp;

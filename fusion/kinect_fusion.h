@@ -201,10 +201,10 @@ class KinectFusion {
   // The model raycast at `pose` for tracking.
   RaycastResult RaycastModel(const Eigen::Isometry3d& pose) const;
   // Step 3b: the pose of a frame ICP lost, from features against the last fused frame refined by
-  // ICP, when both agree; `report` gets the feature and ICP figures.
+  // ICP, when both agree; `report` gets the feature and ICP figures, `why` the reason when not.
   std::optional<Eigen::Isometry3d> TrackFromFeatures(const std::vector<PyramidLevel>& pyramid,
-                                                     const RgbdFrame& frame,
-                                                     FrameReport* report) const;
+                                                     const RgbdFrame& frame, FrameReport* report,
+                                                     std::string* why) const;
 
   FusionOptions options_;
   CameraIntrinsics intrinsics_;

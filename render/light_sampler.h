@@ -1,5 +1,5 @@
 // Light selection for next-event estimation, shared by the path tracer and the differentiable
-// path tracer of vertex refinement (internal to inverse/).
+// path tracer of vertex refinement (internal to render/).
 #pragma once
 
 #include <algorithm>

@@ -1205,8 +1205,9 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
     paths.spp = spp;
     last = LightCache();  // the previous caches are not needed while tracing
     *second = LightCache();
-    std::tie(last, *second) = TraceLightCacheHalves(tracer, lights, splitting, views, traced_pixels,
-                                                    paths, key, ~key, cap_bytes - equation_bytes);
+    std::tie(last, *second) =
+        TraceLightCacheHalves(tracer, lights, splitting, views, traced_pixels, paths, key, ~key,
+                              std::max(1.0, cap_bytes - equation_bytes));
     r->trace_seconds = SecondsSince(t);
     r->nonzeros = last.NonZeros() + second->NonZeros();
     r->rays = last.rays.total() + second->rays.total();
