@@ -417,16 +417,17 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
         "evaluate", outputs, inputs,
         Hash(OptionsText(options.evaluate), OptionsText(options.lights), seed), [&] {
           std::string result;
+          // The true scene, loaded once for both judges.
+          std::optional<render::Scene> truth;
+          if (synthetic) truth = render::LoadScene(fs::path(input) / "scene.json").scene;
           if (synthetic) {
             const DemoEvaluation e =
-                EvaluateAgainstTruth(ws, input, options.lights, options.evaluate, seed);
+                EvaluateAgainstTruth(ws, input, *truth, options.lights, options.evaluate, seed);
             result = Format(e.views.size(), " novel views against the ground truth: relative RMSE ",
                             e.relative_rmse, " (noise taken out, ", options.evaluate.block, "x",
                             options.evaluate.block, " pixel tiles) (", judged.string(), ")");
           }
           if (held_out) {
-            std::optional<render::Scene> truth;
-            if (synthetic) truth = render::LoadScene(fs::path(input) / "scene.json").scene;
             const HeldOutEvaluation h =
                 EvaluateHeldOut(ws, options.lights, options.evaluate.model_spp, seed,
                                 truth ? &*truth : nullptr, options.evaluate.truth_spp);
@@ -466,6 +467,7 @@ void EvaluationOptions::Validate() const {
 }
 
 DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
+                                    const render::Scene& truth,
                                     const inverse::LightEstimationOptions& lights,
                                     const EvaluationOptions& eval, uint64_t seed) {
   const int views = eval.views, truth_spp = eval.truth_spp, model_spp = eval.model_spp;
@@ -473,7 +475,6 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
   using namespace render;
   const fs::path dir = ws.EvaluationDir();
   fs::create_directories(dir);
-  const Scene truth = LoadScene(input / "scene.json").scene;
   const std::vector<TrainingView> all = ReadViews(input);
   if (all.empty()) throw Error(Format(input.string(), ": no frames to take novel views from"));
 

@@ -102,14 +102,16 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
               std::vector<StageRow>& rows, const std::string& until = "");
 
 // The demo's judge: novel views between the keyframes rendered from the synthetic ground truth
-// (input/scene.json, `truth_spp`) and from the model (refined mesh, albedo, voxel lights,
-// `model_spp`); relative RMSE with the Monte Carlo noise of both renders taken out (CompareRender).
-// Writes WS/evaluation/: novel_NN_truth.png, novel_NN_model.png, evaluation.json.
+// (`truth`, the scene of input/scene.json, at `truth_spp`) and from the model (refined mesh,
+// albedo, voxel lights, `model_spp`); relative RMSE with the Monte Carlo noise of both renders
+// taken out (CompareRender). Writes WS/evaluation/: novel_NN_truth.png, novel_NN_model.png,
+// evaluation.json.
 struct DemoEvaluation {
   std::vector<inverse::ViewError> views;
   double relative_rmse = 0.0;  // mean over the views, noise taken out
 };
 DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const std::filesystem::path& input,
+                                    const render::Scene& truth,
                                     const inverse::LightEstimationOptions& lights,
                                     const EvaluationOptions& options, uint64_t seed);
 
