@@ -58,7 +58,7 @@ ChainOptions RunChainOptions() {
   o.meshing.min_component_triangles = 200;
   o.meshing.decimate_max_error = 0.002;
   o.refine.iterations = 3;
-  o.refine.spp = 16;
+  o.refine.paths.spp = 16;
   o.refine.pixels_per_view = 3000;
   return o;
 }
@@ -75,7 +75,7 @@ ChainOptions DemoChainOptions() {
   o.lights.refine_levels = 0;
   o.lights.rounds = 3;  // the demo's figures (README) were measured with three resampling rounds
   o.refine.iterations = 3;
-  o.refine.spp = 8;
+  o.refine.paths.spp = 8;
   o.refine.pixels_per_view = 1000;
   return o;
 }
@@ -298,8 +298,8 @@ std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings)
   WriteTumTrajectory(dir / "trajectory.txt", ReadTumTrajectory(ws.Trajectory()));
 
   const render::Scene scene = LoadModel(ws, mesh_path, warnings);
-  std::vector<render::View> views;  // the keyframe cameras as sensors
-  for (const render::TrainingView& v : render::ReadViews(ws.Keyframes())) views.push_back(v.view);
+  std::vector<PosedView> views;  // the keyframe cameras as sensors
+  for (const PosedImage& v : ReadPosedImages(ws.Keyframes())) views.push_back(v.view);
   try {
     for (std::string& w : render::ExportMitsubaXml(dir / "model.xml", scene, views))
       warnings->push_back(std::move(w));
@@ -475,7 +475,7 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
   using namespace render;
   const fs::path dir = ws.EvaluationDir();
   fs::create_directories(dir);
-  const std::vector<TrainingView> all = ReadViews(input);
+  const std::vector<PosedImage> all = ReadPosedImages(input);
   if (all.empty()) throw Error(Format(input.string(), ": no frames to take novel views from"));
 
   std::vector<std::string> warnings;
@@ -487,7 +487,7 @@ DemoEvaluation EvaluateAgainstTruth(const Workspace& ws, const fs::path& input,
   for (int k = 0; k < views; ++k) {
     // Frames between the keyframes (every 5th frame from the first is a keyframe in the demo).
     const size_t index = std::min(all.size() - 1, (2 * k + 1) * all.size() / (2 * views));
-    TrainingView reference{all[index].view, {}};
+    PosedImage reference{all[index].view, {}};
     RenderOptions paths;
     paths.spp = truth_spp;
     const RenderHalves truth_render =

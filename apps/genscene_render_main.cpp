@@ -29,8 +29,8 @@ std::string StampName(double timestamp) {
 }
 
 // The views to render: a view set, one --pose with --intrinsics, or the scene's cameras.
-std::vector<View> ChooseViews(const std::string& views_dir, const std::string& pose,
-                              const std::string& intrinsics, const LoadedScene& loaded) {
+std::vector<PosedView> ChooseViews(const std::string& views_dir, const std::string& pose,
+                                   const std::string& intrinsics, const LoadedScene& loaded) {
   if (!views_dir.empty()) return ReadViewSet(views_dir);
   if (!pose.empty()) {
     if (intrinsics.empty()) throw Error("--pose needs --intrinsics FILE");
@@ -39,7 +39,7 @@ std::vector<View> ChooseViews(const std::string& views_dir, const std::string& p
     for (double& x : v) {
       if (!(in >> x)) throw Error(Format("--pose '", pose, "': expected 'tx ty tz qx qy qz qw'"));
     }
-    View view;
+    PosedView view;
     view.intrinsics = ResolveIntrinsics(intrinsics);
     view.world_from_camera = PoseFromTranslationQuaternion(
         {v[0], v[1], v[2]}, Eigen::Quaterniond(v[6], v[3], v[4], v[5]));
@@ -95,7 +95,7 @@ int main(int argc, char** argv) {
     for (const std::string& w : loaded.warnings)
       std::cerr << "genscene-render: warning: " << w << "\n";
     ApplySceneSettings(loaded.settings, cli, &options);
-    const std::vector<View> views = ChooseViews(views_dir, pose, intrinsics, loaded);
+    const std::vector<PosedView> views = ChooseViews(views_dir, pose, intrinsics, loaded);
     const PathTracer tracer(loaded.scene);
     if (!export_xml.empty()) {
       for (const std::string& w :
@@ -113,7 +113,7 @@ int main(int argc, char** argv) {
     const auto start = std::chrono::steady_clock::now();
     uint64_t rays = 0;
     for (size_t i = 0; i < views.size(); ++i) {
-      const View& view = views[i];
+      const PosedView& view = views[i];
       const RenderOutput image = tracer.Render(view, options, cli.seed() + i);
       rays += image.rays.total();
       const std::string stamp = StampName(view.timestamp);
@@ -131,7 +131,7 @@ int main(int argc, char** argv) {
     std::cerr << "\n";
     const std::filesystem::path dir(out);
     bool same_intrinsics = true;
-    for (const View& v : views)
+    for (const PosedView& v : views)
       same_intrinsics &= v.intrinsics.ToString() == views.front().intrinsics.ToString();
     if (same_intrinsics) {
       WriteIntrinsicsFile(dir / "intrinsics.txt", views.front().intrinsics);

@@ -46,7 +46,7 @@ struct FirstHits {
 };
 
 FirstHits TraceFirstHits(const PathTracer& tracer, const MeshColors& texture,
-                         const TrainingView& frame) {
+                         const PosedImage& frame) {
   const CameraIntrinsics& k = frame.view.intrinsics;
   FirstHits out{Image<uint8_t>(k.width, k.height, 0), ImageRgb(k.width, k.height),
                 ImageRgb(k.width, k.height)};
@@ -146,7 +146,7 @@ HeldOutScore ScorePrediction(const ImageRgb& prediction, const ImageRgb& referen
 
 HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOptions& lights,
                                   int spp, uint64_t seed, const Scene* truth, int truth_spp) {
-  const std::vector<TrainingView> frames = ReadViews(ws.HeldOut());
+  const std::vector<PosedImage> frames = ReadPosedImages(ws.HeldOut());
   if (frames.empty())
     throw Error(Format(ws.HeldOut().string(), ": no held-out frames to judge the model on"));
   const fs::path mesh_path = fs::exists(ws.RefinedMesh()) ? ws.RefinedMesh() : ws.Mesh();
@@ -163,9 +163,9 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
   HeldOutEvaluation out;
   nlohmann::ordered_json list = nlohmann::ordered_json::array();
   for (size_t f = 0; f < frames.size(); ++f) {
-    const TrainingView& frame = frames[f];
+    const PosedImage& frame = frames[f];
     const FirstHits hits = TraceFirstHits(tracer, texture, frame);
-    RenderOptions paths = lights.Paths();
+    RenderOptions paths = lights.paths;
     paths.spp = spp;
     const RenderHalves halves = RenderInHalves(tracer, frame.view, paths, seed + 3000 + f,
                                                (seed + 3000 + f) ^ 0xD1B54A32D192ED03ull);

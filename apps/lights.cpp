@@ -36,9 +36,10 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
   options.Validate();
   LightsSummary out;
   const Scene scene = LoadGeometry({in.scene, in.mesh, in.albedo}, ws, &out.warnings);
-  const std::vector<TrainingView> train = ReadViews(in.views.empty() ? ws.Keyframes() : in.views);
-  const std::vector<TrainingView> novel =
-      in.novel.empty() ? std::vector<TrainingView>() : ReadViews(in.novel);
+  const std::vector<PosedImage> train =
+      ReadPosedImages(in.views.empty() ? ws.Keyframes() : in.views);
+  const std::vector<PosedImage> novel =
+      in.novel.empty() ? std::vector<PosedImage>() : ReadPosedImages(in.novel);
   out.estimate = EstimateLights(scene, train, options, seed);
   for (const std::string& note : out.estimate.notes) out.warnings.push_back(note);
 
@@ -70,8 +71,8 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
                ")): the light model does not describe these images"));
   }
   try {
-    std::vector<View> views;
-    for (const TrainingView& v : train) views.push_back(v.view);
+    std::vector<PosedView> views;
+    for (const PosedImage& v : train) views.push_back(v.view);
     for (std::string& w : ExportMitsubaXml(dir / "scene.xml", lit, views))
       out.warnings.push_back(std::move(w));
   } catch (const Error& e) {

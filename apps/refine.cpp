@@ -89,7 +89,8 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
             ? Format(ws.Lights().string(), ": no lights (run genscene-lights, or give --lights)")
             : Format(in.geometry.scene.string(), ": the scene has no lights (give --lights)"));
   }
-  const std::vector<TrainingView> targets = ReadViews(in.views.empty() ? ws.Keyframes() : in.views);
+  const std::vector<PosedImage> targets =
+      ReadPosedImages(in.views.empty() ? ws.Keyframes() : in.views);
   const std::vector<bool> refined = ChooseMeshes(scene, in.refine, &out.refined);
 
   DifferentiablePathTracer tracer(scene, refined);
@@ -108,7 +109,7 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
   const TriangleMesh start = RefinedMesh(scene, refined);
   const fs::path dir = ws.RefineDir();
   fs::create_directories(dir);
-  RenderOptions render = options.Render();
+  RenderOptions render = options.paths;
   render.spp = std::max(1, in.render_spp);
 
   const auto progress = [&](const RefineIteration& it, const DifferentiablePathTracer& at) {
@@ -127,7 +128,7 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
     if (in.render_spp > 0) {
       char name[32];
       std::snprintf(name, sizeof(name), "iter_%02d", it.iteration);
-      const View& view = targets.front().view;
+      const PosedView& view = targets.front().view;
       WritePng(dir / (std::string(name) + ".png"),
                PathTracer(at.scene()).Render(view, render, 1).radiance);
       WritePng(dir / (std::string(name) + "_shading.png"),

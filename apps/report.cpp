@@ -252,7 +252,7 @@ void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& optio
   // Fig. 3: light error against the penalty weight, and the time it takes.
   std::vector<std::string> warnings;
   const render::Scene scene = LoadGeometry({{}, ws.Mesh(), ws.Albedo()}, ws, &warnings);
-  const std::vector<render::TrainingView> views = render::ReadViews(ws.Keyframes());
+  const std::vector<PosedImage> views = ReadPosedImages(ws.Keyframes());
   inverse::LightEstimationOptions base;
   // The estimate's own grid and refinement (lights.json's dims are the refined grid's).
   const Json used = e.contains("options") ? e["options"] : Json::object();

@@ -99,9 +99,7 @@ void SynthOptions::Validate() const {
   RequireOneOf("noise", noise, {"none", "kinect"});
   RequireRange("fov", fov, 10.0, 150.0);
   RequireRange("arc", arc, 0.0, 360.0);
-  RequireRange("spp", spp, 1, 1 << 16);
-  if (max_depth == 0 || max_depth < -1)
-    throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
+  paths.Validate();
 }
 
 int SynthOptions::Width() const {
@@ -119,16 +117,14 @@ SynthSummary Synthesize(const SynthOptions& options, uint64_t seed,
       CameraIntrinsics::FromHorizontalFov(options.Width(), options.Height(), options.fov);
 
   const render::PathTracer tracer(setup.scene);
-  render::RenderOptions render;
-  render.spp = options.spp;
-  render.max_depth = options.max_depth;
+  const render::RenderOptions& render = options.paths;
   std::vector<RgbdFrame> frames;
   SynthSummary summary;
   summary.min_depth = INFINITY;
   const auto start = std::chrono::steady_clock::now();
   for (size_t i = 0; i < setup.trajectory.size(); ++i) {
     const StampedPose& p = setup.trajectory.poses()[i];
-    const render::View view{k, p.world_from_camera, p.timestamp};
+    const PosedView view{k, p.world_from_camera, p.timestamp};
     render::RenderOutput image = tracer.Render(view, render, seed * 1000003 + i);
     RgbdFrame frame;
     frame.timestamp = p.timestamp;

@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <string>
 
+#include "render/path_tracer.h"
+
 namespace genscene::apps {
 
 struct SynthOptions {
@@ -19,8 +21,7 @@ struct SynthOptions {
   std::string noise = "none";     // depth noise: none, or kinect (see core/synthetic.h)
   double fov = 60.0;              // horizontal field of view, degrees
   double arc = 60.0;              // the camera sways along an arc of this many degrees
-  int spp = 16;                   // path-tracing samples per pixel for the colour images
-  int max_depth = -1;             // longest light path in segments (-1 = unlimited)
+  render::RenderOptions paths = render::RenderOptions::Paths(16);  // for the colour images
 
   template <typename V>
   void Visit(V&& v) {
@@ -31,8 +32,7 @@ struct SynthOptions {
       "depth noise: none or kinect (axial noise, disparity steps, edge dropouts)");
     v("fov", fov, "deg", "horizontal field of view");
     v("arc", arc, "deg", "arc the hand-held camera sways along");
-    v("spp", spp, "", "path-tracing samples per pixel");
-    v("max_depth", max_depth, "segments", "longest light path (-1 = unlimited)");
+    paths.VisitPaths(v, "path-tracing samples per pixel");
   }
   void Validate() const;
   int Width() const;

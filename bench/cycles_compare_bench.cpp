@@ -56,7 +56,7 @@ int main(int argc, char** argv) {
     int index = 0;
     while (auto frame = source->Next()) {
       const std::string name = fs::path(frame->color_path).stem().string();
-      const View view{frame->intrinsics, *frame->world_from_camera, frame->timestamp};
+      const PosedView view{frame->intrinsics, *frame->world_from_camera, frame->timestamp};
       const auto start = std::chrono::steady_clock::now();
       const RenderOutput a = tracer.Render(view, options, 1000 + 2 * index);
       const RenderOutput b = tracer.Render(view, options, 1001 + 2 * index);

@@ -53,7 +53,7 @@ double Now() {
 
 struct Replica {
   Scene scene;
-  std::vector<TrainingView> train, novel;
+  std::vector<PosedImage> train, novel;
   std::vector<double> noise;  // RMS noise per channel of each reference (train, then novel)
 };
 
@@ -76,7 +76,7 @@ Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
                                 (g_flags.max_depth ? "_d" : ""));
   if (fs::exists(dir / "noise.txt")) {
     r.scene = MakeCornellBoxScene();
-    const std::vector<View> views = CornellLightViews(width, height);
+    const std::vector<PosedView> views = CornellLightViews(width, height);
     FILE* f = std::fopen((dir / "noise.txt").c_str(), "r");
     for (size_t i = 0; i < views.size(); ++i) {
       double noise = 0.0;
@@ -84,8 +84,7 @@ Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
       r.noise.push_back(noise);
       CameraResponse linear;
       linear.kind = CameraResponse::Kind::kLinear;
-      TrainingView tv{views[i],
-                      ReadColorImage(dir / ("view" + std::to_string(i) + ".exr"), linear)};
+      PosedImage tv{views[i], ReadColorImage(dir / ("view" + std::to_string(i) + ".exr"), linear)};
       (i < 3 ? r.train : r.novel).push_back(std::move(tv));
     }
     std::fclose(f);
@@ -104,11 +103,11 @@ Replica MakeReplica(int width, int height, int spp, const fs::path& cache) {
   RenderOptions ro;
   ro.spp = spp;
   if (g_flags.max_depth) ro.max_depth = *g_flags.max_depth;
-  const std::vector<View> views = CornellLightViews(width, height);
+  const std::vector<PosedView> views = CornellLightViews(width, height);
   for (size_t i = 0; i < views.size(); ++i) {
     const RenderHalves halves = RenderInHalves(tracer, views[i], ro, 1000 + i, 2000 + i);
     r.noise.push_back(halves.NoiseRms());
-    (i < 3 ? r.train : r.novel).push_back(TrainingView{views[i], halves.mean});
+    (i < 3 ? r.train : r.novel).push_back(PosedImage{views[i], halves.mean});
   }
   fs::create_directories(dir);
   FILE* f = std::fopen((dir / "noise.txt").c_str(), "w");
@@ -134,7 +133,7 @@ std::vector<ViewError> ReplicaErrors(const Replica& replica, const VoxelLightGri
   const PathTracer tracer(lit);
   std::vector<ViewError> errors;
   for (size_t i = 0; i < replica.train.size() + replica.novel.size(); ++i) {
-    const TrainingView& reference =
+    const PosedImage& reference =
         i < replica.train.size() ? replica.train[i] : replica.novel[i - replica.train.size()];
     errors.push_back(
         CompareRender(tracer, reference, LightEstimationOptions(), eval_spp, 5, replica.noise[i]));
@@ -147,7 +146,7 @@ void ApplyOverrides(LightEstimationOptions* o) {
   const auto set = [](const auto& flag, auto* value) {
     if (flag) *value = *flag;
   };
-  set(g_flags.max_depth, &o->max_depth);
+  set(g_flags.max_depth, &o->paths.max_depth);
   set(g_flags.rounds, &o->rounds);
   set(g_flags.refine_levels, &o->refine_levels);
   set(g_flags.refine_penalty_scale, &o->refine_penalty_scale);
@@ -405,7 +404,7 @@ void TimeToError(const Replica& replica, const LightEstimationOptions& options, 
       "\ntime to error: replica, %zu pixels, w = %g; error = relative RMSE of the prediction on an "
       "independent"
       " %d-spp trace of the same pixels (%zu nnz)\n",
-      pixels.size(), options.penalty_weight, options.spp, eval.NonZeros());
+      pixels.size(), options.penalty_weight, options.paths.spp, eval.NonZeros());
   {  // the products and the cache's own prediction agree (a check of Products / PredictProducts)
     VoxelLightGrid g = dark;
     for (int j = 0; j < g.VoxelCount(); ++j)
@@ -445,7 +444,7 @@ void TimeToError(const Replica& replica, const LightEstimationOptions& options, 
   if (budget < 0.0) budget = 10.0 * cached.back().seconds;
   std::vector<CurvePoint> gd;
   LightEstimationOptions step_options = options;
-  step_options.spp = gd_spp;
+  step_options.paths.spp = gd_spp;
   step_options.direct_paths = std::min(options.direct_paths, gd_spp / 2);
   const size_t params = static_cast<size_t>(6 * dark.VoxelCount());
   std::vector<Eigen::Vector3f> x(params, Eigen::Vector3f::Zero());
@@ -558,8 +557,8 @@ void PrintRounds(const LightEstimate& e) {
 void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, int eval_spp) {
   const fs::path root = data / "cbox-cycles";
   const Scene scene = LoadCyclesScene(root);
-  const std::vector<TrainingView> train = ReadViews(root / "views" / "train"),
-                                  novel = ReadViews(root / "views" / "novel");
+  const std::vector<PosedImage> train = ReadPosedImages(root / "views" / "train"),
+                                novel = ReadPosedImages(root / "views" / "novel");
   std::printf(
       "\n3. Cycles cbox: %zu training views, %zu novel views %dx%d; light centre (0, 0, 0.998)\n",
       train.size(), novel.size(), train[0].image.width(), train[0].image.height());
@@ -568,7 +567,7 @@ void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, i
   for (double weight : weights) {
     LightEstimationOptions o;
     o.penalty_weight = weight;
-    o.spp = spp;
+    o.paths.spp = spp;
     ApplyOverrides(&o);
     const double t = Now();
     const LightEstimate e = EstimateLights(scene, train, o, 7);
@@ -579,11 +578,11 @@ void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, i
     const PathTracer lit_tracer(lit);
     double tr = 0, tr_b = 0, nv = 0, nv_b = 0;
     // Cycles' noise: about 0.0028 RMS per channel over the surface pixels (stats.json).
-    for (const TrainingView& v : train) {
+    for (const PosedImage& v : train) {
       const ViewError ve = CompareRender(lit_tracer, v, o, eval_spp, 5, 0.0028);
       tr += ve.rmse / train.size(), tr_b += ve.rmse_bias / train.size();
     }
-    for (const TrainingView& v : novel) {
+    for (const PosedImage& v : novel) {
       const ViewError ve = CompareRender(lit_tracer, v, o, eval_spp, 5, 0.0028);
       nv += ve.rmse / novel.size(), nv_b += ve.rmse_bias / novel.size();
     }
@@ -603,8 +602,8 @@ int main(int argc, char** argv) {
   // Line-buffered even into a file or pipe: a sweep runs for minutes and reports each round.
   std::setvbuf(stdout, nullptr, _IOLBF, 0);
   fs::path out = "bench_out";
-  int width = 160, height = 120, ref_spp = 1024, spp = LightEstimationOptions().spp, eval_spp = 256,
-      gd_spp = 2;
+  int width = 160, height = 120, ref_spp = 1024, spp = LightEstimationOptions().paths.spp,
+      eval_spp = 256, gd_spp = 2;
   double gd_seconds = -1.0;  // -1: ten times the cached method's time
   double gamma = LightEstimationOptions().noise_correction;
   std::vector<double> weights = {0.0, 1e-4, 1e-3, 1e-2};
@@ -714,7 +713,7 @@ int main(int argc, char** argv) {
     truth.weights[3 + 7 * 3 + 49 * 6] = {0.1f, 0.1f, 0.1f, 0.1f, 0.0f, 1.0f};
     const PathTracer tracer(s);
     LightEstimationOptions o;
-    o.spp = spp;
+    o.paths.spp = spp;
     o.direct_paths = spp / 2;
     o.noise_correction = gamma;
     o.penalty_weight = weights[0];
@@ -775,7 +774,7 @@ int main(int argc, char** argv) {
     }
     const PathTracer tracer(s);
     LightEstimationOptions o;
-    o.spp = spp;
+    o.paths.spp = spp;
     o.noise_correction = gamma;
     const std::vector<SampledPixel> pixels = SamplePixels(tracer, replica.train, o, 7);
     const auto [a, b] = TraceLightCacheHalves(tracer, fine, sp, replica.train, pixels, o, 1, 2);
@@ -847,7 +846,7 @@ int main(int argc, char** argv) {
   for (double weight : weights) {
     LightEstimationOptions o;
     o.penalty_weight = weight;
-    o.spp = spp;
+    o.paths.spp = spp;
     o.noise_correction = gamma;
     ApplyOverrides(&o);
     t = Now();
@@ -903,7 +902,7 @@ int main(int argc, char** argv) {
       (out / "fig3_lights.png").c_str());
   if (gd_seconds != 0.0) {
     LightEstimationOptions o;
-    o.spp = spp;
+    o.paths.spp = spp;
     o.noise_correction = gamma;
     o.penalty_weight = 0.0;  // both methods minimise the data term alone
     TimeToError(replica, o, gd_spp, gd_seconds, out);

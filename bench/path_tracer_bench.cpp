@@ -51,7 +51,7 @@ int main(int argc, char** argv) {
   const int spp = argc > 2 ? std::atoi(argv[2]) : 32;
   const Scene scene = MakeScene();
   const PathTracer tracer(scene);
-  View view;
+  PosedView view;
   view.intrinsics.width = width;
   view.intrinsics.height = width * 3 / 4;
   view.intrinsics.fx = view.intrinsics.fy = 0.8 * width;

@@ -49,7 +49,7 @@ namespace {
 
 struct Settings {
   fs::path out = "bench_out";
-  int ref_spp = 1024, spp = RefineOptions().spp, iterations = 5, max_depth = -1;
+  int ref_spp = 1024, spp = RefineOptions().paths.spp, iterations = 5, max_depth = -1;
   double perturbation = 0.2;  // of the radius
   double prior_sigma = RefineOptions().prior_sigma;
   double prior_tangent_sigma = RefineOptions().prior_tangent_sigma;
@@ -84,16 +84,16 @@ void Paste(ImageRgb& canvas, const ImageRgb& image, int x0) {
 // Refines `sphere` of `scene` from `start` against `reference`; prints the table; returns the
 // shading renders per iteration.
 std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere,
-                              const std::vector<TrainingView>& targets,
-                              const Eigen::VectorXd& truth, const Eigen::VectorXd& start,
-                              const std::vector<int>& watched, const Settings& s) {
-  const View& view = targets[0].view;
+                              const std::vector<PosedImage>& targets, const Eigen::VectorXd& truth,
+                              const Eigen::VectorXd& start, const std::vector<int>& watched,
+                              const Settings& s) {
+  const PosedView& view = targets[0].view;
   std::vector<bool> refined(scene.meshes.size(), false);
   refined[sphere] = true;
   RefineOptions options;
-  options.spp = s.spp;
+  options.paths.spp = s.spp;
   options.iterations = s.iterations;
-  options.max_depth = s.max_depth;
+  options.paths.max_depth = s.max_depth;
   options.jacobian_max_depth = s.jacobian_depth;
   options.average_after = s.average_after;
   options.edge_margin = s.edge_margin;
@@ -252,7 +252,7 @@ void Cycles(const fs::path& data, const Settings& s) {
     }
     auto source = OpenFrameSource((root / "views" / "full").string(), SourceOptions());
     const auto frame = source->Next();
-    const View view{frame->intrinsics, *frame->world_from_camera, frame->timestamp};
+    const PosedView view{frame->intrinsics, *frame->world_from_camera, frame->timestamp};
     std::vector<bool> refined(scene.meshes.size(), false);
     refined[sphere] = true;
     const Eigen::VectorXd truth = DifferentiablePathTracer(scene, refined).Positions();
@@ -269,15 +269,15 @@ void Cycles(const fs::path& data, const Settings& s) {
 // this order: two high in the back corners, two low in the front corners, one low at the back
 // wall), wider (f = 70 px) so that the sphere fits from half a metre. Together they see all but the
 // vertices next to the floor.
-std::vector<View> AroundTheSphere(const IcosphereBox& box, int count) {
-  std::vector<View> views = {box.view};
+std::vector<PosedView> AroundTheSphere(const IcosphereBox& box, int count) {
+  std::vector<PosedView> views = {box.view};
   const Eigen::Vector3d eyes[] = {{-0.42, 0.42, 0.8},
                                   {0.42, 0.42, 0.8},
                                   {-0.44, -0.44, 0.1},
                                   {0.44, -0.44, 0.1},
                                   {0.0, 0.47, 0.12}};
   for (int i = 0; i + 1 < count && i < 5; ++i) {
-    View v = box.view;
+    PosedView v = box.view;
     v.intrinsics = CameraIntrinsics{70.0, 70.0, 52.5, 39.5, 106, 80};
     v.world_from_camera = LookAt(eyes[i], box.center);
     views.push_back(v);
@@ -288,11 +288,11 @@ std::vector<View> AroundTheSphere(const IcosphereBox& box, int count) {
 void AllVertices(const Settings& s) {
   const IcosphereBox box = MakeIcosphereBox(s.smooth);
   const auto [reference, truth] = ReferenceAndTruth(box, s);
-  std::vector<TrainingView> targets = {{box.view, reference}};
+  std::vector<PosedImage> targets = {{box.view, reference}};
   RenderOptions render;
   render.spp = s.ref_spp;
   render.max_depth = s.max_depth;
-  const std::vector<View> views = AroundTheSphere(box, s.views);
+  const std::vector<PosedView> views = AroundTheSphere(box, s.views);
   const PathTracer renderer(box.scene);
   for (size_t i = 1; i < views.size(); ++i) {
     targets.push_back({views[i], renderer.Render(views[i], render, 1234 + i).radiance});

@@ -2,6 +2,7 @@
 
 #include "core/check.h"
 #include "core/file_util.h"
+#include "core/frame_source.h"
 #include "core/trajectory.h"
 
 namespace genscene {
@@ -31,6 +32,24 @@ std::vector<PosedView> ReadViewSet(const fs::path& dir) {
       views.push_back({intrinsics, p.world_from_camera, p.timestamp});
   }
   if (views.empty()) throw Error(Format(dir.string(), ": view set has no views"));
+  return views;
+}
+
+std::vector<PosedImage> ReadPosedImages(const std::filesystem::path& folder) {
+  if (!std::filesystem::is_directory(folder))
+    throw Error(Format(folder.string(), ": no such view set folder"));
+  std::vector<PosedImage> views;
+  auto source = OpenFrameSource(folder.string(), SourceOptions());
+  while (auto frame = source->Next()) {
+    if (!frame->world_from_camera) {
+      throw Error(Format(frame->color_path.empty() ? folder.string() : frame->color_path,
+                         ": the image has no pose"));
+    }
+    if (frame->color.empty()) throw Error(Format(folder.string(), ": a frame has no colour image"));
+    views.push_back(
+        {PosedView{frame->intrinsics, *frame->world_from_camera, frame->timestamp}, frame->color});
+  }
+  if (views.empty()) throw Error(Format(folder.string(), ": no images"));
   return views;
 }
 

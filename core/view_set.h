@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "core/image.h"
 
 namespace genscene {
 
@@ -23,5 +24,17 @@ struct PosedView {
 // with the folder's intrinsics and the pose of the same timestamp (within 1e-6 s). Throws Error
 // naming the file when intrinsics or poses are missing, or an image has no pose.
 std::vector<PosedView> ReadViewSet(const std::filesystem::path& dir);
+
+// A posed image: the camera and its linear RGB image, of the intrinsics' size (the training views
+// of the light estimate, the references of vertex refinement, the held-out frames).
+struct PosedImage {
+  PosedView view;
+  ImageRgb image;
+};
+
+// The posed images of a view set or keyframes folder, read through the TUM frame source: EXR as
+// linear, PNG as sRGB. Throws Error when the folder is missing, empty, or an image has no pose or
+// no colour.
+std::vector<PosedImage> ReadPosedImages(const std::filesystem::path& folder);
 
 }  // namespace genscene

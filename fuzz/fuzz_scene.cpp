@@ -35,7 +35,7 @@ void WriteScene(const std::filesystem::path& path) {
   lamp.emission = Eigen::Vector3f(4.0f, 4.0f, 3.0f);
   scene.meshes = {floor, lamp};
   scene.point_lights.push_back({Eigen::Vector3d(0.5, 0.5, 1.0), Eigen::Vector3f(1.0f, 1.0f, 1.0f)});
-  std::vector<View> views = CornellLightViews(8, 6);
+  std::vector<PosedView> views = CornellLightViews(8, 6);
   views.resize(1);
 #ifdef GENSCENE_FUZZ_SCENE_XML
   ExportMitsubaXml(path, scene, views);

@@ -338,7 +338,7 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
   return radiance;
 }
 
-DualRgb DifferentiablePathTracer::Pixel(const View& view, int u, int v,
+DualRgb DifferentiablePathTracer::Pixel(const PosedView& view, int u, int v,
                                         const RenderOptions& options, uint64_t seed,
                                         bool derivatives, RayCounts* counts) const {
   const CameraIntrinsics& k = view.intrinsics;

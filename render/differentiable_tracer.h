@@ -52,7 +52,7 @@ class DifferentiablePathTracer {
                    RayCounts* counts = nullptr) const;
   // Pixel (u, v) of `view`: the mean of options.spp samples drawn as PathTracer::Render draws
   // them (box filter, centre or gaussian), keyed by (seed, pixel, sample).
-  DualRgb Pixel(const View& view, int u, int v, const RenderOptions& options, uint64_t seed,
+  DualRgb Pixel(const PosedView& view, int u, int v, const RenderOptions& options, uint64_t seed,
                 bool derivatives, RayCounts* counts = nullptr) const;
 
  private:

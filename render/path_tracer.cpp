@@ -409,14 +409,14 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
   }
 }
 
-std::optional<RayHit> PathTracer::PixelCentreHit(const View& view, int u, int v) const {
+std::optional<RayHit> PathTracer::PixelCentreHit(const PosedView& view, int u, int v) const {
   const Eigen::Matrix3f rotation = view.world_from_camera.rotation().cast<float>();
   const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
   return tracer_->Intersect(
       eye, rotation * view.intrinsics.RayDirection(u, v).cast<float>().normalized());
 }
 
-RenderOutput PathTracer::Render(const View& view, const RenderOptions& options,
+RenderOutput PathTracer::Render(const PosedView& view, const RenderOptions& options,
                                 uint64_t seed) const {
   options.Validate();
   const CameraIntrinsics& k = view.intrinsics;
@@ -480,7 +480,7 @@ double RenderHalves::NoiseRms() const {
   return a.size() == 0 ? 0.0 : std::sqrt(noise / (3.0 * static_cast<double>(a.size())));
 }
 
-RenderHalves RenderInHalves(const PathTracer& tracer, const View& view,
+RenderHalves RenderInHalves(const PathTracer& tracer, const PosedView& view,
                             const RenderOptions& options, uint64_t seed_a, uint64_t seed_b) {
   RenderOptions half = options;
   half.spp = std::max(1, options.spp / 2);

@@ -36,11 +36,25 @@ struct RenderOptions {
   double filter_stddev = 0.5;  // gaussian filter standard deviation, pixels
   bool hide_emitters = false;  // camera rays that hit an emitter return black
 
+  // The stages that trace paths hold their path settings as one RenderOptions and list them under
+  // these keys, saying in `spp_help` what one of their samples is.
+  static RenderOptions Paths(int spp, int max_depth = -1, int rr_depth = 5) {
+    RenderOptions r;
+    r.spp = spp;
+    r.max_depth = max_depth;
+    r.rr_depth = rr_depth;
+    return r;
+  }
   template <typename V>
-  void Visit(V&& v) {
-    v("spp", spp, "", "samples per pixel");
+  void VisitPaths(V&& v, const char* spp_help = "samples per pixel") {
+    v("spp", spp, "", spp_help);
     v("max_depth", max_depth, "segments", "longest path (Mitsuba convention; -1 = unlimited)");
     v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
+  }
+
+  template <typename V>
+  void Visit(V&& v) {
+    VisitPaths(v);
     v("filter", filter, "",
       "pixel filter: box (pixel footprint), center (pixel-centre rays) or gaussian");
     v("filter_stddev", filter_stddev, "px", "standard deviation of the gaussian filter");
@@ -110,7 +124,7 @@ class PathTracer {
   ~PathTracer();
 
   // Renders one view; `seed` keys every random number (same seed, same image, any thread count).
-  RenderOutput Render(const View& view, const RenderOptions& options, uint64_t seed) const;
+  RenderOutput Render(const PosedView& view, const RenderOptions& options, uint64_t seed) const;
 
   // Radiance along one camera ray (one path sample), for tests and the inverse stages.
   // Adds the rays it traces to `counts` when given.
@@ -135,7 +149,7 @@ class PathTracer {
 
   // The first surface the ray through the centre of pixel (u, v) of `view` meets: the ray of the
   // geometry buffers, of the pixel masks and of every first-hit lookup (albedo, texture).
-  std::optional<RayHit> PixelCentreHit(const View& view, int u, int v) const;
+  std::optional<RayHit> PixelCentreHit(const PosedView& view, int u, int v) const;
 
   const Scene& scene() const { return scene_; }
   const RayTracer& tracer() const { return *tracer_; }
@@ -165,7 +179,7 @@ struct RenderHalves {
   double NoiseRms() const;
 };
 // `options.spp` is the total (each half gets max(1, spp / 2)).
-RenderHalves RenderInHalves(const PathTracer& tracer, const View& view,
+RenderHalves RenderInHalves(const PathTracer& tracer, const PosedView& view,
                             const RenderOptions& options, uint64_t seed_a, uint64_t seed_b);
 
 }  // namespace genscene::render

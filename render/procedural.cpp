@@ -41,7 +41,7 @@ Scene MakeCornellBoxScene() {
   return scene;
 }
 
-std::vector<View> CornellLightViews(int width, int height) {
+std::vector<PosedView> CornellLightViews(int width, int height) {
   const CameraIntrinsics k = CameraIntrinsics::FromHorizontalFov(width, height, 60.0);
   const std::pair<Eigen::Vector3d, Eigen::Vector3d> eye_target[] = {
       {{0.0, -0.95, 1.0}, {0.0, 0.5, 0.8}},    // training: the whole box from the front
@@ -50,7 +50,7 @@ std::vector<View> CornellLightViews(int width, int height) {
       {{0.85, 0.85, 1.3}, {-0.5, -0.5, 0.6}},  // novel: from the back corner
       {{-0.9, 0.2, 0.5}, {0.8, -0.2, 1.2}},    // novel: from the red wall towards the green one
   };
-  std::vector<View> views;
+  std::vector<PosedView> views;
   for (const auto& [eye, target] : eye_target) views.push_back({k, LookAt(eye, target)});
   return views;
 }

@@ -17,7 +17,7 @@ Scene MakeRoomScene();
 // The light-estimation replica of the paper's Fig. 3: five views inside the Cornell box
 // of MakeCornellBoxScene, `width` x `height`, 60 degrees horizontal field of view; the first three
 // are the training views, the last two the novel views.
-std::vector<View> CornellLightViews(int width, int height);
+std::vector<PosedView> CornellLightViews(int width, int height);
 
 // The vertex-refinement replica of the paper's Fig. 4, the scene of
 // ../shared/data/cbox-cycles/icosphere_flat (and _smooth) built in code: the 1 m Cornell box
@@ -27,7 +27,7 @@ std::vector<View> CornellLightViews(int width, int height);
 // 106 x 80 view. The sphere's vertices are MakeUnitIcosphere(1)'s, not Blender's.
 struct IcosphereBox {
   Scene scene;
-  View view;
+  PosedView view;
   int sphere = -1;  // index of the icosphere in scene.meshes
   double radius = 0.2;
   Eigen::Vector3d center{0.0, 0.0, 0.201};

@@ -5,7 +5,6 @@
 
 #include "core/check.h"
 #include "core/color.h"
-#include "core/frame_source.h"
 #include "core/mesh_colors.h"
 
 namespace genscene::render {
@@ -141,24 +140,6 @@ Scene ShadingOnly(Scene scene) {
     if (!m.IsEmitter()) m.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.8f));
   }
   return scene;
-}
-
-std::vector<TrainingView> ReadViews(const std::filesystem::path& folder) {
-  if (!std::filesystem::is_directory(folder))
-    throw Error(Format(folder.string(), ": no such view set folder"));
-  std::vector<TrainingView> views;
-  auto source = OpenFrameSource(folder.string(), SourceOptions());
-  while (auto frame = source->Next()) {
-    if (!frame->world_from_camera) {
-      throw Error(Format(frame->color_path.empty() ? folder.string() : frame->color_path,
-                         ": the image has no pose"));
-    }
-    if (frame->color.empty()) throw Error(Format(folder.string(), ": a frame has no colour image"));
-    views.push_back(
-        {View{frame->intrinsics, *frame->world_from_camera, frame->timestamp}, frame->color});
-  }
-  if (views.empty()) throw Error(Format(folder.string(), ": no images"));
-  return views;
 }
 
 }  // namespace genscene::render

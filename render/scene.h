@@ -83,19 +83,4 @@ struct Scene {
   Eigen::AlignedBox3d Bounds() const;
 };
 
-// A pinhole view: OpenCV intrinsics and world_from_camera pose (DESIGN.md §1).
-using View = PosedView;
-
-// A posed image the inverse stages fit (light estimation's training views, vertex refinement's
-// references): the camera and its linear RGB image, the intrinsics' size.
-struct TrainingView {
-  View view;
-  ImageRgb image;
-};
-
-// The posed images of a view set or keyframes folder (intrinsics.txt, groundtruth.txt, rgb.txt):
-// EXR as linear, PNG as sRGB. Throws Error when the folder is missing, empty, or an image has no
-// pose or no colour.
-std::vector<TrainingView> ReadViews(const std::filesystem::path& folder);
-
 }  // namespace genscene::render

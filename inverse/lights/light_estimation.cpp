@@ -32,7 +32,7 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 // numbers are keyed by (seed, view, pixel).
 template <typename Sink>
 void WalkPixel(const PathTracer& tracer, const VoxelLightGrid& grid,
-               const VoxelSplitting& splitting, const SampledPixel& pixel, const View& view,
+               const VoxelSplitting& splitting, const SampledPixel& pixel, const PosedView& view,
                const RenderOptions& paths, int direct_paths, uint64_t seed, const Sink& sink,
                RayCounts* rays) {
   const CameraIntrinsics& k = view.intrinsics;
@@ -66,7 +66,7 @@ void WalkPixel(const PathTracer& tracer, const VoxelLightGrid& grid,
   }
 }
 
-void CheckView(const TrainingView& tv, size_t index) {
+void CheckView(const PosedImage& tv, size_t index) {
   const CameraIntrinsics& k = tv.view.intrinsics;
   k.Validate(Format("view ", index));
   if (tv.image.width() != k.width || tv.image.height() != k.height) {
@@ -80,12 +80,10 @@ void CheckView(const TrainingView& tv, size_t index) {
 void LightEstimationOptions::Validate() const {
   RequireRange("grid", grid, 1, 64);
   RequireRange("pixels_per_view", pixels_per_view, 1, 1 << 24);
-  RequireRange("spp", spp, 2, 1 << 16);
-  if (spp % 2) throw Error(Format("option spp = ", spp, " must be even (two independent halves)"));
+  paths.Validate();
+  if (paths.spp < 2 || paths.spp % 2)
+    throw Error(Format("option spp = ", paths.spp, " must be even (two independent halves)"));
   RequireRange("direct_paths", direct_paths, 1, 1 << 16);  // at most all of a half's paths
-  if (max_depth == 0 || max_depth < -1)
-    throw Error(Format("option max_depth = ", max_depth, " must be -1 or >= 1"));
-  RequireRange("rr_depth", rr_depth, 1, 1 << 20);
   RequireRange("split_depth", split_depth, 1, 1 << 20);
   RequireRange("refine_coarse_pixels", refine_coarse_pixels, 0, 1 << 24);
   RequireRange("boundary_inset", boundary_inset, 0.0, 0.5);
@@ -119,15 +117,6 @@ void LightEstimationOptions::Validate() const {
   }
   RequireRange("active_fraction", active_fraction, 0.0, 1.0);
   RequireRange("memory_cap", memory_cap, 1.0, 1e7);
-}
-
-RenderOptions LightEstimationOptions::Paths() const {
-  RenderOptions r;
-  r.spp = spp;
-  r.max_depth = max_depth;
-  r.rr_depth = rr_depth;
-  r.filter = "box";
-  return r;
 }
 
 Scene WithoutLights(const Scene& scene) {
@@ -169,7 +158,7 @@ VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset
   return g;
 }
 
-Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& tv,
+Image<uint8_t> ValidPixels(const PathTracer& tracer, const PosedImage& tv,
                            const LightEstimationOptions& options, PixelMaskCounts* counts) {
   const CameraIntrinsics& k = tv.view.intrinsics;
   Image<uint8_t> valid(k.width, k.height, 0);
@@ -234,7 +223,7 @@ Image<uint8_t> ValidPixels(const PathTracer& tracer, const TrainingView& tv,
 }
 
 std::vector<SampledPixel> SamplePixels(const PathTracer& tracer,
-                                       const std::vector<TrainingView>& views,
+                                       const std::vector<PosedImage>& views,
                                        const LightEstimationOptions& options, uint64_t seed,
                                        std::vector<PixelMaskCounts>* counts) {
   options.Validate();
@@ -303,10 +292,10 @@ double NormalEquationsBoundBytes(int dims) {
 }
 
 LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
-                           const VoxelSplitting& splitting, const std::vector<TrainingView>& views,
+                           const VoxelSplitting& splitting, const std::vector<PosedImage>& views,
                            const std::vector<SampledPixel>& pixels,
                            const LightEstimationOptions& options, uint64_t seed, double cap_bytes) {
-  const RenderOptions paths = options.Paths();
+  const RenderOptions paths = options.paths;
   const int parameters = 6 * grid.VoxelCount();
   struct Row {
     std::vector<int32_t> index;
@@ -418,10 +407,10 @@ void LightCache::Merge(const LightCache& other) {
 
 std::pair<LightCache, LightCache> TraceLightCacheHalves(
     const PathTracer& tracer, const VoxelLightGrid& grid, const VoxelSplitting& splitting,
-    const std::vector<TrainingView>& views, const std::vector<SampledPixel>& pixels,
+    const std::vector<PosedImage>& views, const std::vector<SampledPixel>& pixels,
     const LightEstimationOptions& options, uint64_t seed_a, uint64_t seed_b, double cap_bytes) {
   LightEstimationOptions half = options;
-  half.spp = options.spp / 2;
+  half.paths.spp = options.paths.spp / 2;
   std::pair<LightCache, LightCache> out;
   out.first = TraceLightCache(tracer, grid, splitting, views, pixels, half, seed_a, cap_bytes);
   const double left =
@@ -432,12 +421,12 @@ std::pair<LightCache, LightCache> TraceLightCacheHalves(
 
 Eigen::Vector3f RenderSampledPixel(const PathTracer& tracer, const VoxelLightGrid& grid,
                                    const VoxelSplitting& splitting, const SampledPixel& pixel,
-                                   const std::vector<TrainingView>& views,
+                                   const std::vector<PosedImage>& views,
                                    const LightEstimationOptions& options, uint64_t seed) {
   Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
   WalkPixel(
-      tracer, grid, splitting, pixel, views.at(static_cast<size_t>(pixel.view)).view,
-      options.Paths(), options.direct_paths, seed,
+      tracer, grid, splitting, pixel, views.at(static_cast<size_t>(pixel.view)).view, options.paths,
+      options.direct_paths, seed,
       [&](const VoxelConnections& to, float scale) {
         for (int i = 0; i < to.count; ++i) {
           const int j = to.voxel[i];
@@ -1156,7 +1145,7 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
 // ------------------------------------------------------------------------------------------------
 // Rounds
 
-LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>& views,
+LightEstimate EstimateLights(const Scene& scene, const std::vector<PosedImage>& views,
                              const LightEstimationOptions& options, uint64_t seed) {
   options.Validate();
   const auto start = std::chrono::steady_clock::now();
@@ -1201,12 +1190,12 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
                                 int spp, uint64_t key, double equation_bytes, LightCache* second,
                                 LightRound* r) {
     const auto t = std::chrono::steady_clock::now();
-    LightEstimationOptions paths = options;
-    paths.spp = spp;
+    LightEstimationOptions traced = options;
+    traced.paths.spp = spp;
     last = LightCache();  // the previous caches are not needed while tracing
     *second = LightCache();
     std::tie(last, *second) =
-        TraceLightCacheHalves(tracer, lights, splitting, views, traced_pixels, paths, key, ~key,
+        TraceLightCacheHalves(tracer, lights, splitting, views, traced_pixels, traced, key, ~key,
                               std::max(1.0, cap_bytes - equation_bytes));
     r->trace_seconds = SecondsSince(t);
     r->nonzeros = last.NonZeros() + second->NonZeros();
@@ -1235,8 +1224,8 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
       }
       splitting.SetPmf(std::move(pmf), options.resample_voxels);
       LightCache second;
-      trace_halves(round_pixels, grid, splitting, options.spp, Mix64(seed + 0x51ED * (round + 1)),
-                   equation_bytes, &second, &r);
+      trace_halves(round_pixels, grid, splitting, options.paths.spp,
+                   Mix64(seed + 0x51ED * (round + 1)), equation_bytes, &second, &r);
       auto t = std::chrono::steady_clock::now();
       NormalEquations eq = NormalEquations::FromCaches(last, second, options.noise_correction);
       if (round == 0) {
@@ -1369,7 +1358,7 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
       splitting.enabled = enabled;
       for (size_t f = 0; f < enabled.size(); ++f) splitting.enabled[f] = enabled[f] && !traced[f];
       traced = enabled;
-      const int level_spp = options.refine_spp > 0 ? options.refine_spp : options.spp;
+      const int level_spp = options.refine_spp > 0 ? options.refine_spp : options.paths.spp;
       const uint64_t key = Mix64(seed + 0x5EF1 * level);
       if (pass == 0) {
         trace_halves(pixels, fine, splitting, level_spp, key, level_equation_bytes + coarser_bytes,
@@ -1444,13 +1433,13 @@ LightEstimate EstimateLights(const Scene& scene, const std::vector<TrainingView>
   return out;
 }
 
-AmbientBaseline FitAmbientBaseline(const PathTracer& tracer, const std::vector<TrainingView>& views,
+AmbientBaseline FitAmbientBaseline(const PathTracer& tracer, const std::vector<PosedImage>& views,
                                    const LightEstimationOptions& options) {
   // Per view: the valid pixels' first-hit albedo a and observed colour o.
   std::vector<std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>> samples(views.size());
   Eigen::Vector3d ao = Eigen::Vector3d::Zero(), aa = Eigen::Vector3d::Zero();
   for (size_t t = 0; t < views.size(); ++t) {
-    const TrainingView& tv = views[t];
+    const PosedImage& tv = views[t];
     const Image<uint8_t> valid = ValidPixels(tracer, tv, options);
     for (int v = 0; v < valid.height(); ++v) {
       for (int u = 0; u < valid.width(); ++u) {
@@ -1481,12 +1470,12 @@ AmbientBaseline FitAmbientBaseline(const PathTracer& tracer, const std::vector<T
   return out;
 }
 
-ViewError CompareRender(const PathTracer& lit, const TrainingView& reference,
+ViewError CompareRender(const PathTracer& lit, const PosedImage& reference,
                         const LightEstimationOptions& options, int spp, uint64_t seed,
                         double reference_noise_rms, ImageRgb* render, int block) {
   GS_CHECK_GE(block, 1);
   const Image<uint8_t> valid = ValidPixels(lit, reference, options);
-  RenderOptions paths = options.Paths();
+  RenderOptions paths = options.paths;
   paths.spp = spp;
   const RenderHalves halves =
       RenderInHalves(lit, reference.view, paths, seed, seed ^ 0xB5297A4D3F1E0C2Bull);

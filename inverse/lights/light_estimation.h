@@ -51,16 +51,15 @@ namespace genscene::inverse {
 struct LightEstimationOptions {
   static constexpr const char* kSection = "lights";
 
-  int grid = 7;                   // voxels per axis over the scene's bounding box
-  double boundary_inset = 0.1;    // the outer voxel centres lie this many voxels inside the
-                                  // bounding box (0.5: cells that tile it; see MakeVoxelGrid)
-  int pixels_per_view = 3000;     // sampled pixels per training view
-  int spp = 16;                   // camera paths per sampled pixel (box filter over the pixel);
-                                  // even: two independent halves give the normal equations
+  int grid = 7;                 // voxels per axis over the scene's bounding box
+  double boundary_inset = 0.1;  // the outer voxel centres lie this many voxels inside the
+                                // bounding box (0.5: cells that tile it; see MakeVoxelGrid)
+  int pixels_per_view = 3000;   // sampled pixels per training view
+  // Camera paths per sampled pixel (spp; box filter over the pixel; even: two independent halves
+  // give the normal equations), max_depth (-1: Russian roulette ends a path) and rr_depth.
+  render::RenderOptions paths = render::RenderOptions::Paths(16);
   int direct_paths = 2;           // of each half's paths, those whose first vertex connects to
                                   // every voxel (direct light); deeper vertices draw voxels
-  int max_depth = -1;             // longest path, Mitsuba convention (-1: Russian roulette ends it)
-  int rr_depth = 5;               // Russian roulette from this depth
   int split_depth = 1 << 20;      // path vertices up to this depth connect to every voxel
                                   // (default: all; the coefficients' noise is shared by the
                                   // voxels instead of drawn per voxel); deeper ones draw
@@ -115,11 +114,9 @@ struct LightEstimationOptions {
     v("boundary_inset", boundary_inset, "voxels",
       "outer voxel centres this far inside the bounding box (0.5: cells tile it)");
     v("pixels_per_view", pixels_per_view, "", "random valid pixels sampled per training view");
-    v("spp", spp, "", "camera paths per sampled pixel (even: two independent halves)");
+    paths.VisitPaths(v, "camera paths per sampled pixel (even: two independent halves)");
     v("direct_paths", direct_paths, "",
       "paths per half whose first vertex connects to every voxel");
-    v("max_depth", max_depth, "segments", "longest path (-1: Russian roulette ends it)");
-    v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
     v("split_depth", split_depth, "vertices",
       "path vertices up to this depth connect to every voxel (deeper: drawn)");
     v("penalty_weight", penalty_weight, "", "weight of the log activation penalty (0: none)");
@@ -163,7 +160,6 @@ struct LightEstimationOptions {
       "memory the path-coefficient caches and normal equations may take (error beyond)");
   }
   void Validate() const;
-  render::RenderOptions Paths() const;  // the path settings as render options
 };
 
 struct SampledPixel {
@@ -180,7 +176,7 @@ struct PixelMaskCounts {
 // when there are fewer), in view order then raster order. Throws Error when a view's image does
 // not match its intrinsics or holds a non-finite value, and when no pixel at all is valid.
 std::vector<SampledPixel> SamplePixels(const render::PathTracer& tracer,
-                                       const std::vector<render::TrainingView>& views,
+                                       const std::vector<PosedImage>& views,
                                        const LightEstimationOptions& options, uint64_t seed,
                                        std::vector<PixelMaskCounts>* counts = nullptr);
 
@@ -215,23 +211,23 @@ struct LightCache {
 // sets (the running total and a round's) of three dense Gram matrices over all 6 dims^3 parameters.
 double NormalEquationsBoundBytes(int dims);
 
-// Traces `options.spp` paths per pixel (random numbers keyed by seed, view, pixel, sample) and
-// splits at every vertex as `splitting` says. Throws Error when the cache's rows would take more
-// than `cap_bytes` (0: no cap), with a message that says which options lower it.
+// Traces `options.paths.spp` paths per pixel (random numbers keyed by seed, view, pixel, sample)
+// and splits at every vertex as `splitting` says. Throws Error when the cache's rows would take
+// more than `cap_bytes` (0: no cap), with a message that says which options lower it.
 LightCache TraceLightCache(const render::PathTracer& tracer, const VoxelLightGrid& grid,
                            const render::VoxelSplitting& splitting,
-                           const std::vector<render::TrainingView>& views,
+                           const std::vector<PosedImage>& views,
                            const std::vector<SampledPixel>& pixels,
                            const LightEstimationOptions& options, uint64_t seed,
                            double cap_bytes = 0.0);
 
-// Two independent caches of the same pixels with half of `options.spp` each (keys seed_a and
+// Two independent caches of the same pixels with half of `options.paths.spp` each (keys seed_a and
 // seed_b): the normal equations' noise correction takes their product
 // (NormalEquations::FromCaches). The second cache gets what the first leaves of `cap_bytes` (0: no
 // cap).
 std::pair<LightCache, LightCache> TraceLightCacheHalves(
     const render::PathTracer& tracer, const VoxelLightGrid& grid,
-    const render::VoxelSplitting& splitting, const std::vector<render::TrainingView>& views,
+    const render::VoxelSplitting& splitting, const std::vector<PosedImage>& views,
     const std::vector<SampledPixel>& pixels, const LightEstimationOptions& options, uint64_t seed_a,
     uint64_t seed_b, double cap_bytes = 0.0);
 
@@ -239,8 +235,7 @@ std::pair<LightCache, LightCache> TraceLightCacheHalves(
 // numbers as TraceLightCache (a fresh render, for checking the cache).
 Eigen::Vector3f RenderSampledPixel(const render::PathTracer& tracer, const VoxelLightGrid& grid,
                                    const render::VoxelSplitting& splitting,
-                                   const SampledPixel& pixel,
-                                   const std::vector<render::TrainingView>& views,
+                                   const SampledPixel& pixel, const std::vector<PosedImage>& views,
                                    const LightEstimationOptions& options, uint64_t seed);
 
 // The cache reduced to its normal equations over the parameters that any pixel touches.
@@ -326,15 +321,14 @@ struct LightEstimate {
 };
 
 // Steps 1-5. `scene`: geometry and albedo (emitters and lights in it are ignored).
-LightEstimate EstimateLights(const render::Scene& scene,
-                             const std::vector<render::TrainingView>& views,
+LightEstimate EstimateLights(const render::Scene& scene, const std::vector<PosedImage>& views,
                              const LightEstimationOptions& options, uint64_t seed);
 
 // The scene without its emitters and lights: what light estimation traces.
 render::Scene WithoutLights(const render::Scene& scene);
 
 // Which pixels of a view light estimation uses (1) and why the others are left out.
-Image<uint8_t> ValidPixels(const render::PathTracer& tracer, const render::TrainingView& view,
+Image<uint8_t> ValidPixels(const render::PathTracer& tracer, const PosedImage& view,
                            const LightEstimationOptions& options,
                            PixelMaskCounts* counts = nullptr);
 
@@ -353,7 +347,7 @@ struct ViewError {
   double rmse_bias = 0.0;  // sqrt(max(0, rmse^2 - noise^2)): the error of the expected images
 };
 // `lit`: the scene with the lights to judge (rendered with next-event estimation, `spp` in total).
-ViewError CompareRender(const render::PathTracer& lit, const render::TrainingView& reference,
+ViewError CompareRender(const render::PathTracer& lit, const PosedImage& reference,
                         const LightEstimationOptions& options, int spp, uint64_t seed,
                         double reference_noise_rms = 0.0, ImageRgb* render = nullptr,
                         int block = 1);
@@ -367,7 +361,7 @@ struct AmbientBaseline {
   double mean_rmse = 0.0;
 };
 AmbientBaseline FitAmbientBaseline(const render::PathTracer& tracer,
-                                   const std::vector<render::TrainingView>& views,
+                                   const std::vector<PosedImage>& views,
                                    const LightEstimationOptions& options);
 
 }  // namespace genscene::inverse

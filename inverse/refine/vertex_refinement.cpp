@@ -18,14 +18,12 @@ using namespace genscene::render;  // the renderer the inverse stages are built 
 
 void RefineOptions::Validate() const {
   RequireRange("iterations", iterations, 0, 1000);
-  RequireRange("spp", spp, 1, 1 << 16);
+  paths.Validate();
   RequireRange("pixels_per_view", pixels_per_view, 0, 1 << 26);
   const auto require_depth = [](const char* name, int depth) {
     if (depth == 0 || depth < -1)
       throw Error(Format("option ", name, " = ", depth, " must be -1 or >= 1"));
   };
-  require_depth("max_depth", max_depth);
-  RequireRange("rr_depth", rr_depth, 1, 1 << 20);
   require_depth("jacobian_max_depth", jacobian_max_depth);
   RequireRange("noise", noise, 1e-6, 10.0);
   RequireRange("prior_sigma", prior_sigma, 1e-9, 1e6);
@@ -44,14 +42,6 @@ void RefineOptions::Validate() const {
   RequireRange("direct_max_vertices", direct_max_vertices, 0, 1 << 30);
 }
 
-RenderOptions RefineOptions::Render() const {
-  RenderOptions r;
-  r.spp = spp;
-  r.max_depth = max_depth;
-  r.rr_depth = rr_depth;
-  return r;
-}
-
 namespace {
 
 struct PixelRef {
@@ -64,8 +54,8 @@ struct PixelRef {
 // do not see, and would pull the vertices the wrong way.
 // `ids` is a plain tracer of the tracer's scene (its object buffer gives what each pixel sees).
 std::vector<PixelRef> SamplePixels(const DifferentiablePathTracer& tracer, const PathTracer& ids,
-                                   const std::vector<TrainingView>& targets, int per_view,
-                                   int margin, bool refined_only, uint64_t seed) {
+                                   const std::vector<PosedImage>& targets, int per_view, int margin,
+                                   bool refined_only, uint64_t seed) {
   std::vector<PixelRef> pixels;
   RenderOptions one;
   one.spp = 1;
@@ -121,7 +111,7 @@ double HuberWeight(double r, double k) {
 }
 
 // RMS of the reference over the sampled pixels and channels (> 0).
-double ReferenceRms(const std::vector<TrainingView>& targets, const std::vector<PixelRef>& pixels) {
+double ReferenceRms(const std::vector<PosedImage>& targets, const std::vector<PixelRef>& pixels) {
   double sum = 0.0;
   for (const PixelRef& p : pixels)
     sum += targets[p.target].image(p.u, p.v).cast<double>().squaredNorm();
@@ -139,13 +129,13 @@ struct Evaluation {
   RayCounts rays;
 };
 
-Evaluation Evaluate(const DifferentiablePathTracer& tracer,
-                    const std::vector<TrainingView>& targets, const std::vector<PixelRef>& pixels,
-                    const RefineOptions& options, uint64_t seed, double scale, bool derivatives) {
+Evaluation Evaluate(const DifferentiablePathTracer& tracer, const std::vector<PosedImage>& targets,
+                    const std::vector<PixelRef>& pixels, const RefineOptions& options,
+                    uint64_t seed, double scale, bool derivatives) {
   Evaluation e;
   e.rows.resize(pixels.size());
   std::vector<RayCounts> rays(pixels.size());
-  const RenderOptions render = options.Render();
+  const RenderOptions render = options.paths;
   RenderOptions jacobian = render;
   if (options.jacobian_max_depth > 0 &&
       (render.max_depth < 0 || options.jacobian_max_depth < render.max_depth)) {
@@ -156,7 +146,7 @@ Evaluation Evaluate(const DifferentiablePathTracer& tracer,
       0, pixels.size(),
       [&](size_t i) {
         const PixelRef& p = pixels[i];
-        const TrainingView& t = targets[p.target];
+        const PosedImage& t = targets[p.target];
         DualRgb row =
             tracer.Pixel(t.view, p.u, p.v, render, seed, derivatives && !separate, &rays[i]);
         if (separate) {  // the values of the full paths, the derivatives of the short ones
@@ -565,7 +555,7 @@ constexpr double kHeld = 1e10;
 // (a 1-sample trace left the Cycles dent held on some seeds).
 // `rays` is a plain tracer of the tracer's scene.
 std::vector<bool> SeenVertices(const DifferentiablePathTracer& tracer, const PathTracer& rays,
-                               const std::vector<TrainingView>& targets,
+                               const std::vector<PosedImage>& targets,
                                const std::vector<PixelRef>& pixels) {
   const Scene& scene = tracer.scene();
   std::vector<std::vector<std::vector<int>>> incident(
@@ -599,7 +589,7 @@ std::vector<bool> SeenVertices(const DifferentiablePathTracer& tracer, const Pat
 }  // namespace
 
 RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer,
-                                        const std::vector<TrainingView>& targets,
+                                        const std::vector<PosedImage>& targets,
                                         const RefineOptions& options, uint64_t seed,
                                         const Eigen::VectorXd* direction) {
   const std::vector<PixelRef> pixels =
@@ -620,7 +610,7 @@ RefineLinearization LinearizeRefinement(const DifferentiablePathTracer& tracer,
 }
 
 HeldOutComparison CompareOnFreshPixels(DifferentiablePathTracer& tracer,
-                                       const std::vector<TrainingView>& targets,
+                                       const std::vector<PosedImage>& targets,
                                        const RefineOptions& options, uint64_t seed,
                                        const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   const std::vector<PixelRef> pixels =
@@ -642,7 +632,7 @@ HeldOutComparison CompareOnFreshPixels(DifferentiablePathTracer& tracer,
 }
 
 RefineResult RefineVertices(DifferentiablePathTracer& tracer,
-                            const std::vector<TrainingView>& targets, const RefineOptions& options,
+                            const std::vector<PosedImage>& targets, const RefineOptions& options,
                             uint64_t seed, const RefineProgress& progress) {
   options.Validate();
   if (targets.empty()) throw Error("vertex refinement: no reference images");

@@ -6,8 +6,8 @@
 //          smooth_sigma^2),
 //   d_i = x_i - x0_i,  P_i = n n^T / sigma_n^2 + (I - n n^T) / sigma_t^2
 //
-// where I(x) is the path-traced pixel (options.spp samples with fixed random numbers, so E is a
-// deterministic function of x between visibility changes), I* the reference image, s the RMS of
+// where I(x) is the path-traced pixel (options.paths.spp samples with fixed random numbers, so E is
+// a deterministic function of x between visibility changes), I* the reference image, s the RMS of
 // the reference over the sampled pixels, and the second term the weak prior on the starting
 // positions x0 that removes the null spaces of sparse sampling (vertices no sample sees): sigma_n
 // (prior_sigma) along the vertex's starting normal n, sigma_t (prior_tangent_sigma; by default the
@@ -54,14 +54,12 @@ namespace genscene::inverse {
 struct RefineOptions {
   static constexpr const char* kSection = "refine";
 
-  int iterations = 5;               // Levenberg-Marquardt iterations (accepted or not)
-  int spp = 64;                     // path samples per pixel and evaluation
+  int iterations = 5;  // Levenberg-Marquardt iterations (accepted or not)
+  render::RenderOptions paths = render::RenderOptions::Paths(64);  // per pixel and evaluation
   int pixels_per_view = 0;          // pixels sampled per view (0 = every pixel)
   bool refine_unseen = false;       // also move vertices that no sampled pixel sees directly
   bool refined_pixels_only = true;  // fit only pixels whose camera ray sees a refined mesh
   int edge_margin = 1;              // pixels within this distance of a silhouette are left out
-  int max_depth = -1;               // longest path, Mitsuba convention (-1 = Russian roulette)
-  int rr_depth = 5;                 // depth at which Russian roulette starts
   int jacobian_max_depth =
       2;  // longest path whose derivatives enter the Jacobian (2 = direct light; -1 = max_depth)
   double noise = 0.05;  // relative pixel noise that weighs the data term
@@ -86,7 +84,7 @@ struct RefineOptions {
   template <typename V>
   void Visit(V&& v) {
     v("iterations", iterations, "", "Levenberg-Marquardt iterations");
-    v("spp", spp, "", "path samples per pixel and evaluation");
+    paths.VisitPaths(v, "path samples per pixel and evaluation");
     v("pixels_per_view", pixels_per_view, "", "pixels sampled per view (0 = every pixel)");
     v("refine_unseen", refine_unseen, "",
       "also move the vertices no sampled pixel sees directly (only indirect light, mostly noise, "
@@ -96,8 +94,6 @@ struct RefineOptions {
       "shows only through shadows and indirect light)");
     v("edge_margin", edge_margin, "px",
       "pixels this close to a silhouette are left out (0 = none)");
-    v("max_depth", max_depth, "segments", "longest path (Mitsuba convention; -1 = unlimited)");
-    v("rr_depth", rr_depth, "segments", "depth at which Russian roulette starts");
     v("jacobian_max_depth", jacobian_max_depth, "segments",
       "longest path whose derivatives enter the Jacobian (2 = direct light only; -1 = max_depth); "
       "the residuals always use max_depth");
@@ -133,7 +129,6 @@ struct RefineOptions {
       "largest problem solved by sparse Cholesky; larger ones by conjugate gradients");
   }
   void Validate() const;
-  render::RenderOptions Render() const;  // the trace settings as path tracer options
 };
 
 struct RefineIteration {
@@ -174,9 +169,8 @@ int HoldFoldingVertices(const std::vector<Eigen::Vector3i>& faces, const Eigen::
 // sample. `progress` is called after the start and after every iteration.
 // Throws Error when a target's size does not match its view or the image is not finite.
 RefineResult RefineVertices(render::DifferentiablePathTracer& tracer,
-                            const std::vector<render::TrainingView>& targets,
-                            const RefineOptions& options, uint64_t seed = 1,
-                            const RefineProgress& progress = {});
+                            const std::vector<PosedImage>& targets, const RefineOptions& options,
+                            uint64_t seed = 1, const RefineProgress& progress = {});
 
 // The data term of E at the tracer's positions and its gradient J^T r (3 per parameter vertex),
 // for checks of the objective against finite differences.
@@ -186,7 +180,7 @@ struct RefineLinearization {
   double curvature = 0.0;  // d^T J^T W J d along the given direction d (Gauss-Newton model)
 };
 RefineLinearization LinearizeRefinement(const render::DifferentiablePathTracer& tracer,
-                                        const std::vector<render::TrainingView>& targets,
+                                        const std::vector<PosedImage>& targets,
                                         const RefineOptions& options, uint64_t seed = 1,
                                         const Eigen::VectorXd* direction = nullptr);
 
@@ -199,7 +193,7 @@ struct HeldOutComparison {
   double rmse_a = 0.0, rmse_b = 0.0;
 };
 HeldOutComparison CompareOnFreshPixels(render::DifferentiablePathTracer& tracer,
-                                       const std::vector<render::TrainingView>& targets,
+                                       const std::vector<PosedImage>& targets,
                                        const RefineOptions& options, uint64_t seed,
                                        const Eigen::VectorXd& a, const Eigen::VectorXd& b);
 

@@ -31,7 +31,7 @@ struct RenderSettings {
 
 struct LoadedScene {
   Scene scene;
-  std::vector<View> views;  // in file order; timestamps 0, 1, 2... unless the file gives them
+  std::vector<PosedView> views;  // in file order; timestamps 0, 1, 2... unless the file gives them
   RenderSettings settings;
   std::vector<std::string> warnings;  // one line each, for the app to print (never fatal)
 };

@@ -713,7 +713,7 @@ class Importer {
     p.Finish();
     // Mitsuba camera (x left, y up, pixel i covers [i, i+1)) -> OpenCV camera (x right, y down,
     // pixel centres at integers): the formulas in mitsuba_xml.h.
-    View view;
+    PosedView view;
     const double t = std::tan(0.5 * Radians(x_fov));
     view.intrinsics.width = width;
     view.intrinsics.height = height;

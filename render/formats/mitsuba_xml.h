@@ -92,7 +92,7 @@ LoadedScene ImportMitsubaXml(const std::filesystem::path& path,
 //   their timestamps are not kept (an imported file numbers its sensors 0, 1, 2...).
 // Returns the warnings (empty when the export is exact).
 std::vector<std::string> ExportMitsubaXml(const std::filesystem::path& path, const Scene& scene,
-                                          const std::vector<View>& views,
+                                          const std::vector<PosedView>& views,
                                           const RenderSettings& settings = RenderSettings());
 
 }  // namespace genscene::render

@@ -53,7 +53,7 @@ std::string RowMajor(const Matrix4d& m) {
   return out;
 }
 
-void WriteSensor(std::ostream& xml, const View& view, const RenderSettings& s,
+void WriteSensor(std::ostream& xml, const PosedView& view, const RenderSettings& s,
                  const std::string& where) {
   const CameraIntrinsics& k = view.intrinsics;
   k.Validate(where);
@@ -159,7 +159,7 @@ TriangleMesh Submesh(const TriangleMesh& mesh, const std::vector<int>& faces) {
 }  // namespace
 
 std::vector<std::string> ExportMitsubaXml(const fs::path& path, const Scene& scene,
-                                          const std::vector<View>& views,
+                                          const std::vector<PosedView>& views,
                                           const RenderSettings& settings) {
   scene.Validate();
   std::vector<std::string> warnings;

@@ -57,13 +57,13 @@ CameraIntrinsics ParseIntrinsicsLine(const std::string& line, const std::string&
   return k;
 }
 
-View ParseCamera(const json& j, const std::string& where) {
+PosedView ParseCamera(const json& j, const std::string& where) {
   CheckKeys(j, {"intrinsics", "pose"}, where);
   if (!j.contains("intrinsics") || !j["intrinsics"].is_string() || !j.contains("pose") ||
       !j["pose"].is_string()) {
     throw Error(Format(where, ": needs \"intrinsics\" and \"pose\" strings"));
   }
-  View view;
+  PosedView view;
   view.intrinsics = ParseIntrinsicsLine(j["intrinsics"].get<std::string>(), where + ".intrinsics");
   const std::vector<std::string> t = SplitWhitespace(j["pose"].get<std::string>());
   if (t.size() != 8) throw Error(Format(where, ".pose: expected 'timestamp tx ty tz qx qy qz qw'"));
@@ -79,7 +79,7 @@ View ParseCamera(const json& j, const std::string& where) {
   return view;
 }
 
-json CameraToJson(const View& view) {
+json CameraToJson(const PosedView& view) {
   const CameraIntrinsics& k = view.intrinsics;
   std::vector<double> line = {
       k.fx, k.fy, k.cx, k.cy, static_cast<double>(k.width), static_cast<double>(k.height)};
@@ -248,7 +248,7 @@ LoadedScene LoadScene(const fs::path& path) {
   throw Error(Format(path.string(), ": unknown scene format '", ext, "' (expected .xml or .json)"));
 }
 
-void SaveSceneJson(const fs::path& path, const Scene& scene, const std::vector<View>& views,
+void SaveSceneJson(const fs::path& path, const Scene& scene, const std::vector<PosedView>& views,
                    const RenderSettings& settings) {
   scene.Validate();
   const std::string folder = path.stem().string() + "_meshes";
@@ -293,7 +293,7 @@ void SaveSceneJson(const fs::path& path, const Scene& scene, const std::vector<V
   if (scene.voxel_lights) j["voxel_lights"] = VoxelLightGridToJson(*scene.voxel_lights);
   if (!views.empty()) {
     json cameras = json::array();
-    for (const View& v : views) cameras.push_back(CameraToJson(v));
+    for (const PosedView& v : views) cameras.push_back(CameraToJson(v));
     j["cameras"] = cameras;
   }
   const json render = RenderToJson(settings);

@@ -55,7 +55,7 @@ LoadedScene LoadScene(const std::filesystem::path& path);
 // colours, 8-bit sRGB (up to 0.0021 off in linear). Albedo fields cannot be stored (Error: bake
 // them per vertex or per face first).
 void SaveSceneJson(const std::filesystem::path& path, const Scene& scene,
-                   const std::vector<View>& views = {},
+                   const std::vector<PosedView>& views = {},
                    const RenderSettings& settings = RenderSettings());
 
 // The Blender Cycles reference scene of a cbox-cycles folder (the set's root, icosphere_flat/ or

@@ -385,7 +385,7 @@ TEST_F(GensceneChain, ExportedMitsubaXmlRendersTheSameImage) {
 
   render::RenderOptions render;
   render.spp = 16;
-  const render::View& view = loaded.views.front();
+  const PosedView& view = loaded.views.front();
   const ImageRgb expected = render::PathTracer(model).Render(view, render, 5).radiance;
   const ImageRgb actual = render::PathTracer(loaded.scene).Render(view, render, 5).radiance;
   double diff = 0.0, norm = 0.0;

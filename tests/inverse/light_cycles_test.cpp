@@ -27,8 +27,8 @@ TEST(LightEstimationCycles, ActiveVoxelsConcentrateUnderTheTrueLight) {
     for (const Eigen::Vector3f& v : m.mesh.vertices) light.extend(v.cast<double>());
   }
   ASSERT_FALSE(light.isEmpty()) << "the Cycles scene has no emitter";
-  const std::vector<TrainingView> train = ReadViews(root / "views" / "train");
-  const std::vector<TrainingView> novel = ReadViews(root / "views" / "novel");
+  const std::vector<PosedImage> train = ReadPosedImages(root / "views" / "train");
+  const std::vector<PosedImage> novel = ReadPosedImages(root / "views" / "novel");
   ASSERT_EQ(train.size(), 3u);
   ASSERT_EQ(novel.size(), 2u);
 
@@ -51,7 +51,7 @@ TEST(LightEstimationCycles, ActiveVoxelsConcentrateUnderTheTrueLight) {
   lit.voxel_lights = e.lights;
   const PathTracer lit_tracer(lit);
   double error = 0.0;
-  for (const TrainingView& v : novel)
+  for (const PosedImage& v : novel)
     error += CompareRender(lit_tracer, v, options, 256, 5, 0.0028).rmse_bias / 2.0;
   std::printf(
       "Cycles box: %d active voxels, centroid %.3f voxel from the light, novel relative RMSE "

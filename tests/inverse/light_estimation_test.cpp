@@ -45,9 +45,9 @@ int StrongestVoxel(const VoxelLightGrid& grid) {
   return strongest;
 }
 
-std::vector<TrainingView> Views(const std::vector<View>& views) {
-  std::vector<TrainingView> out;
-  for (const View& v : views)
+std::vector<PosedImage> Views(const std::vector<PosedView>& views) {
+  std::vector<PosedImage> out;
+  for (const PosedView& v : views)
     out.push_back({v, ImageRgb(v.intrinsics.width, v.intrinsics.height, Eigen::Vector3f::Ones())});
   return out;
 }
@@ -55,9 +55,9 @@ std::vector<TrainingView> Views(const std::vector<View>& views) {
 TEST(LightCache, PredictionEqualsAFreshRenderWithTheSameSamples) {
   SmallScene s;
   const PathTracer tracer(s.geometry);
-  const std::vector<TrainingView> views = Views(CornellLightViews(16, 12));
+  const std::vector<PosedImage> views = Views(CornellLightViews(16, 12));
   LightEstimationOptions o;
-  o.spp = 4;
+  o.paths.spp = 4;
   o.pixels_per_view = 40;
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
   for (const VoxelSplitting& splitting : {VoxelSplitting{}, [] {
@@ -112,10 +112,10 @@ TEST(LightCache, AgreesWithThePathTracerOnAverage) {
   SmallScene s;
   const Scene lit = s.Lit();
   const PathTracer tracer(s.geometry), lit_tracer(lit);
-  const std::vector<View> all = CornellLightViews(12, 9);
-  const std::vector<TrainingView> views = Views({all[0]});
+  const std::vector<PosedView> all = CornellLightViews(12, 9);
+  const std::vector<PosedImage> views = Views({all[0]});
   LightEstimationOptions o;
-  o.spp = 256;
+  o.paths.spp = 256;
   o.pixels_per_view = 1000;
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
   const std::vector<Eigen::Vector3f> predicted =
@@ -134,21 +134,21 @@ TEST(LightCache, AgreesWithThePathTracerOnAverage) {
 }
 
 // Renders `views` of `lit` (direct + indirect) as training views.
-std::vector<TrainingView> Render(const Scene& lit, const std::vector<View>& views, int spp,
-                                 int max_depth = -1) {
+std::vector<PosedImage> Render(const Scene& lit, const std::vector<PosedView>& views, int spp,
+                               int max_depth = -1) {
   const PathTracer tracer(lit);
   RenderOptions ro;
   ro.spp = spp;
   ro.max_depth = max_depth;
-  std::vector<TrainingView> out;
+  std::vector<PosedImage> out;
   for (size_t i = 0; i < views.size(); ++i)
     out.push_back({views[i], tracer.Render(views[i], ro, 100 + i).radiance});
   return out;
 }
 
 // The three training views of CornellLightViews at 24 x 18, rendered at 64 spp.
-std::vector<TrainingView> TrainingViews(const Scene& lit) {
-  const std::vector<View> all = CornellLightViews(24, 18);
+std::vector<PosedImage> TrainingViews(const Scene& lit) {
+  const std::vector<PosedView> all = CornellLightViews(24, 18);
   return Render(lit, {all[0], all[1], all[2]}, 64);
 }
 
@@ -163,14 +163,14 @@ LightEstimationOptions SmallOptions() {
 }
 
 // Normal equations of the small scene from 2 x 4 paths per pixel.
-NormalEquations SmallEquations(const SmallScene& s, const std::vector<TrainingView>& views,
+NormalEquations SmallEquations(const SmallScene& s, const std::vector<PosedImage>& views,
                                double correction) {
   const PathTracer tracer(s.geometry);
   LightEstimationOptions o;
   o.pixels_per_view = 150;
-  o.spp = 8;
+  o.paths.spp = 8;
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
-  o.spp = 4;
+  o.paths.spp = 4;
   const LightCache a = TraceLightCache(tracer, s.grid, VoxelSplitting{}, views, pixels, o, 1);
   const LightCache b = TraceLightCache(tracer, s.grid, VoxelSplitting{}, views, pixels, o, 2);
   return NormalEquations::FromCaches(a, b, correction);
@@ -179,8 +179,8 @@ NormalEquations SmallEquations(const SmallScene& s, const std::vector<TrainingVi
 TEST(LightCost, GradientEqualsCentralDifferences) {
   SmallScene s;
   const Scene lit = s.Lit();
-  const std::vector<View> all = CornellLightViews(16, 12);
-  const std::vector<TrainingView> views = Render(lit, {all[0], all[1]}, 16);
+  const std::vector<PosedView> all = CornellLightViews(16, 12);
+  const std::vector<PosedImage> views = Render(lit, {all[0], all[1]}, 16);
   const NormalEquations eq = SmallEquations(s, views, 0.5);
   const LightCost cost(eq, 1e-3, 0.01);
   // A random interior point (every L and lambda away from 0 and from the bounds), and the same
@@ -214,11 +214,11 @@ TEST(LightCost, GradientEqualsCentralDifferences) {
 TEST(LightCost, GramCostEqualsThePerPixelCost) {
   SmallScene s;
   const Scene lit = s.Lit();
-  const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[2]}, 16);
+  const std::vector<PosedImage> views = Render(lit, {CornellLightViews(16, 12)[2]}, 16);
   const PathTracer tracer(s.geometry);
   LightEstimationOptions o;
   o.pixels_per_view = 100;
-  o.spp = 4;
+  o.paths.spp = 4;
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
   const LightCache cache = TraceLightCache(tracer, s.grid, VoxelSplitting{}, views, pixels, o, 1);
   const NormalEquations eq = NormalEquations::FromCache(cache);
@@ -242,12 +242,12 @@ TEST(LightCost, GramCostEqualsThePerPixelCost) {
 // One view of the small scene and 100 of its pixels, for the tests of caches traced in parts.
 struct PartsSetup {
   SmallScene s;
-  std::vector<TrainingView> views = Render(s.Lit(), {CornellLightViews(16, 12)[0]}, 8);
+  std::vector<PosedImage> views = Render(s.Lit(), {CornellLightViews(16, 12)[0]}, 8);
   PathTracer tracer{s.geometry};
   LightEstimationOptions o = [] {
     LightEstimationOptions options;
     options.pixels_per_view = 100;
-    options.spp = 4;
+    options.paths.spp = 4;
     return options;
   }();
   std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
@@ -330,11 +330,11 @@ TEST(VoxelSplitting, NeverDrawsAVoxelOfProbabilityZero) {
 TEST(NormalEquations, DenseAndSparseRowsAndThreadCountsAgree) {
   SmallScene s;
   const Scene lit = s.Lit();
-  const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 8);
+  const std::vector<PosedImage> views = Render(lit, {CornellLightViews(16, 12)[0]}, 8);
   const PathTracer tracer(s.geometry);
   LightEstimationOptions o;
   o.pixels_per_view = 120;
-  o.spp = 2;
+  o.paths.spp = 2;
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
   // Sampled voxels (sparse rows) and every voxel (dense rows) take the two code paths.
   VoxelSplitting sampled;
@@ -375,7 +375,7 @@ TEST(EstimateLights, RecoversAVoxelLight) {
   VoxelLightGrid truth = s.grid;
   truth.intensity[4].setZero();  // one light: top centre, mostly facing down
   const Scene lit = s.Lit(&truth);
-  const std::vector<TrainingView> views = TrainingViews(lit);
+  const std::vector<PosedImage> views = TrainingViews(lit);
   LightEstimationOptions o = SmallOptions();
   o.rounds = 2;
   const LightEstimate e = EstimateLights(lit, views, o, 1);
@@ -402,7 +402,7 @@ TEST(EstimateLights, RefinementPutsALightInItsFinerVoxel) {
   truth.intensity[light] = Eigen::Vector3f(2.0f, 1.5f, 1.0f);
   truth.weights[light] = {0.1f, 0.1f, 0.1f, 0.1f, 0.0f, 1.0f};
   const Scene lit = s.Lit(&truth);
-  const std::vector<TrainingView> views = TrainingViews(lit);
+  const std::vector<PosedImage> views = TrainingViews(lit);
   LightEstimationOptions o = SmallOptions();
   o.rounds = 1;
   const LightEstimate coarse = EstimateLights(lit, views, o, 1);
@@ -440,7 +440,7 @@ TEST(EstimateLights, RefinementPutsALightInItsFinerVoxel) {
 TEST(EstimateLights, AFinerLevelThatFitsWorseLeavesTheCoarseResult) {
   SmallScene s;
   const Scene lit = s.Lit();
-  const std::vector<TrainingView> views = TrainingViews(lit);
+  const std::vector<PosedImage> views = TrainingViews(lit);
   LightEstimationOptions o = SmallOptions();
   o.rounds = 1;
   const LightEstimate coarse = EstimateLights(lit, views, o, 1);
@@ -473,7 +473,7 @@ TEST(EstimateLights, SameSeedSameLightsWithOneOrTwoThreads) {
   truth.intensity[light] = Eigen::Vector3f(2.0f, 1.5f, 1.0f);
   truth.weights[light] = {0.1f, 0.1f, 0.1f, 0.1f, 0.0f, 1.0f};
   const Scene lit = s.Lit(&truth);
-  const std::vector<TrainingView> views = TrainingViews(lit);
+  const std::vector<PosedImage> views = TrainingViews(lit);
   LightEstimationOptions o = SmallOptions();
   o.refine_levels = 1;
   o.refine_spp = 8;
@@ -502,7 +502,7 @@ TEST(SolveLights, MovesALightIntoItsVoxel) {
   VoxelLightGrid truth = s.grid;
   truth.intensity[4].setZero();
   const Scene lit = s.Lit(&truth);
-  const std::vector<TrainingView> views = TrainingViews(lit);
+  const std::vector<PosedImage> views = TrainingViews(lit);
   const NormalEquations eq = SmallEquations(s, views, 0.0);
   LightEstimationOptions o;
   o.penalty_weight = 1e-3;
@@ -533,13 +533,13 @@ TEST(SolveLights, MovesALightIntoItsVoxel) {
 TEST(EstimateLights, PenaltyZeroAndHugeStayFinite) {
   SmallScene s;
   const Scene lit = s.Lit();
-  const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
+  const std::vector<PosedImage> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
   LightEstimationOptions o;
   o.grid = 3;
   o.boundary_inset = kSmallInset;
   o.pixels_per_view = 150;
   o.rounds = 1;
-  o.spp = 4;
+  o.paths.spp = 4;
   int previous_active = 1 << 30;
   for (double w : {0.0, 1e-3, 1e6}) {
     o.penalty_weight = w;
@@ -572,13 +572,13 @@ TEST(EstimateLights, UnreachableVoxelStaysDark) {
   lit.meshes.push_back(box);
   lit.voxel_lights = s.grid;
   lit.voxel_lights->intensity[4].setZero();  // (0, 0, 0.33) is inside the closed box
-  const std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
+  const std::vector<PosedImage> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
   LightEstimationOptions o;
   o.grid = 3;
   o.boundary_inset = kSmallInset;
   o.pixels_per_view = 150;
   o.rounds = 1;
-  o.spp = 4;
+  o.paths.spp = 4;
   const LightEstimate e = EstimateLights(lit, views, o, 2);
   EXPECT_EQ(e.lights.intensity[4], Eigen::Vector3f::Zero());
   for (int j = 0; j < 27; ++j) EXPECT_TRUE(e.lights.intensity[j].allFinite());
@@ -593,9 +593,9 @@ TEST(EstimateLights, FindsALightSeenOnlyThroughBounces) {
   truth.weights[22] = {0, 0, 0, 0, 1, 0};  // +z only: lights the ceiling
   const Scene lit = s.Lit(&truth);
   const CameraIntrinsics k = CameraIntrinsics::FromHorizontalFov(20, 15, 60.0);
-  const std::vector<View> floor_views = {{k, LookAt({0.0, -0.9, 1.0}, {0.0, 0.3, 0.0})},
-                                         {k, LookAt({0.8, 0.8, 1.0}, {-0.2, -0.2, 0.0})}};
-  const std::vector<TrainingView> views = Render(lit, floor_views, 64);
+  const std::vector<PosedView> floor_views = {{k, LookAt({0.0, -0.9, 1.0}, {0.0, 0.3, 0.0})},
+                                              {k, LookAt({0.8, 0.8, 1.0}, {-0.2, -0.2, 0.0})}};
+  const std::vector<PosedImage> views = Render(lit, floor_views, 64);
   LightEstimationOptions o = SmallOptions();
   o.rounds = 2;
   for (int levels : {0, 1}) {  // the coarse grid, then with adaptive refinement
@@ -617,14 +617,14 @@ TEST(EstimateLights, FindsALightSeenOnlyThroughBounces) {
 TEST(EstimateLights, AlbedoFixesTheScaleGauge) {
   SmallScene s;
   const Scene lit = s.Lit();
-  const std::vector<TrainingView> views =
+  const std::vector<PosedImage> views =
       Render(lit, {CornellLightViews(16, 12)[0], CornellLightViews(16, 12)[1]}, 32, 2);
   LightEstimationOptions o;
   o.grid = 3;
   o.boundary_inset = kSmallInset;
   o.pixels_per_view = 150;
   o.rounds = 1;
-  o.max_depth = 2;
+  o.paths.max_depth = 2;
   const auto total_power = [&](const Scene& scene) {
     return EstimateLights(scene, views, o, 3).lights.TotalPowerLuminance();
   };
@@ -638,7 +638,7 @@ TEST(EstimateLights, AlbedoFixesTheScaleGauge) {
 TEST(EstimateLights, MasksSaturatedAndEmitterPixels) {
   SmallScene s;
   const Scene lit = s.Lit();
-  std::vector<TrainingView> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
+  std::vector<PosedImage> views = Render(lit, {CornellLightViews(16, 12)[0]}, 16);
   // A burnt-out patch (above the saturation level, which nothing else reaches) and an
   // emitter-bright spot.
   for (int v = 2; v < 5; ++v) {
@@ -668,12 +668,12 @@ TEST(EstimateLights, MasksSaturatedAndEmitterPixels) {
 // noise estimate from a few samples unreliable.)
 TEST(CompareRender, TilesKeepTheErrorAndShrinkTheNoise) {
   const PathTracer lit(MakeCornellBoxScene());
-  const View view = CornellLightViews(32, 24)[0];
+  const PosedView view = CornellLightViews(32, 24)[0];
   LightEstimationOptions o;
-  RenderOptions half = o.Paths();
+  RenderOptions half = o.paths;
   half.spp = 128;
   const ImageRgb a = lit.Render(view, half, 7).radiance, b = lit.Render(view, half, 8).radiance;
-  TrainingView reference{view, ImageRgb(a.width(), a.height())};
+  PosedImage reference{view, ImageRgb(a.width(), a.height())};
   double noise = 0.0;
   for (size_t i = 0; i < a.size(); ++i) {
     reference.image.data()[i] = 0.6f * (a.data()[i] + b.data()[i]);
@@ -697,7 +697,7 @@ TEST(EstimateLights, BadInputIsAClearError) {
   SmallScene s;
   const PathTracer tracer(s.geometry);
   LightEstimationOptions o;
-  std::vector<TrainingView> views = Views({CornellLightViews(16, 12)[0]});
+  std::vector<PosedImage> views = Views({CornellLightViews(16, 12)[0]});
   views[0].image = ImageRgb(8, 6);
   try {
     SamplePixels(tracer, views, o, 1);
@@ -710,9 +710,9 @@ TEST(EstimateLights, BadInputIsAClearError) {
   views[0].image(3, 4) = Eigen::Vector3f(NAN, 0, 0);
   EXPECT_THROW(SamplePixels(tracer, views, o, 1), Error);
   EXPECT_THROW(SamplePixels(tracer, {}, o, 1), Error);
-  o.spp = 3;
+  o.paths.spp = 3;
   EXPECT_THROW(o.Validate(), Error);
-  o.spp = 4;
+  o.paths.spp = 4;
   o.refine_spp = 5;  // odd: no two halves
   EXPECT_THROW(o.Validate(), Error);
   o.refine_spp = 0;
@@ -729,9 +729,9 @@ TEST(EstimateLights, BadInputIsAClearError) {
 // the cache is stopped while it grows; the same estimate goes through under a sufficient cap.
 TEST(EstimateLights, MemoryCapIsAClearError) {
   SmallScene s;
-  const std::vector<TrainingView> views = Render(s.Lit(), CornellLightViews(16, 12), 4);
+  const std::vector<PosedImage> views = Render(s.Lit(), CornellLightViews(16, 12), 4);
   LightEstimationOptions o;
-  o.spp = 4;
+  o.paths.spp = 4;
   o.rounds = 1;
   o.pixels_per_view = 150;
   o.refine_levels = 0;  // the coarse grid's caps first; the refinement level's at the end

@@ -21,7 +21,7 @@ namespace {
 struct Replica {
   IcosphereBox box = MakeIcosphereBox(true);
   Eigen::Vector3d eye = box.view.world_from_camera.translation();
-  std::vector<TrainingView> targets;
+  std::vector<PosedImage> targets;
   std::vector<bool> refined;
   Replica(int reference_spp, int max_depth) {
     RenderOptions render;
@@ -59,8 +59,8 @@ TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   const TriangleMesh start_mesh = tracer.scene().meshes[replica.box.sphere].mesh;
 
   RefineOptions options;
-  options.spp = 64;
-  options.max_depth = 2;
+  options.paths.spp = 64;
+  options.paths.max_depth = 2;
   options.iterations = 3;
   options.pixels_per_view = 3000;
   const RefineResult result = RefineVertices(tracer, replica.targets, options);
@@ -89,8 +89,8 @@ TEST(VertexRefinement, SameSeedSameVerticesWithOneOrTwoThreads) {
   Replica replica(16, 2);
   const SpikeAndDent start = replica.Perturbed();
   RefineOptions options;
-  options.spp = 4;
-  options.max_depth = 2;
+  options.paths.spp = 4;
+  options.paths.max_depth = 2;
   options.iterations = 2;
   options.pixels_per_view = 500;
   std::vector<Eigen::VectorXd> results;
@@ -114,8 +114,8 @@ TEST(VertexRefinement, ConjugateGradientsGiveTheCholeskySteps) {
   Replica replica(16, 2);
   const SpikeAndDent start = replica.Perturbed();
   RefineOptions options;
-  options.spp = 4;
-  options.max_depth = 2;
+  options.paths.spp = 4;
+  options.paths.max_depth = 2;
   options.iterations = 2;
   options.pixels_per_view = 500;
   std::vector<Eigen::VectorXd> results;
@@ -137,13 +137,13 @@ TEST(VertexRefinement, BadTargetsAreClearErrors) {
   Replica replica(1, 2);
   DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
   RefineOptions options;
-  options.spp = 1;
-  std::vector<TrainingView> wrong_size = {{replica.box.view, ImageRgb(10, 10)}};
+  options.paths.spp = 1;
+  std::vector<PosedImage> wrong_size = {{replica.box.view, ImageRgb(10, 10)}};
   EXPECT_NE(test::ErrorOf([&] {
               RefineVertices(tracer, wrong_size, options);
             }).find("is 10x10 but its view is 106x80"),
             std::string::npos);
-  std::vector<TrainingView> nan = replica.targets;
+  std::vector<PosedImage> nan = replica.targets;
   nan[0].image(3, 4) = Eigen::Vector3f(NAN, 0, 0);
   EXPECT_NE(test::ErrorOf([&] {
               RefineVertices(tracer, nan, options);
@@ -246,8 +246,8 @@ TEST(VertexRefinement, TheRelaxationUndoesSlidesAcrossTheSurface) {
   };
   const auto refined = [&](double relax_sigma) {
     RefineOptions options;
-    options.spp = 64;
-    options.max_depth = 2;
+    options.paths.spp = 64;
+    options.paths.max_depth = 2;
     options.iterations = 3;
     options.pixels_per_view = 3000;
     options.relax_sigma = relax_sigma;
@@ -277,7 +277,7 @@ TEST(VertexRefinement, TheBendingTermKeepsSingleVerticesFromWalkingAlongTheNorma
   render.max_depth = 2;
   for (const Eigen::Vector3d& eye :
        {Eigen::Vector3d(-0.42, 0.42, 0.8), Eigen::Vector3d(0.42, 0.42, 0.8)}) {
-    View view = replica.box.view;
+    PosedView view = replica.box.view;
     view.intrinsics = CameraIntrinsics{70.0, 70.0, 52.5, 39.5, 106, 80};
     view.world_from_camera = LookAt(eye, replica.box.center);
     replica.targets.push_back(
@@ -293,8 +293,8 @@ TEST(VertexRefinement, TheBendingTermKeepsSingleVerticesFromWalkingAlongTheNorma
   };
   const auto refined = [&](double smooth_sigma) {
     RefineOptions options;
-    options.spp = 32;
-    options.max_depth = 2;
+    options.paths.spp = 32;
+    options.paths.max_depth = 2;
     options.iterations = 3;
     options.smooth_sigma = smooth_sigma;
     return rms(RefinedFrom(replica, start, options));
@@ -327,8 +327,8 @@ double LargerErrorOfTheReplica(const Replica& replica, const RefineOptions& opti
 TEST(VertexRefinement, ARobustPriorLetsAWellSupportedMoveGoAllTheWay) {
   Replica replica(256, 2);
   RefineOptions options;
-  options.spp = 64;
-  options.max_depth = 2;
+  options.paths.spp = 64;
+  options.paths.max_depth = 2;
   options.iterations = 3;
   options.pixels_per_view = 3000;
   const double robust = LargerErrorOfTheReplica(replica, options);
@@ -349,8 +349,8 @@ TEST(VertexRefinement, VerticesNoPixelSeesDirectlyStayPut) {
     DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
     tracer.SetPositions(perturbed.positions);
     RefineOptions options;
-    options.spp = 4;
-    options.max_depth = -1;           // indirect light: every vertex has derivatives
+    options.paths.spp = 4;
+    options.paths.max_depth = -1;     // indirect light: every vertex has derivatives
     options.jacobian_max_depth = -1;  // ... in the Jacobian too
     options.iterations = 2;
     options.refine_unseen = refine_unseen;
@@ -385,8 +385,8 @@ TEST(VertexRefinement, TheJacobianFromShortPathsKeepsTheFullPathsResiduals) {
   tracer.SetPositions(replica.Perturbed().positions);
   const Eigen::VectorXd to_truth = truth - tracer.Positions();
   RefineOptions options;
-  options.spp = 16;
-  options.max_depth = -1;
+  options.paths.spp = 16;
+  options.paths.max_depth = -1;
   options.jacobian_max_depth = -1;
   const RefineLinearization full =
       LinearizeRefinement(tracer, replica.targets, options, 1, &to_truth);
@@ -404,7 +404,7 @@ TEST(VertexRefinement, TheJacobianFromShortPathsKeepsTheFullPathsResiduals) {
   EXPECT_LT(short_paths.gradient.dot(to_truth), 0.0);
   // Never deeper than the paths: with paths of 2 segments a Jacobian depth of 3 is the full
   // Jacobian, bit for bit.
-  options.max_depth = 2;
+  options.paths.max_depth = 2;
   const RefineLinearization same = LinearizeRefinement(tracer, replica.targets, options);
   options.jacobian_max_depth = -1;
   const RefineLinearization reference = LinearizeRefinement(tracer, replica.targets, options);
@@ -421,8 +421,8 @@ TEST(VertexRefinement, LaterStepsAreAveraged) {
     DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
     tracer.SetPositions(replica.Perturbed().positions);
     RefineOptions options;
-    options.spp = 16;
-    options.max_depth = 2;
+    options.paths.spp = 16;
+    options.paths.max_depth = 2;
     options.pixels_per_view = 3000;
     options.iterations = 3;
     options.tolerance = 0.0;
@@ -463,7 +463,7 @@ TEST(VertexRefinement, OnlyPixelsThatSeeARefinedMeshAreFitted) {
   const auto fitted = [&](bool refined_only) {
     DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
     RefineOptions options;
-    options.spp = 1;
+    options.paths.spp = 1;
     options.iterations = 0;
     options.refined_pixels_only = refined_only;
     return RefineVertices(tracer, replica.targets, options).pixels;

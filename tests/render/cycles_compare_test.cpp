@@ -60,7 +60,7 @@ TEST_P(CyclesComparison, RegionMeansAndPixelNoiseAgree) {
     const std::string view_name = std::filesystem::path(frame->color_path).stem().string();
     SCOPED_TRACE(view_name);
     ASSERT_TRUE(frame->world_from_camera.has_value());
-    const View view{frame->intrinsics, *frame->world_from_camera, frame->timestamp};
+    const PosedView view{frame->intrinsics, *frame->world_from_camera, frame->timestamp};
     const RenderOutput a = tracer.Render(view, options, 1000 + 2 * index);
     const RenderOutput b = tracer.Render(view, options, 1001 + 2 * index);
     ++index;

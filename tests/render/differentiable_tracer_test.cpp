@@ -114,7 +114,7 @@ Scene SphereOnFloor(LightKind light, bool smooth) {
 }
 
 // Close enough that the sphere and its shadow fill most of the view.
-View SphereView(int width, int height) {
+PosedView SphereView(int width, int height) {
   return {CameraIntrinsics::FromHorizontalFov(width, height, 40.0),
           LookAt({0.25, -0.8, 0.6}, {0.0, 0.0, 0.2})};
 }
@@ -130,7 +130,8 @@ struct GradientCheck {
 // depends on, and for a few it does not depend on. A sample whose differences at steps h and h/2
 // disagree sits on a visibility change (a ray switches triangles): it is counted as skipped.
 // Mesh 1 of `scene` is refined.
-GradientCheck CheckGradients(const Scene& scene, const RenderOptions& options, const View& view) {
+GradientCheck CheckGradients(const Scene& scene, const RenderOptions& options,
+                             const PosedView& view) {
   std::vector<bool> refined(scene.meshes.size(), false);
   refined[1] = true;
   DifferentiablePathTracer tracer(scene, refined);
@@ -279,12 +280,12 @@ Scene Fan(int n, double height, const Eigen::Vector3d& light) {
   return scene;
 }
 
-View FanView(int width, int height) {
+PosedView FanView(int width, int height) {
   return {CameraIntrinsics::FromHorizontalFov(width, height, 45.0),
           LookAt({0.2, -0.7, 0.6}, {0.0, 0.0, 0.05})};
 }
 
-void ExpectGradientsMatch(const Scene& scene, const View& view, int max_depth = 3) {
+void ExpectGradientsMatch(const Scene& scene, const PosedView& view, int max_depth = 3) {
   RenderOptions options;
   options.max_depth = max_depth;
   options.rr_depth = 100;
@@ -318,8 +319,8 @@ TEST(DifferentiableTracerHardCases, GrazingAngleHits) {
   // The fan almost flat (2 cm rise over 30 cm, slopes of 4 degrees) seen from 1 degree above the
   // floor: the rays meet the near slopes 5 degrees off their plane.
   const Scene scene = Fan(8, 0.04, {0.0, 0.3, 0.5});
-  const View view{CameraIntrinsics::FromHorizontalFov(16, 12, 12.0),
-                  LookAt({0.0, -0.9, 0.045}, {0.0, 0.0, 0.03})};
+  const PosedView view{CameraIntrinsics::FromHorizontalFov(16, 12, 12.0),
+                       LookAt({0.0, -0.9, 0.045}, {0.0, 0.0, 0.03})};
   ExpectGradientsMatch(scene, view, 2);
 }
 
@@ -330,7 +331,7 @@ TEST(DifferentiableTracerHardCases, LightVeryCloseToTheSurface) {
 
 TEST(DifferentiableTracer, PixelsMatchThePathTracersRenderWithTheSameSeed) {
   const Scene scene = SphereOnFloor(LightKind::kArea, true);
-  const View view = SphereView(20, 15);
+  const PosedView view = SphereView(20, 15);
   RenderOptions options;
   options.spp = 4;
   const RenderOutput render = PathTracer(scene).Render(view, options, 5);
@@ -455,8 +456,8 @@ TEST(AlbedoLookupProperty, BothTracersReadMeshColorsAtGrazingHits) {
     for (auto& c : colors->colors()) c = {unit(rng), unit(rng), unit(rng)};
     scene.meshes[1].albedo.kind = SurfaceAlbedo::Kind::kField;
     scene.meshes[1].albedo.field = std::make_shared<MeshColorsField>(colors.get());
-    const View view{CameraIntrinsics::FromHorizontalFov(24, 18, 12.0),
-                    LookAt({0.0, -0.9, 0.045}, {0.0, 0.0, 0.03})};
+    const PosedView view{CameraIntrinsics::FromHorizontalFov(24, 18, 12.0),
+                         LookAt({0.0, -0.9, 0.045}, {0.0, 0.0, 0.03})};
     RenderOptions options;
     options.spp = 2;
     options.max_depth = 3;

@@ -32,7 +32,7 @@ fs::path WriteScene(const test::TempDir& dir, const std::string& body,
 }
 
 // Pixel (OpenCV convention) where a world point appears in a view.
-Eigen::Vector2d Pixel(const View& view, const Vector3d& world) {
+Eigen::Vector2d Pixel(const PosedView& view, const Vector3d& world) {
   return *view.intrinsics.Project(view.world_from_camera.inverse() * world);
 }
 
@@ -117,7 +117,7 @@ TEST(MitsubaXmlData, CboxTutorialIsOutsideTheSubsetAndSaysWhere) {
 TEST(MitsubaXmlData, DefaultFovCameraProjectsAKnownPoint) {
   GS_REQUIRE_SHARED_DATA(data);
   const LoadedScene s = LoadScene(data / "mitsuba/ad-integrator-refs/point_light_intensity.xml");
-  const View& view = s.views[0];
+  const PosedView& view = s.views[0];
   EXPECT_NEAR(view.intrinsics.fx, 64.0 / 0.305941, 1e-3);
   EXPECT_EQ(view.intrinsics.fx, view.intrinsics.fy);
   EXPECT_EQ(view.intrinsics.cx, 63.5);
@@ -141,7 +141,7 @@ TEST(MitsubaXmlData, DefaultFovCameraProjectsAKnownPoint) {
 TEST(MitsubaXmlData, CboxCameraMatchesTheReferenceImage) {
   GS_REQUIRE_SHARED_DATA(data);
   const LoadedScene s = LoadScene(data / "mitsuba/cbox-rgb/cbox-rgb.xml");
-  const View& view = s.views[0];
+  const PosedView& view = s.views[0];
   EXPECT_NEAR(view.intrinsics.fx, 128.0 / std::tan(39.3077 / 2 * M_PI / 180), 1e-9);
   EXPECT_NEAR(Pixel(view, Vector3d(278, 548.3, 227)).y(), 31.425, 0.02);
   EXPECT_NEAR(Pixel(view, Vector3d(278, 548.3, 332)).y(), 40.84 - 0.5, 0.02);
@@ -239,7 +239,7 @@ TEST(MitsubaXmlData, PointLightsByPositionAndByTransform) {
   EXPECT_NEAR(ignis.views[0].intrinsics.fx, 128.0, 1e-9);  // fov 90 on 256 pixels
   // The whole chain against Mitsuba's reference (SOURCE.txt): the ray through pixel (128, 192)
   // meets the floor y = -1 where rho/pi * I * cos / d^2 = 0.070483; the reference reads 0.070496.
-  const View& view = ignis.views[0];
+  const PosedView& view = ignis.views[0];
   const Vector3d dir = view.world_from_camera.linear() * view.intrinsics.RayDirection(128, 192);
   const Vector3d origin = view.world_from_camera.translation();
   const Vector3d hit = origin + dir * ((-1.0 - origin.y()) / dir.y());
@@ -419,7 +419,7 @@ TEST(MitsubaXml, SensorFovAxesAndPrincipalPoint) {
   EXPECT_NEAR(view("<string name=\"focal_length\" value=\"36mm\"/>", 360, 240).intrinsics.fx, 360.0,
               1e-9);
   // A principal point offset moves the image content by -ppo * size (§5).
-  const View shifted = view(
+  const PosedView shifted = view(
       "<float name=\"fov\" value=\"90\"/><float name=\"principal_point_offset_x\" value=\"0.1\"/>"
       "<float name=\"principal_point_offset_y\" value=\"-0.05\"/>",
       100, 80);
@@ -565,7 +565,7 @@ TEST(MitsubaXmlExport, RoundTripKeepsGeometryAlbedoEmissionLightsAndViews) {
   grid.intensity = {Vector3f(1, 2, 3), Vector3f::Zero()};
   grid.weights = {{1, 0, 0.5f, 0, 0, 2}, {1, 1, 1, 1, 1, 1}};
   scene.voxel_lights = grid;
-  std::vector<View> views(2);
+  std::vector<PosedView> views(2);
   views[0].intrinsics = {300, 300, 150.25, 99.75, 320, 200, {}};
   views[0].world_from_camera =
       Eigen::Translation3d(1, -2, 0.5) * Eigen::AngleAxisd(0.3, Vector3d(1, 2, 3).normalized());
@@ -681,7 +681,7 @@ TEST(MitsubaXmlExport, ApproximationsWarnAndInexpressibleCamerasFail) {
   EXPECT_TRUE(ImportMitsubaXml(dir / "a.xml")
                   .scene.meshes[0]
                   .albedo.constant.isApprox(Vector3f::Constant(0.6f)));
-  View view;
+  PosedView view;
   view.intrinsics = {300, 310, 100, 100, 200, 200, {}};
   EXPECT_CONTAINS(ErrorOf([&] { ExportMitsubaXml(dir / "b.xml", scene, {view}); }),
                   "square pixels");

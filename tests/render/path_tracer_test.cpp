@@ -32,9 +32,9 @@ SceneMesh Square(double side, double height, bool facing_up, const Eigen::Vector
   return m;
 }
 
-View LookingDownAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int width, int height,
-                   double f) {
-  View view;
+PosedView LookingDownAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int width,
+                        int height, double f) {
+  PosedView view;
   view.intrinsics.width = width;
   view.intrinsics.height = height;
   view.intrinsics.fx = view.intrinsics.fy = f;
@@ -45,7 +45,7 @@ View LookingDownAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, in
 }
 
 // World point seen at pixel (u, v) of a render, from its depth buffer.
-Eigen::Vector3d PointAt(const View& view, const RenderOutput& out, int u, int v) {
+Eigen::Vector3d PointAt(const PosedView& view, const RenderOutput& out, int u, int v) {
   return view.world_from_camera * view.intrinsics.Unproject(u, v, out.depth(u, v));
 }
 
@@ -55,7 +55,7 @@ TEST(PathTracer, PointLightOverPlaneIsExact) {
   scene.meshes.push_back(Square(40.0, 0.0, true, albedo));
   scene.point_lights.push_back({Eigen::Vector3d(0.2, 0.1, 1.0), intensity});
   const PathTracer tracer(scene);
-  const View view = LookingDownAt({0.5, -0.8, 2.0}, {0.0, 0.0, 0.0}, 24, 18, 20.0);
+  const PosedView view = LookingDownAt({0.5, -0.8, 2.0}, {0.0, 0.0, 0.0}, 24, 18, 20.0);
   RenderOptions options;
   options.filter = "center";
   options.spp = 1;
@@ -90,7 +90,7 @@ TEST(PathTracer, VoxelLightOverPlaneFollowsEmissionModel) {
   grid.weights = {{0.1f, 0.9f, 0.3f, 0.0f, 0.2f, 1.0f}};
   scene.voxel_lights = grid;
   const PathTracer tracer(scene);
-  const View view = LookingDownAt({0.3, -1.0, 2.5}, {0.0, 0.0, 0.0}, 20, 16, 12.0);
+  const PosedView view = LookingDownAt({0.3, -1.0, 2.5}, {0.0, 0.0, 0.0}, 20, 16, 12.0);
   RenderOptions options;
   options.filter = "center";
   options.spp = 1;
@@ -128,7 +128,7 @@ double CornerFormFactor(double a, double b, double h) {
 // (a very long focal length), where L = rho * Le * F exactly.
 struct AreaLightSetup {
   Scene scene;
-  View view;
+  PosedView view;
   double expected = 0.0;
   AreaLightSetup() {
     const double side = 0.3, height = 0.8, rho = 0.8, le = 5.0;
@@ -200,7 +200,7 @@ TEST(PathTracer, WhiteFurnace) {
   Scene scene;
   scene.meshes.push_back(walls);
   const PathTracer tracer(scene);
-  const View view = LookingDownAt({0.2, -0.5, 1.0}, {0.0, 0.5, 0.8}, 12, 10, 8.0);
+  const PosedView view = LookingDownAt({0.2, -0.5, 1.0}, {0.0, 0.5, 0.8}, 12, 10, 8.0);
   RenderOptions options;
   options.spp = 256;
   const RenderOutput out = tracer.Render(view, options, 11);
@@ -229,7 +229,7 @@ TEST(PathTracer, VoxelLightMatchesItsSixQuadExport) {
   for (const SceneMesh& m : VoxelCubeFaces(grid)) quads.meshes.push_back(m);
   EXPECT_EQ(quads.meshes.size(), 1u + 5u + 5u);  // zero weights export no quad
 
-  const View view = LookingDownAt({0.1, -1.5, 2.0}, {0.0, 0.0, 0.0}, 16, 12, 10.0);
+  const PosedView view = LookingDownAt({0.1, -1.5, 2.0}, {0.0, 0.0, 0.0}, 16, 12, 10.0);
   RenderOptions options;
   options.spp = 1024;
   options.max_depth = 2;
@@ -265,7 +265,7 @@ TEST(PathTracer, SameSeedSameImageWithOneAndTwoThreads) {
   Scene scene = setup.scene;
   scene.meshes[0].albedo = SurfaceAlbedo::Constant(Eigen::Vector3f(0.9f, 0.5f, 0.3f));
   const PathTracer tracer(scene);
-  View view = LookingDownAt({0.0, -1.0, 1.0}, {0.0, 0.0, 0.3}, 20, 15, 15.0);
+  PosedView view = LookingDownAt({0.0, -1.0, 1.0}, {0.0, 0.0, 0.3}, 20, 15, 15.0);
   RenderOptions options;
   options.spp = 8;
   SetThreadCount(1);

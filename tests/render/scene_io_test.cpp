@@ -69,7 +69,7 @@ Scene FullScene() {
 TEST(SceneJson, RoundTripKeepsEverything) {
   test::TempDir dir;
   const Scene scene = FullScene();
-  std::vector<View> views(2);
+  std::vector<PosedView> views(2);
   views[0].intrinsics = {190, 190, 79.5, 59.5, 160, 120, {}};
   views[0].world_from_camera = Eigen::Translation3d(0.1, -1.9, 0.5) *
                                Eigen::AngleAxisd(1.2, Vector3d(1, 0.2, 0.1).normalized());
