@@ -1,6 +1,6 @@
 // Marching cubes speed: cells per second over dense gyroid volumes of a few sizes, with 1 thread
-// and all threads (issue 5, acceptance 4), and the decimation table of triangle count against the
-// measured one-sided Hausdorff error on an analytic torus (acceptance 5). Each time is the best of
+// and all threads, and the decimation table of triangle count against the
+// measured one-sided Hausdorff error on an analytic torus. Each time is the best of
 // 3 runs after a warm-up. Run by hand:
 //   build/bench/bench_marching_cubes [--dump DIR] [--tsdf WS/tsdf.gsv [--decimation]] [sizes...]
 // --dump DIR writes each grid as DIR/gyroid_<N>.npy (float32, axes z, y, x: numpy's C order of

@@ -1,5 +1,5 @@
 // Rays per second of the full path tracer against a bare Embree intersect/occlude loop over the
-// same scene and the same number of rays, in one run (issue 3, acceptance 5), and the path
+// same scene and the same number of rays, in one run, and the path
 // tracer's error against a high-spp reference as spp grows. Each rate is the best of 3 runs after
 // a warm-up. Run by hand:
 //   build/bench/bench_path_tracer [width] [spp]

@@ -1,4 +1,4 @@
-// Texturing speed against error (issue 6, acceptance 4) and the albedo figure (acceptance 3).
+// Texturing speed against error and the albedo figure.
 //  1. A striped wall (3 m x 2 m, albedo varying smoothly between two colours with a 0.5 m period)
 //     behind a red box, lit by ambient light only so that the observed colour is the albedo;
 //     the exact mesh is pre-split into ~10 cm triangles like a fused mesh; 9 keyframes at

@@ -5,6 +5,7 @@
 
 #include "core/check.h"
 #include "render/light_sampler.h"
+#include "render/path_continuation.h"
 
 namespace genscene::render {
 
@@ -12,28 +13,16 @@ namespace {
 
 constexpr double kPi = M_PI;
 
-// As path_tracer.cpp: ray origins move off the surface by an amount that grows with |p|.
-double OffsetScale(const Eigen::Vector3d& p) {
-  return 2e-5 * (1.0 + p.cwiseAbs().maxCoeff());
-}
+using path::OffsetScale;
+using path::PowerHeuristic;
+using path::SampleCosine;
 
-SparseDual PowerHeuristic(const SparseDual& pdf_a, const SparseDual& pdf_b) {
-  const SparseDual a = pdf_a * pdf_a, b = pdf_b * pdf_b;
-  const SparseDual sum = a + b;
-  return sum.value() > 0.0 ? a / sum : SparseDual(0.0);
-}
-
-// Cosine-weighted direction around unit n, the same mapping as path_tracer.cpp's SampleCosine
-// (Duff et al. 2017 basis), so that the derivative of the direction follows the normal.
-DualVec3 SampleCosine(const DualVec3& n, float u1, float u2) {
-  const double r = std::sqrt(static_cast<double>(u1)), phi = 2.0 * kPi * u2;
-  const double x = r * std::cos(phi), y = r * std::sin(phi), z = std::sqrt(std::max(0.0, 1.0 - u1));
-  const double sign = std::copysign(1.0, n.z.value());
-  const SparseDual a = -1.0 / (sign + n.z);
-  const SparseDual b = n.x * n.y * a;
-  const DualVec3 t(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
-  const DualVec3 s(b, sign + n.y * n.y * a, -n.y);
-  return Normalized(x * t + y * s + z * n);
+// radiance += rgb (*) scalar, the only way radiance grows: every term is a constant colour times a
+// function of the geometry.
+void AddTo(DualRgb* radiance, const Eigen::Vector3d& rgb, const SparseDual& scalar) {
+  for (int c = 0; c < 3; ++c) {
+    if (rgb[c] != 0.0) (*radiance)[c] += rgb[c] * scalar;
+  }
 }
 
 // Area-weighted vertex normals (the paper's section IV): n_v = normalize(sum over the faces of v
@@ -194,6 +183,81 @@ std::optional<DifferentiablePathTracer::Hit> DifferentiablePathTracer::Intersect
   return h;
 }
 
+SparseDual DifferentiablePathTracer::EmitterWeight(const Hit& hit, const Hit& previous,
+                                                   const SparseDual& bsdf_pdf) const {
+  const float pmf = lights_->TrianglePmf(hit.mesh, hit.face);
+  if (pmf <= 0.0f) return SparseDual(1.0);
+  const DualVec3 d = hit.p - previous.p;
+  const SparseDual d2 = SquaredNorm(d);
+  const SparseDual cos_light = abs(Dot(hit.ng, d)) / sqrt(d2);
+  const SparseDual light_pdf = pmf * d2 / (hit.area * cos_light);
+  return PowerHeuristic(bsdf_pdf, light_pdf);
+}
+
+void DifferentiablePathTracer::NextEvent(const Hit& at, const DualVec3& origin_offset,
+                                         const Eigen::Vector3d& beta_albedo, CounterRng& rng,
+                                         DualRgb* radiance, RayCounts* counts) const {
+  if (lights_->empty()) return;
+  // The random numbers are drawn as PathTracer::SampleLight draws them.
+  const size_t i = lights_->Choose(rng.UniformDouble());
+  const float pmf = lights_->pmf(i);
+  const LightSampler::Entry& e = lights_->entry(i);
+  const float u1 = rng.Uniform(), u2 = rng.Uniform();
+  Eigen::Vector3d light_point = Eigen::Vector3d::Zero(), rgb = Eigen::Vector3d::Zero();
+  switch (e.kind) {
+    case LightSampler::Kind::kTriangle: {
+      const SceneMesh& m = scene_.meshes[e.mesh];
+      light_point = UniformPointOnTriangle(m.mesh, e.index, u1, u2).cast<double>();
+      rgb = m.emission.cast<double>();
+      break;
+    }
+    case LightSampler::Kind::kPoint:
+      light_point = scene_.point_lights[e.index].position;
+      rgb = scene_.point_lights[e.index].intensity.cast<double>();
+      break;
+    case LightSampler::Kind::kVoxel:
+      light_point = scene_.voxel_lights->VoxelCenter(e.index);
+      rgb = scene_.voxel_lights->intensity[e.index].cast<double>();
+      break;
+  }
+  const DualVec3 to_light = light_point - at.p;
+  const SparseDual d2 = SquaredNorm(to_light);
+  if (d2.value() <= 0.0) return;
+  const SparseDual distance = sqrt(d2);
+  const DualVec3 wi = (1.0 / distance) * to_light;
+  // The light's factor: value = rgb * factor / pdf.
+  SparseDual factor(1.0), pdf(pmf);
+  if (e.kind == LightSampler::Kind::kTriangle) {
+    const Eigen::Vector3d n_light =
+        scene_.meshes[e.mesh].mesh.FaceNormalScaled(e.index).normalized().cast<double>();
+    const SparseDual cos_light = -Dot(wi, n_light);
+    if (cos_light.value() <= 0.0) return;  // one-sided: the light faces away
+    pdf = pmf * d2 / (e.area * cos_light);
+  } else if (e.kind == LightSampler::Kind::kPoint) {
+    factor = 1.0 / d2;
+  } else {
+    // I(w) = L sum_k lambda_k max(0, w . d_k), w = -wi from the voxel to the surface.
+    const auto& lambda = scene_.voxel_lights->weights[e.index];
+    SparseDual sum(0.0);
+    for (int axis = 0; axis < 3; ++axis) {
+      const SparseDual w = -wi[axis];
+      if (w.value() > 0.0) sum += lambda[2 * axis] * w;
+      if (w.value() < 0.0) sum -= lambda[2 * axis + 1] * w;
+    }
+    factor = sum / d2;
+  }
+  const SparseDual cos_s = Dot(at.ns, wi);
+  if (cos_s.value() <= 0.0 || at.ng.value().dot(wi.value()) <= 0.0) return;
+  ++counts->occluded;
+  if (tracer_->Occluded(origin_offset.value().cast<float>(), wi.value().cast<float>(), 0.0f,
+                        static_cast<float>(distance.value()) * (1.0f - 1e-4f))) {
+    return;
+  }
+  const bool delta = e.kind != LightSampler::Kind::kTriangle;
+  const SparseDual weight = delta ? SparseDual(1.0) : PowerHeuristic(pdf, cos_s / kPi);
+  AddTo(radiance, beta_albedo.cwiseProduct(rgb), cos_s / kPi * factor * weight / pdf);
+}
+
 DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
                                            const Eigen::Vector3d& direction,
                                            const RenderOptions& options, CounterRng& rng,
@@ -207,16 +271,6 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
   DualVec3 ray_o(origin), ray_d(Eigen::Vector3d(direction.normalized()));
   SparseDual bsdf_pdf;
   std::optional<Hit> previous;
-  const auto allowed = [&](int segments) {
-    return options.max_depth < 0 || segments <= options.max_depth;
-  };
-  // radiance += rgb (*) scalar, the only way radiance grows: every term is a constant colour
-  // times a function of the geometry.
-  const auto add = [&](const Eigen::Vector3d& rgb, const SparseDual& scalar) {
-    for (int c = 0; c < 3; ++c) {
-      if (rgb[c] != 0.0) radiance[c] += rgb[c] * scalar;
-    }
-  };
 
   for (int depth = 1;; ++depth) {
     ++local.intersect;
@@ -228,21 +282,12 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
     if (mesh.IsEmitter() && hit->ng.value().dot(ray_d.value()) < 0.0) {
       const Eigen::Vector3d emission = mesh.emission.cast<double>();
       if (depth == 1) {
-        if (!options.hide_emitters) add(emission, SparseDual(1.0));
+        if (!options.hide_emitters) AddTo(&radiance, emission, SparseDual(1.0));
       } else {
-        const float pmf = lights_->TrianglePmf(hit->mesh, hit->face);
-        SparseDual weight(1.0);
-        if (pmf > 0.0f) {
-          const DualVec3 d = hit->p - previous->p;
-          const SparseDual d2 = SquaredNorm(d);
-          const SparseDual cos_light = abs(Dot(hit->ng, d)) / sqrt(d2);
-          const SparseDual light_pdf = pmf * d2 / (hit->area * cos_light);
-          weight = PowerHeuristic(bsdf_pdf, light_pdf);
-        }
-        add(beta.cwiseProduct(emission), weight);
+        AddTo(&radiance, beta.cwiseProduct(emission), EmitterWeight(*hit, *previous, bsdf_pdf));
       }
     }
-    if (!allowed(depth + 1)) break;
+    if (!path::DepthAllowed(options, depth + 1)) break;
     const Eigen::Vector3d albedo =
         mesh.albedo
             .Eval(mesh.mesh, hit->face, static_cast<float>(hit->b1), static_cast<float>(hit->b2))
@@ -253,80 +298,11 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
     Hit at = std::move(*hit);
     if (at.ng.value().dot(ray_d.value()) > 0.0) at.ng = -at.ng, at.ns = -at.ns;
     const DualVec3 origin_offset = at.p + OffsetScale(at.p.value()) * at.ng;
+    NextEvent(at, origin_offset, beta.cwiseProduct(albedo), rng, &radiance, &local);
 
-    // Next-event estimation: the random numbers are drawn as PathTracer::SampleLight draws them.
-    if (!lights_->empty()) {
-      const size_t i = lights_->Choose(rng.UniformDouble());
-      const float pmf = lights_->pmf(i);
-      const LightSampler::Entry& e = lights_->entry(i);
-      const float u1 = rng.Uniform(), u2 = rng.Uniform();
-      Eigen::Vector3d light_point = Eigen::Vector3d::Zero(), rgb = Eigen::Vector3d::Zero();
-      switch (e.kind) {
-        case LightSampler::Kind::kTriangle: {
-          const SceneMesh& m = scene_.meshes[e.mesh];
-          light_point = UniformPointOnTriangle(m.mesh, e.index, u1, u2).cast<double>();
-          rgb = m.emission.cast<double>();
-          break;
-        }
-        case LightSampler::Kind::kPoint:
-          light_point = scene_.point_lights[e.index].position;
-          rgb = scene_.point_lights[e.index].intensity.cast<double>();
-          break;
-        case LightSampler::Kind::kVoxel:
-          light_point = scene_.voxel_lights->VoxelCenter(e.index);
-          rgb = scene_.voxel_lights->intensity[e.index].cast<double>();
-          break;
-      }
-      const DualVec3 to_light = light_point - at.p;
-      const SparseDual d2 = SquaredNorm(to_light);
-      if (d2.value() > 0.0) {
-        const SparseDual distance = sqrt(d2);
-        const DualVec3 wi = (1.0 / distance) * to_light;
-        // The light's factor: value = rgb * factor / pdf.
-        SparseDual factor(1.0), pdf(pmf);
-        bool usable = true;
-        if (e.kind == LightSampler::Kind::kTriangle) {
-          const Eigen::Vector3d n_light =
-              scene_.meshes[e.mesh].mesh.FaceNormalScaled(e.index).normalized().cast<double>();
-          const SparseDual cos_light = -Dot(wi, n_light);
-          usable = cos_light.value() > 0.0;
-          if (usable) pdf = pmf * d2 / (e.area * cos_light);
-        } else if (e.kind == LightSampler::Kind::kPoint) {
-          factor = 1.0 / d2;
-        } else {
-          // I(w) = L sum_k lambda_k max(0, w . d_k), w = -wi from the voxel to the surface.
-          const auto& lambda = scene_.voxel_lights->weights[e.index];
-          SparseDual sum(0.0);
-          for (int axis = 0; axis < 3; ++axis) {
-            const SparseDual w = -wi[axis];
-            if (w.value() > 0.0) sum += lambda[2 * axis] * w;
-            if (w.value() < 0.0) sum -= lambda[2 * axis + 1] * w;
-          }
-          factor = sum / d2;
-        }
-        const SparseDual cos_s = Dot(at.ns, wi);
-        if (usable && cos_s.value() > 0.0 && at.ng.value().dot(wi.value()) > 0.0) {
-          ++local.occluded;
-          if (!tracer_->Occluded(origin_offset.value().cast<float>(), wi.value().cast<float>(),
-                                 0.0f, static_cast<float>(distance.value()) * (1.0f - 1e-4f))) {
-            const bool delta = e.kind != LightSampler::Kind::kTriangle;
-            const SparseDual weight = delta ? SparseDual(1.0) : PowerHeuristic(pdf, cos_s / kPi);
-            add(beta.cwiseProduct(albedo).cwiseProduct(rgb), cos_s / kPi * factor * weight / pdf);
-          }
-        }
-      }
-    }
-
-    // Sample the BSDF for the next segment (argument order as in PathTracer::Radiance).
-    DualVec3 wi = SampleCosine(at.ns, rng.Uniform(), rng.Uniform());
-    if (at.ng.value().dot(wi.value()) <= 0.0) break;
+    DualVec3 wi;
+    if (!path::ContinuePath(at.ns, at.ng, albedo, depth, options, rng, &wi, &beta)) break;
     bsdf_pdf = Dot(at.ns, wi) / kPi;
-    beta = beta.cwiseProduct(albedo);
-    if (depth >= options.rr_depth) {
-      const float q = std::min(0.95f, static_cast<float>(beta.maxCoeff()));
-      if (rng.Uniform() >= q) break;
-      beta /= q;
-    }
     previous = std::move(at);
     ray_o = origin_offset;
     ray_d = std::move(wi);

@@ -1,4 +1,4 @@
-// The differentiable path tracer of vertex refinement (issue 8, the paper's section IV): the path
+// The differentiable path tracer of vertex refinement (the paper's section IV): the path
 // tracer's estimator (next-event estimation + cosine BSDF sampling with MIS, Russian roulette) in
 // sparse forward-mode AD, giving every path sample's radiance together with its derivatives with
 // respect to the positions of the vertices of the refined meshes.
@@ -61,6 +61,12 @@ class DifferentiablePathTracer {
   std::optional<Hit> Intersect(const DualVec3& origin, const DualVec3& direction,
                                bool derivatives) const;
   void UpdateNormals(bool derivatives);
+  // The MIS weight of emission met at `hit` by a BSDF sample from `previous` with pdf bsdf_pdf.
+  SparseDual EmitterWeight(const Hit& hit, const Hit& previous, const SparseDual& bsdf_pdf) const;
+  // Next-event estimation at `at`: one light drawn as PathTracer::SampleLight draws it, its
+  // contribution (beta (*) albedo = `beta_albedo`) added to `radiance` when unblocked.
+  void NextEvent(const Hit& at, const DualVec3& origin_offset, const Eigen::Vector3d& beta_albedo,
+                 CounterRng& rng, DualRgb* radiance, RayCounts* counts) const;
 
   Scene scene_;
   std::unique_ptr<RayTracer> tracer_;

@@ -8,35 +8,15 @@
 #include "core/options.h"
 #include "core/parallel.h"
 #include "render/light_sampler.h"
+#include "render/path_continuation.h"
 
 namespace genscene::render {
 
 namespace {
 
-// Offset of a ray origin along the geometric normal, scaled with the magnitude of the position
-// so that it stays above float round-off in large scenes (Mitsuba scenes in centimetres).
-float OffsetScale(const Eigen::Vector3f& p) {
-  return 2e-5f * (1.0f + p.cwiseAbs().maxCoeff());
-}
-
-// Power heuristic (beta = 2) of Veach's multiple importance sampling.
-float PowerHeuristic(float pdf_a, float pdf_b) {
-  const float a = pdf_a * pdf_a, b = pdf_b * pdf_b;
-  return a + b > 0.0f ? a / (a + b) : 0.0f;
-}
-
-// Cosine-weighted direction around unit n (pdf = cos / pi).
-Eigen::Vector3f SampleCosine(const Eigen::Vector3f& n, float u1, float u2) {
-  const float r = std::sqrt(u1), phi = 2.0f * static_cast<float>(M_PI) * u2;
-  const float x = r * std::cos(phi), y = r * std::sin(phi),
-              z = std::sqrt(std::max(0.0f, 1.0f - u1));
-  // Orthonormal basis (Duff et al. 2017).
-  const float sign = std::copysign(1.0f, n.z());
-  const float a = -1.0f / (sign + n.z()), b = n.x() * n.y() * a;
-  const Eigen::Vector3f t(1.0f + sign * n.x() * n.x() * a, sign * b, -sign * n.x());
-  const Eigen::Vector3f s(b, sign + n.y() * n.y() * a, -n.y());
-  return (x * t + y * s + z * n).normalized();
-}
+using path::DepthAllowed;
+using path::OffsetScale;
+using path::PowerHeuristic;
 
 // Offset from the pixel centre drawn with density proportional to Mitsuba's Gaussian filter
 // w(x) = max(0, exp(-x^2 / (2 s^2)) - exp(-r^2 / (2 s^2))), r = 4 s: a normal sample truncated to
@@ -193,9 +173,6 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
   Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
   float bsdf_pdf = 0.0f;  // solid-angle pdf of the last BSDF sample
   std::optional<SurfacePoint> previous;
-  const auto allowed = [&](int segments) {
-    return options.max_depth < 0 || segments <= options.max_depth;
-  };
 
   for (int depth = 1;; ++depth) {  // depth = segments of the path so far, ending at `hit`
     ++local.intersect;
@@ -212,7 +189,7 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
         radiance += beta.cwiseProduct(mesh.emission) * weight;
       }
     }
-    if (!allowed(depth + 1)) break;
+    if (!DepthAllowed(options, depth + 1)) break;
     const Eigen::Vector3f albedo = mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2);
     if (albedo.maxCoeff() <= 0.0f) break;
 
@@ -234,18 +211,9 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
       }
     }
 
-    // Sample the BSDF for the next segment: f cos / pdf = albedo for cosine sampling.
-    const Eigen::Vector3f wi = SampleCosine(at.ns, rng.Uniform(), rng.Uniform());
-    if (at.ng.dot(wi) <= 0.0f) break;  // below the geometric surface (smooth shading): no light
+    Eigen::Vector3f wi;
+    if (!path::ContinuePath(at.ns, at.ng, albedo, depth, options, rng, &wi, &beta)) break;
     bsdf_pdf = at.ns.dot(wi) / static_cast<float>(M_PI);
-    beta = beta.cwiseProduct(albedo);
-
-    // Russian roulette on the throughput.
-    if (depth >= options.rr_depth) {
-      const float q = std::min(0.95f, beta.maxCoeff());
-      if (rng.Uniform() >= q) break;
-      beta /= q;
-    }
     previous = at;
     ray_o = origin_offset;
     ray_d = wi;
@@ -296,6 +264,65 @@ int VoxelSplitting::Choose(double u) const {
   return static_cast<int>(i);
 }
 
+namespace {
+
+// The shadow rays of one path vertex to voxels: voxel, weight and cos / d^2 per ray beside the
+// arrays that OccludedFrom reads (directions to the voxels, segment lengths), then the unblocked
+// ones as the sink reads them. One per thread, so that a path allocates nothing.
+struct VoxelShadowRays {
+  std::vector<int> voxel, out_voxel;
+  std::vector<float> weight, cos_over_d2, t_max;
+  std::vector<Eigen::Vector3f> directions, out_w, out_base;
+  std::vector<uint8_t> blocked;
+  int n = 0;
+
+  void Reserve(size_t most) {
+    if (voxel.size() >= most) return;
+    for (auto* v : {&voxel, &out_voxel}) v->resize(most);
+    for (auto* v : {&weight, &cos_over_d2, &t_max}) v->resize(most);
+    for (auto* v : {&directions, &out_w, &out_base}) v->resize(most);
+    blocked.resize(most);
+  }
+  // Adds the ray from surface point p (normals ns, ng facing the incoming ray) to voxel j at
+  // `centre` when the voxel is above both the shading and the geometric surface.
+  void Consider(const Eigen::Vector3f& p, const Eigen::Vector3f& ns, const Eigen::Vector3f& ng,
+                const Eigen::Vector3f& centre, int j, float w) {
+    const Eigen::Vector3f to_light = centre - p;
+    const float d2 = to_light.squaredNorm();
+    if (d2 <= 0.0f) return;
+    const float distance = std::sqrt(d2);
+    const Eigen::Vector3f wi = to_light / distance;
+    const float cos_s = ns.dot(wi);
+    if (cos_s <= 0.0f || ng.dot(wi) <= 0.0f) return;
+    voxel[n] = j;
+    weight[n] = w;
+    cos_over_d2[n] = cos_s / d2;
+    directions[n] = wi;
+    t_max[n] = distance * (1.0f - 1e-4f);
+    ++n;
+  }
+  // Traces the gathered rays together in packets from `from` and reports the unblocked ones to
+  // the sink in the gathered order, with base = f_beta cos / d^2 x weight.
+  void Trace(const RayTracer& tracer, const Eigen::Vector3f& from, const Eigen::Vector3f& f_beta,
+             const VoxelCoefficientSink& sink, RayCounts* counts) {
+    if (n == 0) return;
+    counts->occluded += n;
+    tracer.OccludedFrom(from, directions.data(), t_max.data(), n, 0.0f, blocked.data());
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+      if (blocked[i]) continue;
+      // I(w) = L sum_k lambda_k max(0, w . d_k) with w = -wi, from the voxel to the surface.
+      out_voxel[m] = voxel[i];
+      out_w[m] = -directions[i];
+      out_base[m] = f_beta * (cos_over_d2[i] * weight[i]);
+      ++m;
+    }
+    if (m > 0) sink({m, out_voxel.data(), out_w.data(), out_base.data()});
+  }
+};
+
+}  // namespace
+
 void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
                                    const VoxelLightGrid& grid, const VoxelSplitting& splitting,
                                    const RenderOptions& options, CounterRng& rng,
@@ -304,9 +331,6 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
   RayCounts local;
   Eigen::Vector3f beta = Eigen::Vector3f::Ones();
   Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
-  const auto allowed = [&](int segments) {
-    return options.max_depth < 0 || segments <= options.max_depth;
-  };
   const VoxelSplitting* prepared = &splitting;
   VoxelSplitting local_splitting;
   if (static_cast<int>(splitting.centres.size()) != grid.VoxelCount()) {
@@ -315,91 +339,40 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
     prepared = &local_splitting;
   }
   const std::vector<Eigen::Vector3f>& centres = prepared->centres;
-  // The shadow rays of one vertex (voxel, weight and cos / d^2 per ray beside the arrays that
-  // OccludedFrom reads: directions to the voxels, segment lengths), then the unblocked ones as
-  // the sink reads them. Per thread, so that a path allocates nothing.
-  struct Scratch {
-    std::vector<int> voxel, out_voxel;
-    std::vector<float> weight, cos_over_d2, t_max;
-    std::vector<Eigen::Vector3f> directions, out_w, out_base;
-    std::vector<uint8_t> blocked;
-  };
-  thread_local Scratch scratch;
-  const size_t most =
-      std::max(prepared->connected.size(), static_cast<size_t>(std::max(splitting.samples, 0)));
-  if (scratch.voxel.size() < most) {
-    for (auto* v : {&scratch.voxel, &scratch.out_voxel}) v->resize(most);
-    for (auto* v : {&scratch.weight, &scratch.cos_over_d2, &scratch.t_max}) v->resize(most);
-    for (auto* v : {&scratch.directions, &scratch.out_w, &scratch.out_base}) v->resize(most);
-    scratch.blocked.resize(most);
-  }
+  thread_local VoxelShadowRays rays;
+  rays.Reserve(
+      std::max(prepared->connected.size(), static_cast<size_t>(std::max(splitting.samples, 0))));
 
   for (int depth = 1;; ++depth) {
     ++local.intersect;
     const auto hit = Hit(ray_o, ray_d);
-    if (!hit || !allowed(depth + 1)) break;
+    if (!hit || !DepthAllowed(options, depth + 1)) break;
     const SceneMesh& mesh = scene_.meshes[hit->mesh];
     const Eigen::Vector3f albedo = mesh.albedo.Eval(mesh.mesh, hit->face, hit->b1, hit->b2);
     if (albedo.maxCoeff() <= 0.0f) break;
     SurfacePoint at = *hit;
     if (at.ng.dot(ray_d) > 0.0f) at.ng = -at.ng, at.ns = -at.ns;
     const Eigen::Vector3f origin_offset = at.p + OffsetScale(at.p) * at.ng;
-    const Eigen::Vector3f f_beta = beta.cwiseProduct(albedo) / static_cast<float>(M_PI);
 
-    // Shadow rays to the chosen voxels (as SampleLight + next-event estimation in Radiance()):
-    // gathered first, traced together in packets from this vertex, then emitted in the gathered
-    // order.
-    int n = 0;
-    const auto consider = [&](int j, float weight) {
-      const Eigen::Vector3f to_light = centres[j] - at.p;
-      const float d2 = to_light.squaredNorm();
-      if (d2 <= 0.0f) return;
-      const float distance = std::sqrt(d2);
-      const Eigen::Vector3f wi = to_light / distance;
-      const float cos_s = at.ns.dot(wi);
-      if (cos_s <= 0.0f || at.ng.dot(wi) <= 0.0f) return;
-      scratch.voxel[n] = j;
-      scratch.weight[n] = weight;
-      scratch.cos_over_d2[n] = cos_s / d2;
-      scratch.directions[n] = wi;
-      scratch.t_max[n] = distance * (1.0f - 1e-4f);
-      ++n;
-    };
+    // Shadow rays to the chosen voxels (as SampleLight + next-event estimation in Radiance()).
+    rays.n = 0;
     if (depth == 1 && first_vertex_weight <= 0.0f) {
       // direct light estimated by other paths
     } else if (depth <= splitting.all_until_depth || splitting.samples <= 0) {
       const float weight = depth == 1 ? first_vertex_weight : 1.0f;
-      for (int j : prepared->connected) consider(j, weight);
+      for (int j : prepared->connected) rays.Consider(at.p, at.ns, at.ng, centres[j], j, weight);
     } else {
       for (int s = 0; s < splitting.samples; ++s) {
         const int j = splitting.Choose(rng.UniformDouble());
-        consider(j, static_cast<float>(1.0 / (splitting.samples * splitting.pmf[j])));
+        rays.Consider(at.p, at.ns, at.ng, centres[j], j,
+                      static_cast<float>(1.0 / (splitting.samples * splitting.pmf[j])));
       }
     }
-    if (n > 0) {
-      local.occluded += n;
-      tracer_->OccludedFrom(origin_offset, scratch.directions.data(), scratch.t_max.data(), n, 0.0f,
-                            scratch.blocked.data());
-      int m = 0;
-      for (int i = 0; i < n; ++i) {
-        if (scratch.blocked[i]) continue;
-        // I(w) = L sum_k lambda_k max(0, w . d_k) with w = -wi, from the voxel to the surface.
-        scratch.out_voxel[m] = scratch.voxel[i];
-        scratch.out_w[m] = -scratch.directions[i];
-        scratch.out_base[m] = f_beta * (scratch.cos_over_d2[i] * scratch.weight[i]);
-        ++m;
-      }
-      if (m > 0) sink({m, scratch.out_voxel.data(), scratch.out_w.data(), scratch.out_base.data()});
-    }
+    rays.Trace(*tracer_, origin_offset, beta.cwiseProduct(albedo) / static_cast<float>(M_PI), sink,
+               &local);
 
-    const Eigen::Vector3f wi = SampleCosine(at.ns, rng.Uniform(), rng.Uniform());
-    if (at.ng.dot(wi) <= 0.0f) break;
-    beta = beta.cwiseProduct(albedo);
-    if (depth >= options.rr_depth) {
-      const float q = std::min(0.95f, beta.maxCoeff());
-      if (rng.Uniform() >= q) break;
-      beta /= q;
-    }
+    Eigen::Vector3f wi;
+    if (!path::ContinuePath(at.ns, at.ng, albedo, depth, options, rng, &wi, &beta)) break;
     ray_o = origin_offset;
     ray_d = wi;
   }

@@ -1,7 +1,6 @@
-// Comparison of our renders with a reference image from another renderer, region by region
-// (issue 3, acceptance 2): regions are the meshes seen by the pixel-centre ray; pixels on a
-// region boundary (any 8-neighbour in another region) and emitter pixels are left out, because a
-// box filter mixes regions there.
+// Comparison of our renders with a reference image from another renderer, region by region:
+// regions are the meshes seen by the pixel-centre ray; pixels on a region boundary (any 8-neighbour
+// in another region) and emitter pixels are left out, because a box filter mixes regions there.
 #pragma once
 
 #include <Eigen/Core>

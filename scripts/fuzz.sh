@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs the libFuzzer harnesses of fuzz/ (issue 12), two at a time, each for a time budget, on
+# Runs the libFuzzer harnesses of fuzz/, two at a time, each for a time budget, on
 # seed corpora made by our own writers, small files of ../shared/data and the inputs of
 # fuzz/regressions/ (findings of earlier runs, fixed). Needs the fuzz build:
 # scripts/build.sh --fuzz (clang; scripts/test.sh does it).

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs one case of the bad-input catalogue (issue 12) and checks the README's contract for bad
+# Runs one case of the bad-input catalogue and checks the README's contract for bad
 # input: one clear error line, a non-zero exit, no crash, no hang, no partial output.
 #
 #   run_case.sh CASE_DIR BIN_DIR WORK_DIR

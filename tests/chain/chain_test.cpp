@@ -399,7 +399,7 @@ TEST_F(GensceneChain, ExportedMitsubaXmlRendersTheSameImage) {
       << "relative RMSE between the model and its re-imported export";
 }
 
-// Acceptance 2 of issue 11: `genscene demo` as the README runs it (20 frames of 160 x 120); the
+// `genscene demo` as the README runs it (20 frames of 160 x 120); the
 // tracking error and the model's novel views against the synthetic ground truth.
 TEST(GensceneDemo, ModelMatchesTheGroundTruth) {
   test::TempDir tmp;

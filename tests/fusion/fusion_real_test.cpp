@@ -7,7 +7,7 @@
 namespace genscene::fusion {
 namespace {
 
-// Acceptance 2: TUM fr1/desk, 9 frames 640x480, ATE <= 2 cm against the mocap ground truth.
+// TUM fr1/desk, 9 frames 640x480, ATE <= 2 cm against the mocap ground truth.
 TEST(FusionReal, TumFr1DeskNineFramesWithinTwoCentimetres) {
   GS_REQUIRE_SHARED_DATA(data);
   const auto folder = data / "real" / "tum-fr1desk-9f";

@@ -1,5 +1,5 @@
-// Acceptance 1 of the fusion issue, end to end through the apps: a genscene-synth room sequence
-// (150 frames, 320x240, path-traced colour), fused by genscene-fuse; ATE as TUM's evaluate_ate.
+// Fusion end to end through the apps: a genscene-synth room sequence (150 frames, 320x240,
+// path-traced colour), fused by genscene-fuse; ATE as TUM's evaluate_ate.
 // Slow (about a minute per sequence on 2 cores): label "slow".
 #include <nlohmann/json.hpp>
 

@@ -212,7 +212,7 @@ TEST(Preprocess, NormalsOfAPlaneFaceTheCamera) {
   }
 }
 
-// Acceptance 3: a TSDF fused from exact depth maps of an analytic sphere and box; the raycast
+// A TSDF fused from exact depth maps of an analytic sphere and box; the raycast
 // surface lies within 0.5 voxel of the truth. Within a truncation distance of the box's edges the
 // projective TSDF bulges (a known limit of projective distances, KinectFusion's too): those pixels
 // are counted and bounded separately.

@@ -1,4 +1,4 @@
-// Light estimation on images from another renderer (issue 7, acceptance 2): voxel lights estimated
+// Light estimation on images from another renderer: voxel lights estimated
 // from the three Cycles training views of ../shared/data/cbox-cycles, with the library's default
 // options, must sit under the true ceiling light and predict the two novel views.
 #include <gtest/gtest.h>

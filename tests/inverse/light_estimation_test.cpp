@@ -725,7 +725,7 @@ TEST(EstimateLights, BadInputIsAClearError) {
   EXPECT_NO_THROW(o.Validate());
 }
 
-// Issue 12: the memory cap. The dense normal equations are refused before any path is traced;
+// The memory cap. The dense normal equations are refused before any path is traced;
 // the cache is stopped while it grows; the same estimate goes through under a sufficient cap.
 TEST(EstimateLights, MemoryCapIsAClearError) {
   SmallScene s;

@@ -1,4 +1,4 @@
-// Our path tracer against Blender Cycles on ../shared/data/cbox-cycles (issue 3, acceptance 2):
+// Our path tracer against Blender Cycles on ../shared/data/cbox-cycles:
 // every view of the Cornell box and of both icosphere variants, full and direct-only, box filter
 // and pixel-centre rays, from the set's own geometry, albedo, light and cameras. For every region
 // (mesh) the mean must agree within 1 % per channel, and the per-pixel RMS relative difference

@@ -261,7 +261,7 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{LightKind::kVoxel, false, 2}, Case{LightKind::kVoxel, true, 3}),
     CaseName);
 
-// Hard cases (issue 8, acceptance 5): a smooth fan of `n` triangles around a raised centre vertex
+// Hard cases: a smooth fan of `n` triangles around a raised centre vertex
 // (valence n) on the floor, lit by a point light; the fan is refined.
 Scene Fan(int n, double height, const Eigen::Vector3d& light) {
   Scene scene = SphereOnFloor(LightKind::kPoint, true);

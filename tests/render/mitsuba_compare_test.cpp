@@ -1,5 +1,5 @@
 // Our path tracer against Mitsuba's own renders of the Mitsuba 3 scenes in
-// ../shared/data/mitsuba (issue 3, acceptance 3): every scene imported from its XML, rendered with
+// ../shared/data/mitsuba: every scene imported from its XML, rendered with
 // the integrator depth and pixel filter it states, compared with the reference EXR. The image
 // mean per channel must agree within 1 % (the AD-integrator references are nearly noise-free,
 // ~12000 spp; the Ignis and cbox-rgb ones have 4096 spp; cbox-rgb's references were thought to be

@@ -1,4 +1,4 @@
-// Albedo initialisation by chromaticity clustering (issue 6, acceptance 3): the Cornell box
+// Albedo initialisation by chromaticity clustering: the Cornell box
 // rendered by Blender Cycles with full global illumination (../shared/data/cbox-cycles), so the
 // observed colours carry shading, shadows and colour bleeding.
 #include "texturing/albedo.h"

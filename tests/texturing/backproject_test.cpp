@@ -1,4 +1,4 @@
-// Back-projection of keyframes into Mesh Colors (issue 6, acceptance 2 and 5): synthetic scenes
+// Back-projection of keyframes into Mesh Colors: synthetic scenes
 // lit by ambient light only, so that the observed colour equals the albedo exactly.
 #include "texturing/backproject.h"
 

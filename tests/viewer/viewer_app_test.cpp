@@ -1,5 +1,5 @@
-// genscene-view as a user runs it: screenshots under Xvfb + Mesa (llvmpipe) read back and checked
-// (issue 10 acceptance 1, 2), and the messages for missing pieces and a missing display (4).
+// genscene-view as a user runs it: screenshots under Xvfb + Mesa (llvmpipe) read back and checked,
+// and the messages for missing pieces and a missing display.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -62,7 +62,7 @@ void FillByFace(MeshColors* colors, F&& f) {
   }
 }
 
-// Acceptance 1: the Cornell box (core/synthetic.h) as a workspace whose albedo.mcol carries the
+// The Cornell box (core/synthetic.h) as a workspace whose albedo.mcol carries the
 // face colours (faces unshared, so no sample sits between two walls), texture.mcol half of it,
 // cluster labels per wall; seen through the front wall (culled: it faces into the room), red wall
 // left, green wall right, in every mode.
@@ -122,7 +122,7 @@ TEST(ViewerApp, CornellBoxScreenshotShowsRedLeftGreenRight) {
   }
 }
 
-// Acceptance 1, lights: a lights.json with one lit voxel under the ceiling (as genscene-lights
+// Lights: a lights.json with one lit voxel under the ceiling (as genscene-lights
 // writes it) draws a glyph there: the pixels that change against the same view without lights
 // sit around the voxel's projection, above the image centre.
 TEST(ViewerApp, LightGlyphsAppearWhereTheLightsAre) {
@@ -216,7 +216,7 @@ class LookupField : public render::AlbedoField {
   bool baked_;
 };
 
-// Acceptance 2: a checkerboard stored in Mesh Colors at R = 8 appears sharp. The screenshot is
+// A checkerboard stored in Mesh Colors at R = 8 appears sharp. The screenshot is
 // compared with a path-traced render of the same view (albedo = path-traced radiance under a
 // point light divided by the same render with albedo 1: exact, a delta light and pixel-centre
 // rays); vertex colours (the baked field) fail the same bound.
@@ -348,7 +348,7 @@ TEST(ViewerApp, LinearMeshColorsLookupMatchesTheCpuAtEveryResolution) {
   }
 }
 
-// Acceptance 4: what is missing is said, one line each, and what exists is shown; no folder, or
+// What is missing is said, one line each, and what exists is shown; no folder, or
 // nothing to show, is an error; no display is one line suggesting xvfb-run or --screenshot.
 TEST(ViewerApp, MissingPiecesAndNoDisplayAreReportedClearly) {
   test::TempDir ws;
