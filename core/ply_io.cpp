@@ -1,43 +1,41 @@
-// PLY mesh I/O. OpenMesh 9 parses and writes the PLY data; this file adds what OpenMesh lacks:
+// PLY mesh I/O: the reader decodes the data itself in one pass after the header checks of
+// core/ply_format.h; the writer writes the header and the records by hand.
 //
-// - Header check first, and a normalised header (core/ply_format.h). We parse and check the
-//   header ourselves, walk the data once, and hand OpenMesh a stream made of a canonical header
-//   we write followed by the file's data.
-// - Our own importer/exporter. OpenMesh's ImporterT builds half-edge connectivity: for a face that
-//   would make the mesh non-manifold it DUPLICATES the face's vertices (appended at the end), and
-//   it DROPS faces with a repeated or invalid vertex index (evidence: a 5-vertex "fin" of 3
-//   triangles on one edge plus a degenerate face reads as 8 vertices / 3 faces with read_mesh into
-//   a PolyMesh or TriMesh). Meshes from marching cubes are often non-manifold, so instead our
-//   BaseImporter records exactly the vertices and faces of the file, in file order, without
-//   connectivity; our BaseExporter writes a TriangleMesh as it is (no half-edge mesh either).
-// - Custom properties: OpenMesh's PLY reader (with Options::Custom) stores non-standard properties,
-//   such as the float face properties albedo_r/g/b, as named properties of the importer's kernel,
-//   in ASCII and binary; its writer writes every *persistent* float property of the exporter's
-//   kernel, as `property float <name>`. Both are used here for albedo_r/g/b.
+// Reading. Every element up to the later of `vertex` and `face` is walked record by record, each
+// value decoded (binary little-endian) or tokenised and parsed (ASCII: whitespace-separated
+// tokens, line breaks carry no meaning). Values of properties ReadPly does not use are checked
+// and skipped. Elements after the vertices and faces are not read (their size is part of
+// CheckCountsFitInFile only).
+// - Exactly the file's vertices and faces, in file order: no connectivity is built, so a
+//   non-manifold mesh or a face with a repeated vertex (a degenerate triangle) reads as it is.
+// - Polygons are fan-triangulated: (v0, v1, ..., vn-1) becomes the triangles (v0, vk, vk+1),
+//   k = 1 .. n-2, in that order, each with the polygon's colour.
+// - Colours: float albedo_r/g/b (linear) are preferred; otherwise red/green/blue (or
+//   diffuse_red/green/blue for vertices) are sRGB 8-bit values (8-bit integers, or floats in
+//   [0, 1] scaled to 8 bits), converted to linear.
+// - Errors, each naming the file: a file that ends inside a record ("truncated or corrupt PLY
+//   data: it ends in <element> <i> of <n>"), an ASCII value that is not an integer (integer
+//   types) or not a finite number (float types), a negative list length, a face with fewer than
+//   3 corners, an ASCII value of more than 1024 characters. A corner index outside the vertices is
+//   reported after the walk, so that a structural problem anywhere in the file comes first;
+//   non-finite binary positions and normals are reported by TriangleMesh::Validate. Binary NaN or
+//   infinite albedo values are read as they are.
 //
-// Polygons with more than 3 vertices are fan-triangulated: (v0, v1, ..., vn-1) becomes the
-// triangles (v0, vk, vk+1), k = 1 .. n-2, in that order, each with the polygon's colour. The face
-// count of the result is then the sum of (n - 2) over the file's faces. A face with a repeated
-// vertex index is kept as it is (a degenerate triangle), as the file says.
-//
-// OpenMesh's reader and writer are singletons with mutable state, so calls into them are
-// serialised by a mutex; OpenMesh's log streams are silenced during those calls (our Errors say
-// what went wrong).
+// Writing: binary little-endian or ASCII, floats printed with 9 significant digits (they read
+// back exactly), through a temporary file renamed into place.
 #include "core/ply_io.h"
 
-#include <OpenMesh/Core/IO/MeshIO.hh>
-#include <OpenMesh/Core/IO/exporter/BaseExporter.hh>
-#include <OpenMesh/Core/IO/importer/BaseImporter.hh>
-#include <OpenMesh/Core/Mesh/BaseKernel.hh>
-#include <OpenMesh/Core/System/omstream.hh>
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
-#include <mutex>
+#include <limits>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -52,427 +50,363 @@ namespace genscene {
 namespace {
 
 namespace fs = std::filesystem;
-using OpenMesh::EdgeHandle;
-using OpenMesh::FaceHandle;
-using OpenMesh::HalfedgeHandle;
-using OpenMesh::VertexHandle;
-using ply::kAlbedo;
+using ply::DataCursor;
+using ply::PlyElement;
+using ply::PlyHeader;
 using ply::PlyLayout;
+using ply::PlyProperty;
+using ply::PlyType;
 
 // ------------------------------------------------------------------------------------------------
-// OpenMesh adapters.
+// Reading.
 
-std::mutex& OpenMeshMutex() {
-  static std::mutex mutex;
-  return mutex;
+// Where a decoded scalar goes; kSkip: checked, then dropped.
+enum Slot : int { kSkip = -1, kX, kY, kZ, kNx, kNy, kNz, kRed, kGreen, kBlue, kAlbR, kAlbG, kAlbB };
+constexpr int kSlotCount = kAlbB + 1;
+
+struct Field {
+  const PlyProperty* property = nullptr;
+  int slot = kSkip;
+  bool corners = false;  // the face's vertex index list
+};
+
+uint64_t LoadLittleEndian(const unsigned char* bytes, int size) {
+  uint64_t u = 0;
+  for (int i = size - 1; i >= 0; --i) u = (u << 8) | bytes[i];
+  return u;
 }
 
-// Silences OpenMesh's log streams for the life of the object (restores their previous state).
-class QuietOpenMesh {
- public:
-  QuietOpenMesh()
-      : err_(omerr().is_enabled()), log_(omlog().is_enabled()), out_(omout().is_enabled()) {
-    omerr().disable();
-    omlog().disable();
-    omout().disable();
-  }
-  ~QuietOpenMesh() {
-    if (err_) omerr().enable();
-    if (log_) omlog().enable();
-    if (out_) omout().enable();
-  }
-  QuietOpenMesh(const QuietOpenMesh&) = delete;
-  QuietOpenMesh& operator=(const QuietOpenMesh&) = delete;
+bool ParseInteger64(const std::string& token, int64_t* value) {
+  const char* end = token.data() + token.size();
+  const auto [ptr, ec] = std::from_chars(token.data(), end, *value);
+  return ec == std::errc() && ptr == end;
+}
 
- private:
-  bool err_, log_, out_;
-};
-
-// Holds the named (custom) properties OpenMesh's PLY reader and writer use, for a mesh of
-// n_vertices / n_faces elements without connectivity.
-class PropertyKernel final : public OpenMesh::BaseKernel {
+class PlyDecoder {
  public:
-  size_t n_vertices() const override { return n_vertices_; }
-  size_t n_faces() const override { return n_faces_; }
-  void Reserve(size_t vertices, size_t faces) {
-    vprops_reserve(vertices);
-    fprops_reserve(faces);
-  }
-  void SetVertexCount(size_t n) {
-    n_vertices_ = n;
-    vprops_resize(n);
-  }
-  void SetFaceCount(size_t n) {
-    n_faces_ = n;
-    fprops_resize(n);
+  PlyDecoder(const fs::path& path, const PlyHeader& header, const PlyLayout& layout,
+             uint64_t file_size)
+      : name_(path.string()),
+        header_(header),
+        layout_(layout),
+        ascii_(header.format == ply::PlyFormat::kAscii),
+        cursor_(path, header.data_offset, file_size),
+        file_vertices_(header.elements[static_cast<size_t>(layout.vertex)].count) {}
+
+  TriangleMesh Decode() {
+    const int last = std::max(layout_.vertex, layout_.face);
+    for (int e = 0; e <= last; ++e) DecodeElement(static_cast<size_t>(e));
+    if (!problem_.empty()) throw Error(Format(name_, ": ", problem_));
+    return std::move(mesh_);
   }
 
  private:
-  size_t n_vertices_ = 0;
-  size_t n_faces_ = 0;
+  std::vector<Field> MakeFields(size_t e) const;
+  void DecodeElement(size_t e);
+  void DecodeRecord(const std::vector<Field>& fields, float* values);
+  void AddVertex(const float* values);
+  void AddFace(const float* values);
+
+  double ReadFiniteToken(const PlyProperty& p);
+  float ReadFloat(const PlyProperty& p);
+  int64_t ReadInteger(PlyType type, const PlyProperty& p);
+  float ReadColorByte(const PlyProperty& p);
+  void SkipValue(const PlyProperty& p);
+  int64_t ReadListLength(const PlyProperty& p);
+  void ReadList(const PlyProperty& p, int64_t length, bool keep);
+
+  // Binary: the next value of `type` as raw little-endian bits. ASCII: the next token.
+  uint64_t NextBits(PlyType type);
+  const std::string& NextToken();
+
+  Error Truncated() const {
+    return Error(Format(name_, ": truncated or corrupt PLY data: it ends in ", element_->name, " ",
+                        record_, " of ", element_->count));
+  }
+  Error BadValue(const PlyProperty& p, const char* what) const {
+    return Error(Format(name_, ": ", element_->name, " ", record_, ": value '", token_,
+                        "' of property ", p.name, " is ", what));
+  }
+
+  static constexpr size_t kMaxToken = 1024;
+
+  const std::string name_;
+  const PlyHeader& header_;
+  const PlyLayout& layout_;
+  const bool ascii_;
+  DataCursor cursor_;
+  const uint64_t file_vertices_;
+  const PlyElement* element_ = nullptr;
+  uint64_t record_ = 0;
+  std::string token_;
+  std::vector<int64_t> corners_;  // of the current face
+  std::string problem_;           // the first corner index out of range
+  TriangleMesh mesh_;
 };
 
-// Reads the three float or double properties `names` of every element of one kind; false when
-// the kernel does not have them.
-template <template <typename> class PropHandle, typename ElementHandle, typename T>
-bool ReadChannels(const OpenMesh::BaseKernel& kernel, const std::array<const char*, 3>& names,
-                  size_t n, std::vector<Eigen::Vector3f>* out) {
-  PropHandle<T> handles[3];
-  for (int c = 0; c < 3; ++c) {
-    if (!kernel.get_property_handle(handles[c], names[static_cast<size_t>(c)])) return false;
-  }
-  out->resize(n);
-  for (size_t i = 0; i < n; ++i) {
+std::vector<Field> PlyDecoder::MakeFields(size_t e) const {
+  const bool vertex = static_cast<int>(e) == layout_.vertex;
+  const bool face = static_cast<int>(e) == layout_.face;
+  const PlyElement& element = header_.elements[e];
+  std::vector<Field> fields(element.properties.size());
+  for (size_t p = 0; p < fields.size(); ++p) fields[p].property = &element.properties[p];
+  auto assign = [&](const std::array<const char*, 3>& names, int first_slot) {
     for (int c = 0; c < 3; ++c) {
-      (*out)[i][c] =
-          static_cast<float>(kernel.property(handles[c], ElementHandle(static_cast<int>(i))));
+      fields[static_cast<size_t>(element.FindIndex(names[static_cast<size_t>(c)]))].slot =
+          first_slot + c;
     }
-  }
-  return true;
-}
-
-template <template <typename> class PropHandle, typename ElementHandle>
-bool ReadFloatChannels(const OpenMesh::BaseKernel& kernel, const std::array<const char*, 3>& names,
-                       size_t n, std::vector<Eigen::Vector3f>* out) {
-  return ReadChannels<PropHandle, ElementHandle, float>(kernel, names, n, out) ||
-         ReadChannels<PropHandle, ElementHandle, double>(kernel, names, n, out);
-}
-
-Eigen::Vector3f SrgbBytesToLinear(const OpenMesh::Vec3uc& c) {
-  return {SrgbToLinear(c[0] / 255.0f), SrgbToLinear(c[1] / 255.0f), SrgbToLinear(c[2] / 255.0f)};
-}
-
-// Receives what OpenMesh's PLY reader parses, exactly as the file has it: no connectivity, no
-// duplicated vertices, no dropped faces. Problems are recorded, not thrown, because OpenMesh's
-// reader must not be unwound mid-read (it toggles global log state).
-class CollectingImporter final : public OpenMesh::IO::BaseImporter {
- public:
-  using BaseImporter::add_vertex;
-  CollectingImporter(size_t file_vertices, size_t file_faces, const PlyLayout& layout)
-      : file_vertices_(file_vertices), layout_(layout) {
-    first_triangle_.reserve(file_faces + 1);
-    first_triangle_.push_back(0);
-  }
-
-  const std::string& problem() const { return problem_; }
-  size_t polygon_count() const { return first_triangle_.size() - 1; }
-
-  TriangleMesh Build(const std::string& name) {
-    TriangleMesh mesh;
-    const size_t nv = positions_.size();
-    mesh.vertices = std::move(positions_);
-    if (layout_.vertex_normals) mesh.normals = std::move(normals_);
+  };
+  if (vertex) {
+    assign(ply::kPosition, kX);
+    if (layout_.vertex_normals) assign(ply::kNormal, kNx);
     if (layout_.vertex_albedo) {
-      if (!ReadFloatChannels<OpenMesh::VPropHandleT, VertexHandle>(kernel_, kAlbedo, nv,
-                                                                   &mesh.vertex_colors) &&
-          nv > 0) {
-        throw Error(Format(name, ": OpenMesh did not deliver the vertex albedo_r/g/b properties"));
-      }
+      assign(ply::kAlbedo, kAlbR);
     } else if (layout_.vertex_rgb) {
-      mesh.vertex_colors.resize(nv);
-      for (size_t i = 0; i < nv; ++i) mesh.vertex_colors[i] = SrgbBytesToLinear(vertex_rgb_[i]);
+      assign(layout_.vertex_diffuse ? ply::kDiffuseRgb : ply::kRgb, kRed);
     }
-    mesh.faces = std::move(triangles_);
-    const size_t polygons = polygon_count();
-    std::vector<Eigen::Vector3f> polygon_colors;
+  }
+  if (face) {
+    fields[static_cast<size_t>(layout_.face_indices_property)].corners = true;
     if (layout_.face_albedo) {
-      if (!ReadFloatChannels<OpenMesh::FPropHandleT, FaceHandle>(kernel_, kAlbedo, polygons,
-                                                                 &polygon_colors) &&
-          polygons > 0) {
-        throw Error(Format(name, ": OpenMesh did not deliver the face albedo_r/g/b properties"));
-      }
+      assign(ply::kAlbedo, kAlbR);
     } else if (layout_.face_rgb) {
-      polygon_colors.resize(polygons);
-      for (size_t f = 0; f < polygons; ++f) polygon_colors[f] = SrgbBytesToLinear(face_rgb_[f]);
+      assign(ply::kRgb, kRed);
     }
-    if (layout_.face_albedo || layout_.face_rgb) {
-      mesh.face_colors.resize(mesh.faces.size());
-      for (size_t f = 0; f < polygons; ++f) {
-        for (size_t t = first_triangle_[f]; t < first_triangle_[f + 1]; ++t)
-          mesh.face_colors[t] = polygon_colors[f];
+  }
+  return fields;
+}
+
+void PlyDecoder::DecodeElement(size_t e) {
+  element_ = &header_.elements[e];
+  const bool vertex = static_cast<int>(e) == layout_.vertex;
+  const bool face = static_cast<int>(e) == layout_.face;
+  const std::vector<Field> fields = MakeFields(e);
+  const size_t count = static_cast<size_t>(element_->count);  // fits: checked against the size
+  // Memory is reserved for the records the rest of the file can hold (a face has 3 corners or
+  // more), so that a corrupt count fails before a large allocation.
+  uint64_t min_record = 0;  // binary: bytes; ASCII: bytes of one-character values and separators
+  for (const Field& f : fields) {
+    const PlyProperty& p = *f.property;
+    const uint64_t entries = f.corners ? 3 : 0;
+    const auto size = [](PlyType type) { return static_cast<uint64_t>(ply::TypeSize(type)); };
+    min_record += ascii_ ? 2 * (1 + entries)
+                         : size(p.is_list() ? p.count : p.value) + entries * size(p.value);
+  }
+  const size_t reserve =
+      min_record == 0 ? 0 : std::min<uint64_t>(count, cursor_.remaining() / min_record + 1);
+  if (vertex) {
+    mesh_.vertices.reserve(reserve);
+    if (layout_.vertex_normals) mesh_.normals.reserve(reserve);
+    if (layout_.vertex_albedo || layout_.vertex_rgb) mesh_.vertex_colors.reserve(reserve);
+  }
+  if (face) {
+    mesh_.faces.reserve(reserve);
+    if (layout_.face_albedo || layout_.face_rgb) mesh_.face_colors.reserve(reserve);
+  }
+  float values[kSlotCount] = {};
+  for (record_ = 0; record_ < count; ++record_) {
+    DecodeRecord(fields, values);
+    if (vertex) AddVertex(values);
+    if (face) AddFace(values);
+  }
+}
+
+void PlyDecoder::DecodeRecord(const std::vector<Field>& fields, float* values) {
+  for (const Field& field : fields) {
+    const PlyProperty& p = *field.property;
+    if (p.is_list()) {
+      const int64_t length = ReadListLength(p);
+      if (field.corners && length < 3) {
+        throw Error(
+            Format(name_, ": face ", record_, " has ", length, " vertices; at least 3 are needed"));
       }
-    }
-    return mesh;
-  }
-
-  // --- what the PLY reader calls.
-  VertexHandle add_vertex(const OpenMesh::Vec3f& point) override {
-    const VertexHandle vh = add_vertex();
-    set_point(vh, point);
-    return vh;
-  }
-  VertexHandle add_vertex() override {
-    positions_.emplace_back(0.0f, 0.0f, 0.0f);
-    if (layout_.vertex_normals) normals_.emplace_back(0.0f, 0.0f, 0.0f);
-    if (layout_.vertex_rgb) vertex_rgb_.emplace_back(0, 0, 0);
-    kernel_.SetVertexCount(positions_.size());
-    return VertexHandle(static_cast<int>(positions_.size() - 1));
-  }
-  FaceHandle add_face(const VHandles& indices) override {
-    const size_t polygon = polygon_count();
-    if (indices.size() < 3) Note(Format("face ", polygon, " has ", indices.size(), " vertices"));
-    for (size_t i = 0; i < indices.size() && problem_.empty(); ++i) {
-      const int index = indices[i].idx();
-      if (index < 0 || static_cast<size_t>(index) >= file_vertices_) {
-        Note(Format("face ", polygon, " uses vertex ", index, " but the file has ", file_vertices_,
-                    " vertices"));
-      }
-    }
-    // After a problem the file is refused: count the polygon, build nothing (a corrupt ASCII file
-    // fed OpenMesh's reader faces of millions of bogus indices, found by fuzz_ply: a 1.8 KB file
-    // took 1.9 s, a message formatted per index).
-    for (size_t k = 1; problem_.empty() && k + 1 < indices.size(); ++k) {  // fan triangulation
-      triangles_.emplace_back(indices[0].idx(), indices[k].idx(), indices[k + 1].idx());
-    }
-    first_triangle_.push_back(triangles_.size());
-    if (layout_.face_rgb) face_rgb_.emplace_back(0, 0, 0);
-    kernel_.SetFaceCount(polygon + 1);
-    return FaceHandle(static_cast<int>(polygon));
-  }
-  void set_point(VertexHandle vh, const OpenMesh::Vec3f& p) override {
-    if (ValidVertex(vh)) positions_[Index(vh)] = Eigen::Vector3f(p[0], p[1], p[2]);
-  }
-  void set_normal(VertexHandle vh, const OpenMesh::Vec3f& n) override {
-    if (layout_.vertex_normals && ValidVertex(vh))
-      normals_[Index(vh)] = Eigen::Vector3f(n[0], n[1], n[2]);
-  }
-  void set_normal(VertexHandle vh, const OpenMesh::Vec3d& n) override {
-    set_normal(vh, OpenMesh::Vec3f(static_cast<float>(n[0]), static_cast<float>(n[1]),
-                                   static_cast<float>(n[2])));
-  }
-  void set_color(VertexHandle vh, const OpenMesh::Vec4uc& c) override {
-    if (layout_.vertex_rgb && ValidVertex(vh))
-      vertex_rgb_[Index(vh)] = OpenMesh::Vec3uc(c[0], c[1], c[2]);
-  }
-  void set_color(VertexHandle vh, const OpenMesh::Vec3uc& c) override {
-    set_color(vh, OpenMesh::Vec4uc(c[0], c[1], c[2], 255));
-  }
-  void set_color(VertexHandle vh, const OpenMesh::Vec3f& c) override {
-    set_color(vh, ToBytes(c[0], c[1], c[2]));
-  }
-  void set_color(VertexHandle vh, const OpenMesh::Vec4f& c) override {
-    set_color(vh, ToBytes(c[0], c[1], c[2]));
-  }
-  void set_color(FaceHandle fh, const OpenMesh::Vec4uc& c) override {
-    if (layout_.face_rgb && fh.idx() >= 0 && static_cast<size_t>(fh.idx()) < face_rgb_.size()) {
-      face_rgb_[static_cast<size_t>(fh.idx())] = OpenMesh::Vec3uc(c[0], c[1], c[2]);
+      ReadList(p, length, field.corners);
+    } else if (field.slot == kSkip) {
+      SkipValue(p);
+    } else if (field.slot >= kRed && field.slot <= kBlue) {
+      values[field.slot] = ReadColorByte(p);
+    } else {
+      values[field.slot] = ReadFloat(p);
     }
   }
-  void set_color(FaceHandle fh, const OpenMesh::Vec3uc& c) override {
-    set_color(fh, OpenMesh::Vec4uc(c[0], c[1], c[2], 255));
-  }
-  void set_color(FaceHandle fh, const OpenMesh::Vec3f& c) override {
-    set_color(fh, ToBytes(c[0], c[1], c[2]));
-  }
-  void set_color(FaceHandle fh, const OpenMesh::Vec4f& c) override {
-    set_color(fh, ToBytes(c[0], c[1], c[2]));
-  }
-  OpenMesh::BaseKernel* kernel() override { return &kernel_; }
-  void reserve(unsigned int vertices, unsigned int /*edges*/, unsigned int faces) override {
-    // The counts come from a header already checked against the file size.
-    positions_.reserve(vertices);
-    if (layout_.vertex_normals) normals_.reserve(vertices);
-    if (layout_.vertex_rgb) vertex_rgb_.reserve(vertices);
-    if (layout_.face_rgb) face_rgb_.reserve(faces);
-    triangles_.reserve(faces);
-    kernel_.Reserve(vertices, faces);
-  }
-  size_t n_vertices() const override { return positions_.size(); }
-  size_t n_faces() const override { return polygon_count(); }
-  size_t n_edges() const override { return 0; }
+}
 
-  // --- not used by the PLY reader (connectivity, texture coordinates, status, edges).
-  HalfedgeHandle add_edge(VertexHandle, VertexHandle) override { return HalfedgeHandle(); }
-  FaceHandle add_face(HalfedgeHandle) override { return FaceHandle(); }
-  void add_face_texcoords(FaceHandle, VertexHandle, const std::vector<OpenMesh::Vec2f>&) override {}
-  void add_face_texcoords(FaceHandle, VertexHandle, const std::vector<OpenMesh::Vec3f>&) override {}
-  void set_face_texindex(FaceHandle, int) override {}
-  void set_halfedge(VertexHandle, HalfedgeHandle) override {}
-  void set_texcoord(VertexHandle, const OpenMesh::Vec2f&) override {}
-  void set_texcoord(HalfedgeHandle, const OpenMesh::Vec2f&) override {}
-  void set_texcoord(VertexHandle, const OpenMesh::Vec3f&) override {}
-  void set_texcoord(HalfedgeHandle, const OpenMesh::Vec3f&) override {}
-  void set_status(VertexHandle, const OpenMesh::Attributes::StatusInfo&) override {}
-  void set_status(HalfedgeHandle, const OpenMesh::Attributes::StatusInfo&) override {}
-  void set_status(EdgeHandle, const OpenMesh::Attributes::StatusInfo&) override {}
-  void set_status(FaceHandle, const OpenMesh::Attributes::StatusInfo&) override {}
-  void set_next(HalfedgeHandle, HalfedgeHandle) override {}
-  void set_face(HalfedgeHandle, FaceHandle) override {}
-  void request_face_texcoords2D() override {}
-  void set_color(EdgeHandle, const OpenMesh::Vec3uc&) override {}
-  void set_color(EdgeHandle, const OpenMesh::Vec4uc&) override {}
-  void set_color(EdgeHandle, const OpenMesh::Vec3f&) override {}
-  void set_color(EdgeHandle, const OpenMesh::Vec4f&) override {}
-  void set_normal(FaceHandle, const OpenMesh::Vec3f&) override {}
-  void set_normal(FaceHandle, const OpenMesh::Vec3d&) override {}
-  void add_texture_information(int, std::string) override {}
+Eigen::Vector3f SrgbBytesToLinear(const float* bytes) {
+  return {SrgbToLinear(bytes[0] / 255.0f), SrgbToLinear(bytes[1] / 255.0f),
+          SrgbToLinear(bytes[2] / 255.0f)};
+}
 
- private:
-  static OpenMesh::Vec4uc ToBytes(float r, float g, float b) {
-    auto byte = [](float v) {
-      return static_cast<unsigned char>(std::lround(std::clamp(v, 0.0f, 1.0f) * 255.0f));
-    };
-    return OpenMesh::Vec4uc(byte(r), byte(g), byte(b), 255);
+void PlyDecoder::AddVertex(const float* values) {
+  mesh_.vertices.emplace_back(values[kX], values[kY], values[kZ]);
+  if (layout_.vertex_normals) mesh_.normals.emplace_back(values[kNx], values[kNy], values[kNz]);
+  if (layout_.vertex_albedo) {
+    mesh_.vertex_colors.emplace_back(values[kAlbR], values[kAlbG], values[kAlbB]);
+  } else if (layout_.vertex_rgb) {
+    mesh_.vertex_colors.push_back(SrgbBytesToLinear(values + kRed));
   }
-  bool ValidVertex(VertexHandle vh) const {
-    return vh.idx() >= 0 && static_cast<size_t>(vh.idx()) < positions_.size();
-  }
-  static size_t Index(VertexHandle vh) { return static_cast<size_t>(vh.idx()); }
-  void Note(const std::string& problem) {
-    if (problem_.empty()) problem_ = problem;
-  }
+}
 
-  size_t file_vertices_;
-  PlyLayout layout_;
-  std::string problem_;
-  std::vector<Eigen::Vector3f> positions_;
-  std::vector<Eigen::Vector3f> normals_;
-  std::vector<OpenMesh::Vec3uc> vertex_rgb_;
-  std::vector<Eigen::Vector3i> triangles_;
-  std::vector<size_t>
-      first_triangle_;  // polygon f -> triangles [first_triangle_[f], first_triangle_[f+1])
-  std::vector<OpenMesh::Vec3uc> face_rgb_;
-  PropertyKernel kernel_;
-};
+void PlyDecoder::AddFace(const float* values) {
+  for (const int64_t index : corners_) {
+    if (problem_.empty() && (index < 0 || static_cast<uint64_t>(index) >= file_vertices_)) {
+      problem_ = Format("face ", record_, " uses vertex ", index, " but the file has ",
+                        file_vertices_, " vertices");
+    }
+  }
+  if (!problem_.empty()) return;  // the file is refused: build nothing more
+  Eigen::Vector3f color = Eigen::Vector3f::Zero();
+  if (layout_.face_albedo) {
+    color = Eigen::Vector3f(values[kAlbR], values[kAlbG], values[kAlbB]);
+  } else if (layout_.face_rgb) {
+    color = SrgbBytesToLinear(values + kRed);
+  }
+  const bool colored = layout_.face_albedo || layout_.face_rgb;
+  for (size_t k = 1; k + 1 < corners_.size(); ++k) {  // fan triangulation
+    mesh_.faces.emplace_back(static_cast<int>(corners_[0]), static_cast<int>(corners_[k]),
+                             static_cast<int>(corners_[k + 1]));
+    if (colored) mesh_.face_colors.push_back(color);
+  }
+}
+
+const std::string& PlyDecoder::NextToken() {
+  int c = cursor_.Get();
+  while (c >= 0 && std::isspace(c)) c = cursor_.Get();
+  if (c < 0) throw Truncated();
+  token_.clear();
+  while (c >= 0 && !std::isspace(c)) {
+    if (token_.size() == kMaxToken) {
+      throw Error(Format(name_, ": ", element_->name, " ", record_, ": a value of more than ",
+                         kMaxToken, " characters"));
+    }
+    token_.push_back(static_cast<char>(c));
+    c = cursor_.Get();
+  }
+  return token_;
+}
+
+uint64_t PlyDecoder::NextBits(PlyType type) {
+  unsigned char bytes[8];
+  const int size = ply::TypeSize(type);
+  if (!cursor_.Read(bytes, static_cast<size_t>(size))) throw Truncated();
+  return LoadLittleEndian(bytes, size);
+}
+
+int64_t PlyDecoder::ReadInteger(PlyType type, const PlyProperty& p) {
+  if (ascii_) {
+    int64_t value = 0;
+    if (!ParseInteger64(NextToken(), &value)) throw BadValue(p, "not an integer");
+    return value;
+  }
+  const uint64_t u = NextBits(type);
+  const int bits = 8 * ply::TypeSize(type);
+  if (ply::IsSigned(type) && (u >> (bits - 1)) != 0) {
+    return static_cast<int64_t>(u) - (int64_t{1} << bits);
+  }
+  return static_cast<int64_t>(u);
+}
+
+// Float properties only (CheckHeader).
+float PlyDecoder::ReadFloat(const PlyProperty& p) {
+  if (!ascii_) {
+    const uint64_t u = NextBits(p.value);
+    if (p.value == PlyType::kFloat32) {
+      const uint32_t u32 = static_cast<uint32_t>(u);
+      float f;
+      std::memcpy(&f, &u32, sizeof f);
+      return f;
+    }
+    double d;
+    std::memcpy(&d, &u, sizeof d);
+    return static_cast<float>(d);
+  }
+  const double d = ReadFiniteToken(p);
+  float f = 0.0f;
+  const auto [ptr, ec] = std::from_chars(token_.data(), token_.data() + token_.size(), f);
+  if (ec == std::errc() && ptr == token_.data() + token_.size()) return f;
+  if (std::fabs(d) > std::numeric_limits<float>::max()) throw BadValue(p, "out of the float range");
+  return static_cast<float>(d);  // below the float range: zero or subnormal
+}
+
+// ASCII: the next token as a finite double.
+double PlyDecoder::ReadFiniteToken(const PlyProperty& p) {
+  const std::string& token = NextToken();
+  const char* end = token.data() + token.size();
+  double d = 0.0;
+  const auto [ptr, ec] = std::from_chars(token.data(), end, d);
+  if (ec != std::errc() || ptr != end || !std::isfinite(d))
+    throw BadValue(p, "not a finite number");
+  return d;
+}
+
+// A colour channel as its 8-bit value: a float in [0, 1] times 255, truncated (clamped to the
+// interval first, NaN as 0); an integer modulo 256 (a char -1 is 255).
+float PlyDecoder::ReadColorByte(const PlyProperty& p) {
+  if (ply::IsFloat(p.value)) {
+    const float v = ReadFloat(p);
+    if (!(v > 0.0f)) return 0.0f;
+    return static_cast<float>(static_cast<int>(std::min(v, 1.0f) * 255.0f));
+  }
+  return static_cast<float>(static_cast<unsigned char>(ReadInteger(p.value, p) & 0xff));
+}
+
+void PlyDecoder::SkipValue(const PlyProperty& p) {
+  if (!ascii_) {
+    if (!cursor_.Skip(static_cast<uint64_t>(ply::TypeSize(p.value)))) throw Truncated();
+  } else if (ply::IsFloat(p.value)) {
+    ReadFiniteToken(p);
+  } else {
+    ReadInteger(p.value, p);
+  }
+}
+
+int64_t PlyDecoder::ReadListLength(const PlyProperty& p) {
+  int64_t length = 0;
+  if (ascii_) {
+    if (!ParseInteger64(NextToken(), &length)) {
+      throw Error(Format(name_, ": ", element_->name, " ", record_, ": list length '", token_,
+                         "' of property ", p.name, " is not an integer"));
+    }
+  } else {
+    length = ReadInteger(p.count, p);
+  }
+  if (length < 0) {
+    throw Error(Format(name_, ": ", element_->name, " ", record_, ": negative list length ", length,
+                       " of property ", p.name));
+  }
+  return length;
+}
+
+// Reads `length` entries of the list property `p`: into corners_ when `keep`, else checked and
+// dropped.
+void PlyDecoder::ReadList(const PlyProperty& p, int64_t length, bool keep) {
+  const uint64_t n = static_cast<uint64_t>(length);
+  if (keep) corners_.clear();
+  if (!ascii_) {
+    const uint64_t size = static_cast<uint64_t>(ply::TypeSize(p.value));
+    if (n > cursor_.remaining() / size) throw Truncated();  // before anything is allocated
+    if (!keep) {
+      cursor_.Skip(n * size);
+      return;
+    }
+    for (uint64_t k = 0; k < n; ++k) corners_.push_back(ReadInteger(p.value, p));
+    return;
+  }
+  for (uint64_t k = 0; k < n; ++k) {
+    if (keep) {
+      corners_.push_back(ReadInteger(p.value, p));
+    } else {
+      SkipValue(p);
+    }
+  }
+}
+
+// ------------------------------------------------------------------------------------------------
+// Writing.
 
 unsigned char LinearToSrgbByte(float linear) {
   return static_cast<unsigned char>(
       std::lround(LinearToSrgb(std::clamp(linear, 0.0f, 1.0f)) * 255.0f));
 }
-
-// Presents a TriangleMesh to OpenMesh's PLY writer as it is: vertices and triangles in order,
-// colours as sRGB bytes (for viewers), and the exact linear vertex and face colours as persistent
-// float properties albedo_r/g/b of a property kernel (written by OpenMesh as
-// `property float albedo_r` ...).
-class TriangleMeshExporter final : public OpenMesh::IO::BaseExporter {
- public:
-  explicit TriangleMeshExporter(const TriangleMesh& mesh) : mesh_(mesh) {
-    vertex_rgb_.reserve(mesh.vertex_colors.size());
-    for (const Eigen::Vector3f& c : mesh.vertex_colors) {
-      vertex_rgb_.emplace_back(LinearToSrgbByte(c[0]), LinearToSrgbByte(c[1]),
-                               LinearToSrgbByte(c[2]));
-    }
-    face_rgb_.reserve(mesh.face_colors.size());
-    for (const Eigen::Vector3f& c : mesh.face_colors) {
-      face_rgb_.emplace_back(LinearToSrgbByte(c[0]), LinearToSrgbByte(c[1]),
-                             LinearToSrgbByte(c[2]));
-    }
-    kernel_.SetVertexCount(mesh.vertices.size());
-    kernel_.SetFaceCount(mesh.faces.size());
-    if (!mesh.vertex_colors.empty()) {
-      for (int c = 0; c < 3; ++c) {
-        OpenMesh::VPropHandleT<float> handle;
-        kernel_.add_property(handle, kAlbedo[static_cast<size_t>(c)]);
-        kernel_.property(handle).set_persistent(true);
-        for (size_t v = 0; v < mesh.vertices.size(); ++v) {
-          kernel_.property(handle, VertexHandle(static_cast<int>(v))) = mesh.vertex_colors[v][c];
-        }
-      }
-    }
-    if (!mesh.face_colors.empty()) {
-      for (int c = 0; c < 3; ++c) {
-        OpenMesh::FPropHandleT<float> handle;
-        kernel_.add_property(handle, kAlbedo[static_cast<size_t>(c)]);
-        kernel_.property(handle).set_persistent(true);
-        for (size_t f = 0; f < mesh.faces.size(); ++f) {
-          kernel_.property(handle, FaceHandle(static_cast<int>(f))) = mesh.face_colors[f][c];
-        }
-      }
-    }
-  }
-
-  OpenMesh::Vec3f point(VertexHandle vh) const override { return ToOm(mesh_.vertices[Index(vh)]); }
-  OpenMesh::Vec3d pointd(VertexHandle vh) const override { return OpenMesh::Vec3d(point(vh)); }
-  bool is_point_double() const override { return false; }
-  OpenMesh::Vec3f normal(VertexHandle vh) const override { return ToOm(mesh_.normals[Index(vh)]); }
-  OpenMesh::Vec3d normald(VertexHandle vh) const override { return OpenMesh::Vec3d(normal(vh)); }
-  bool is_normal_double() const override { return false; }
-  OpenMesh::Vec3uc color(VertexHandle vh) const override { return vertex_rgb_[Index(vh)]; }
-  OpenMesh::Vec4uc colorA(VertexHandle vh) const override { return WithAlpha(color(vh)); }
-  OpenMesh::Vec3ui colori(VertexHandle vh) const override { return ToUi(color(vh)); }
-  OpenMesh::Vec4ui colorAi(VertexHandle vh) const override { return ToUiA(color(vh)); }
-  OpenMesh::Vec3f colorf(VertexHandle vh) const override { return ToF(color(vh)); }
-  OpenMesh::Vec4f colorAf(VertexHandle vh) const override { return ToFA(color(vh)); }
-  OpenMesh::Vec2f texcoord(VertexHandle) const override { return OpenMesh::Vec2f(0.0f, 0.0f); }
-  OpenMesh::Vec2f texcoord(HalfedgeHandle) const override { return OpenMesh::Vec2f(0.0f, 0.0f); }
-  OpenMesh::Attributes::StatusInfo status(VertexHandle) const override { return {}; }
-
-  unsigned int get_vhandles(FaceHandle fh, std::vector<VertexHandle>& handles) const override {
-    const Eigen::Vector3i& f = mesh_.faces[static_cast<size_t>(fh.idx())];
-    handles = {VertexHandle(f[0]), VertexHandle(f[1]), VertexHandle(f[2])};
-    return 3;
-  }
-  HalfedgeHandle getHeh(FaceHandle, VertexHandle) const override { return HalfedgeHandle(); }
-  unsigned int get_face_texcoords(std::vector<OpenMesh::Vec2f>& texcoords) const override {
-    texcoords.clear();
-    return 0;
-  }
-  OpenMesh::Vec3f normal(FaceHandle fh) const override {
-    return ToOm(mesh_.FaceNormalScaled(static_cast<size_t>(fh.idx())).normalized());
-  }
-  OpenMesh::Vec3d normald(FaceHandle fh) const override { return OpenMesh::Vec3d(normal(fh)); }
-  OpenMesh::Vec3uc color(FaceHandle fh) const override {
-    return face_rgb_[static_cast<size_t>(fh.idx())];
-  }
-  OpenMesh::Vec4uc colorA(FaceHandle fh) const override { return WithAlpha(color(fh)); }
-  OpenMesh::Vec3ui colori(FaceHandle fh) const override { return ToUi(color(fh)); }
-  OpenMesh::Vec4ui colorAi(FaceHandle fh) const override { return ToUiA(color(fh)); }
-  OpenMesh::Vec3f colorf(FaceHandle fh) const override { return ToF(color(fh)); }
-  OpenMesh::Vec4f colorAf(FaceHandle fh) const override { return ToFA(color(fh)); }
-  OpenMesh::Attributes::StatusInfo status(FaceHandle) const override { return {}; }
-
-  OpenMesh::Vec3uc color(EdgeHandle) const override { return OpenMesh::Vec3uc(0, 0, 0); }
-  OpenMesh::Vec4uc colorA(EdgeHandle) const override { return OpenMesh::Vec4uc(0, 0, 0, 255); }
-  OpenMesh::Vec3ui colori(EdgeHandle) const override { return OpenMesh::Vec3ui(0, 0, 0); }
-  OpenMesh::Vec4ui colorAi(EdgeHandle) const override { return OpenMesh::Vec4ui(0, 0, 0, 255); }
-  OpenMesh::Vec3f colorf(EdgeHandle) const override { return OpenMesh::Vec3f(0.0f, 0.0f, 0.0f); }
-  OpenMesh::Vec4f colorAf(EdgeHandle) const override {
-    return OpenMesh::Vec4f(0.0f, 0.0f, 0.0f, 1.0f);
-  }
-  OpenMesh::Attributes::StatusInfo status(EdgeHandle) const override { return {}; }
-
-  int get_halfedge_id(VertexHandle) override { return -1; }
-  int get_halfedge_id(FaceHandle) override { return -1; }
-  int get_next_halfedge_id(HalfedgeHandle) override { return -1; }
-  int get_to_vertex_id(HalfedgeHandle) override { return -1; }
-  int get_face_id(HalfedgeHandle) override { return -1; }
-  OpenMesh::Attributes::StatusInfo status(HalfedgeHandle) const override { return {}; }
-
-  const OpenMesh::BaseKernel* kernel() override { return &kernel_; }
-  size_t n_vertices() const override { return mesh_.vertices.size(); }
-  size_t n_faces() const override { return mesh_.faces.size(); }
-  size_t n_edges() const override { return 0; }
-  bool is_triangle_mesh() const override { return true; }
-  bool has_vertex_normals() const override { return !mesh_.normals.empty(); }
-  bool has_vertex_colors() const override { return !mesh_.vertex_colors.empty(); }
-  bool has_face_colors() const override { return !mesh_.face_colors.empty(); }
-
- private:
-  static size_t Index(VertexHandle vh) { return static_cast<size_t>(vh.idx()); }
-  static OpenMesh::Vec3f ToOm(const Eigen::Vector3f& v) {
-    return OpenMesh::Vec3f(v[0], v[1], v[2]);
-  }
-  static OpenMesh::Vec4uc WithAlpha(const OpenMesh::Vec3uc& c) {
-    return OpenMesh::Vec4uc(c[0], c[1], c[2], 255);
-  }
-  static OpenMesh::Vec3ui ToUi(const OpenMesh::Vec3uc& c) {
-    return OpenMesh::Vec3ui(c[0], c[1], c[2]);
-  }
-  static OpenMesh::Vec4ui ToUiA(const OpenMesh::Vec3uc& c) {
-    return OpenMesh::Vec4ui(c[0], c[1], c[2], 255);
-  }
-  static OpenMesh::Vec3f ToF(const OpenMesh::Vec3uc& c) {
-    return OpenMesh::Vec3f(c[0] / 255.0f, c[1] / 255.0f, c[2] / 255.0f);
-  }
-  static OpenMesh::Vec4f ToFA(const OpenMesh::Vec3uc& c) {
-    return OpenMesh::Vec4f(c[0] / 255.0f, c[1] / 255.0f, c[2] / 255.0f, 1.0f);
-  }
-
-  const TriangleMesh& mesh_;
-  std::vector<OpenMesh::Vec3uc> vertex_rgb_;
-  std::vector<OpenMesh::Vec3uc> face_rgb_;
-  PropertyKernel kernel_;
-};
 
 // Vertex and face colours are stored exactly as float albedo_r/g/b (their 8-bit red/green/blue
 // copy, for viewers, is clamped to [0, 1]); they only have to be finite.
@@ -488,6 +422,94 @@ void CheckColorsWritable(const TriangleMesh& mesh, const std::string& name) {
   }
 }
 
+std::string WriteHeader(const TriangleMesh& mesh, bool binary) {
+  auto properties = [](const char* type, const std::array<const char*, 3>& names) {
+    std::string text;
+    for (const char* n : names) text += Format("property ", type, " ", n, "\n");
+    return text;
+  };
+  std::string text = "ply\n";
+  text += binary ? "format binary_little_endian 1.0\n" : "format ascii 1.0\n";
+  text += Format("element vertex ", mesh.vertices.size(), "\n");
+  text += properties("float", ply::kPosition);
+  if (!mesh.normals.empty()) text += properties("float", ply::kNormal);
+  if (!mesh.vertex_colors.empty()) {
+    text += properties("uchar", ply::kRgb) + properties("float", ply::kAlbedo);
+  }
+  text += Format("element face ", mesh.faces.size(), "\n");
+  text += "property list uchar int vertex_indices\n";
+  if (!mesh.face_colors.empty()) {
+    text += properties("uchar", ply::kRgb) + properties("float", ply::kAlbedo);
+  }
+  return text + "end_header\n";
+}
+
+// Appends records to a buffer that is flushed to the file every MiB. ASCII: values separated by
+// one space, one record per line.
+class RecordWriter {
+ public:
+  RecordWriter(std::ofstream* out, bool binary) : out_(out), binary_(binary) {}
+
+  void Float(float v) {
+    if (binary_) return Raw(&v, sizeof v);
+    char text[32];
+    const int n = std::snprintf(text, sizeof text, "%.9g", static_cast<double>(v));
+    Text(text, static_cast<size_t>(n));
+  }
+  void Int(int32_t v) { binary_ ? Raw(&v, sizeof v) : TextNumber(v); }
+  void Byte(unsigned char v) { binary_ ? Raw(&v, 1) : TextNumber(v); }
+  void Vector(const Eigen::Vector3f& v) {
+    for (int c = 0; c < 3; ++c) Float(v[c]);
+  }
+  void Colour(const Eigen::Vector3f& linear) {
+    for (int c = 0; c < 3; ++c) Byte(LinearToSrgbByte(linear[c]));
+    Vector(linear);
+  }
+  void EndRecord() {
+    if (!binary_) buffer_.push_back('\n');
+    first_ = true;
+    if (buffer_.size() >= (size_t{1} << 20)) Flush();
+  }
+  void Flush() {
+    out_->write(buffer_.data(), static_cast<std::streamsize>(buffer_.size()));
+    buffer_.clear();
+  }
+
+ private:
+  void Raw(const void* data, size_t n) { buffer_.append(static_cast<const char*>(data), n); }
+  void TextNumber(int64_t v) {
+    const std::string text = std::to_string(v);
+    Text(text.data(), text.size());
+  }
+  void Text(const char* text, size_t n) {
+    if (!first_) buffer_.push_back(' ');
+    first_ = false;
+    buffer_.append(text, n);
+  }
+
+  std::ofstream* out_;
+  bool binary_;
+  bool first_ = true;
+  std::string buffer_;
+};
+
+void WriteRecords(const TriangleMesh& mesh, bool binary, std::ofstream* out) {
+  RecordWriter writer(out, binary);
+  for (size_t v = 0; v < mesh.vertices.size(); ++v) {
+    writer.Vector(mesh.vertices[v]);
+    if (!mesh.normals.empty()) writer.Vector(mesh.normals[v]);
+    if (!mesh.vertex_colors.empty()) writer.Colour(mesh.vertex_colors[v]);
+    writer.EndRecord();
+  }
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
+    writer.Byte(3);
+    for (int k = 0; k < 3; ++k) writer.Int(mesh.faces[f][k]);
+    if (!mesh.face_colors.empty()) writer.Colour(mesh.face_colors[f]);
+    writer.EndRecord();
+  }
+  writer.Flush();
+}
+
 }  // namespace
 
 TriangleMesh ReadPly(const fs::path& path) {
@@ -499,44 +521,10 @@ TriangleMesh ReadPly(const fs::path& path) {
   if (ec) throw Error(Format(name, ": cannot read the file size (", ec.message(), ")"));
   if (file_size == 0) throw Error(Format(name, ": empty file, not a PLY mesh"));
 
-  const ply::PlyHeader header = ply::ParseHeader(path, file_size);
+  const PlyHeader header = ply::ParseHeader(path, file_size);
   const PlyLayout layout = ply::CheckHeader(header, name);
   ply::CheckCountsFitInFile(header, file_size, name);
-  ply::WalkData(path, header, layout, file_size);
-
-  const size_t file_vertices = header.elements[static_cast<size_t>(layout.vertex)].count;
-  const size_t file_faces =
-      layout.face >= 0 ? header.elements[static_cast<size_t>(layout.face)].count : 0;
-  CollectingImporter importer(file_vertices, file_faces, layout);
-  // ASCII: a final newline so that a file without one still parses (OpenMesh treats end of file
-  // before the last element as an error).
-  ply::SplicedFileBuf buffer(ply::CanonicalHeader(header), path, header.data_offset, file_size,
-                             header.format == ply::PlyFormat::kAscii ? "\n" : "");
-  std::istream stream(&buffer);
-  OpenMesh::IO::Options options = OpenMesh::IO::Options::VertexNormal |
-                                  OpenMesh::IO::Options::VertexColor |
-                                  OpenMesh::IO::Options::FaceColor | OpenMesh::IO::Options::Custom;
-  bool ok = false;
-  {
-    std::lock_guard<std::mutex> lock(OpenMeshMutex());
-    QuietOpenMesh quiet;
-    ok = OpenMesh::IO::IOManager().read(stream, "ply", importer, options);
-  }
-  if (!ok) throw Error(Format(name, ": OpenMesh could not read the PLY data (corrupt file?)"));
-  if (stream.fail()) {
-    throw Error(Format(
-        name, ": malformed PLY data (a value that is not a number, or a file that ends early)"));
-  }
-  if (!importer.problem().empty()) throw Error(Format(name, ": ", importer.problem()));
-  if (importer.n_vertices() != file_vertices) {
-    throw Error(Format(name, ": read ", importer.n_vertices(), " vertices but the header declares ",
-                       file_vertices));
-  }
-  if (importer.polygon_count() != file_faces) {
-    throw Error(Format(name, ": read ", importer.polygon_count(), " faces but the header declares ",
-                       file_faces));
-  }
-  TriangleMesh mesh = importer.Build(name);
+  TriangleMesh mesh = PlyDecoder(path, header, layout, file_size).Decode();
   mesh.Validate(name);
   return mesh;
 }
@@ -545,25 +533,12 @@ void WritePly(const fs::path& path, const TriangleMesh& mesh, const PlyWriteOpti
   const std::string name = path.string();
   mesh.Validate(name);
   CheckColorsWritable(mesh, name);
-  TriangleMeshExporter exporter(mesh);
-  OpenMesh::IO::Options om_options = OpenMesh::IO::Options::Default;
-  if (options.binary) om_options += OpenMesh::IO::Options::Binary;
-  if (!mesh.normals.empty()) om_options += OpenMesh::IO::Options::VertexNormal;
-  if (!mesh.vertex_colors.empty()) om_options += OpenMesh::IO::Options::VertexColor;
-  if (!mesh.face_colors.empty()) om_options += OpenMesh::IO::Options::FaceColor;
-
   WriteFileAtomically(path, [&](const fs::path& tmp) {
     std::ofstream out(tmp, std::ios::binary);
     if (!out)
       throw Error(Format(name, ": cannot write ", tmp.string(), " (", std::strerror(errno), ")"));
-    bool ok = false;
-    {
-      std::lock_guard<std::mutex> lock(OpenMeshMutex());
-      QuietOpenMesh quiet;
-      // Precision 9 = std::numeric_limits<float>::max_digits10: ASCII floats read back exactly.
-      ok = OpenMesh::IO::IOManager().write(out, "ply", exporter, om_options, 9);
-    }
-    if (!ok) throw Error(Format(name, ": OpenMesh's PLY writer failed"));
+    out << WriteHeader(mesh, options.binary);
+    WriteRecords(mesh, options.binary, &out);
     out.close();
     if (!out) throw Error(Format(name, ": write failed (disk full?)"));
   });

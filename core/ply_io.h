@@ -1,9 +1,10 @@
-// PLY mesh I/O through OpenMesh (kept out of this header), readable by MeshLab, Open3D and
-// Blender. Binary little-endian by default.
+// PLY mesh I/O (a reader and a writer of our own, core/ply_io.cpp), readable by MeshLab, Open3D
+// and Blender. Binary little-endian by default.
 //
 // Colour convention on disk: `red/green/blue` uchar properties are sRGB-encoded 8-bit (what
-// MeshLab and Open3D display) and are converted to/from linear on read/write; float face
-// properties `albedo_r/albedo_g/albedo_b` are linear (DESIGN.md §2) and are preferred on read.
+// MeshLab and Open3D display) and are converted to/from linear on read/write; float vertex and
+// face properties `albedo_r/albedo_g/albedo_b` are linear (DESIGN.md §2) and are preferred on
+// read.
 #pragma once
 
 #include <filesystem>
@@ -16,10 +17,13 @@ struct PlyWriteOptions {
   bool binary = true;  // false: ASCII
 };
 
-// Reads positions, faces (triangles; polygons are fan-triangulated), and when present vertex
-// normals, vertex colours and face colours/albedo. Before handing the file to OpenMesh the header
-// is checked against the file size, so a truncated file or a header claiming 10^9 vertices is an
-// Error naming the file, not an allocation. Throws Error naming the file on any problem.
+// Reads ASCII or binary little-endian PLY: positions, faces (polygons are fan-triangulated), and
+// when present vertex normals, vertex colours and face colours/albedo. Vertices and faces are
+// exactly those of the file, in file order (a non-manifold mesh reads as it is). The header is
+// checked against the file size before anything is allocated, so a truncated file or a header
+// claiming 10^9 vertices is an Error naming the file, not an allocation. Throws Error naming the
+// file and the problem on any problem (e.g. a truncated file, a value that is not a number, a
+// face index out of range, a face with fewer than 3 corners, big-endian data).
 TriangleMesh ReadPly(const std::filesystem::path& path);
 
 // Writes the mesh atomically: positions, faces, and normals / vertex colours / face colours when

@@ -233,7 +233,7 @@ TEST_F(PlyIoTest, MalformedHeadersAreErrors) {
     std::string text;
     const char* expected;
   } cases[] = {
-      // OpenMesh 9.0's own parser loops forever on this one.
+      // The header ends with the file: an Error, not a read past it.
       {"no_end.ply", "ply\nformat ascii 1.0\n" + vertex, "end_header"},
       {"big_endian.ply",
        "ply\nformat binary_big_endian 1.0\n" + vertex + "end_header\n" + std::string(12, '\0'),
@@ -270,13 +270,19 @@ TEST_F(PlyIoTest, BadFacesAndValuesAreErrors) {
       {"two_vertices.ply", header + vertices + "2 0 1\n", "face 0 has 2 vertices"},
       {"out_of_range.ply", header + vertices + "3 0 1 7\n", "vertex 7"},
       {"negative.ply", header + vertices + "3 0 -1 2\n", "face 0"},
-      // OpenMesh's ASCII reader misparses (and could loop on) these; they are caught first.
+      // ASCII values that are not numbers of the property's kind name the record and property.
       {"nan.ply", header + "0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n",
        "vertex 1: value 'nan' of property y is not a finite number"},
       {"inf.ply", header + "0 0 0\n1 0 0\n0 1 -inf\n3 0 1 2\n", "value '-inf' of property z"},
       {"letter.ply", header + vertices + "3 0 x 2\n",
        "face 0: value 'x' of property vertex_indices is not an integer"},
       {"fraction.ply", header + vertices + "3 0 1.5 2\n", "value '1.5' of property vertex_indices"},
+      {"overflow.ply", header + "0 0 0\n1e39 0 0\n0 1 0\n3 0 1 2\n",
+       "vertex 1: value '1e39' of property x is out of the float range"},
+      {"negative_length.ply", header + vertices + "-3 0 1 2\n",
+       "face 0: negative list length -3 of property vertex_indices"},
+      {"long_list.ply", header + vertices + "4000000000 0 1 2\n",
+       "truncated or corrupt PLY data: it ends in face 0 of 1"},
   };
   for (const auto& c : cases) {
     const fs::path path = WriteText(c.name, c.text);
@@ -286,8 +292,8 @@ TEST_F(PlyIoTest, BadFacesAndValuesAreErrors) {
   }
 }
 
-// OpenMesh's ImporterT would duplicate the vertices of the third face on edge 0-1 and drop the
-// face with a repeated vertex; we keep the file's vertices and faces as they are.
+// Three faces on edge 0-1 and a face with a repeated vertex: the file's vertices and faces are
+// kept as they are, without duplicated vertices or dropped faces.
 TEST_F(PlyIoTest, NonManifoldAndDegenerateFacesKeepTheFileCounts) {
   const fs::path path =
       WriteText("fin.ply",
@@ -332,9 +338,9 @@ TEST_F(PlyIoTest, PolygonsAreFanTriangulatedWithTheirColour) {
   EXPECT_FLOAT_EQ(mesh.vertex_colors[3][0], SrgbToLinear(128 / 255.0f));
 }
 
-// OpenMesh misplaces binary data by one byte when a comment is the last header line, and reads
-// ASCII uchar custom properties one character at a time; the canonical header avoids both.
-TEST_F(PlyIoTest, HeaderQuirksThatOpenMeshGetsWrong) {
+// Header comments (the last line before end_header too) and 8-bit custom properties in ASCII
+// do not shift the data.
+TEST_F(PlyIoTest, CommentsAndEightBitCustomPropertiesDoNotShiftTheData) {
   std::string binary =
       "ply\nformat binary_little_endian 1.0\nobj_info made by hand\nelement vertex 3\n"
       "property float x\nproperty float y\nproperty float z\nelement face 1\n"
@@ -361,6 +367,102 @@ TEST_F(PlyIoTest, HeaderQuirksThatOpenMeshGetsWrong) {
   ASSERT_EQ(from_ascii.face_colors.size(), 1u);
   EXPECT_EQ(from_ascii.face_colors[0], Eigen::Vector3f(0.5f, 0.25f, 0.125f));
   EXPECT_EQ(from_ascii.vertices[1], Eigen::Vector3f(1, 0, 0));
+}
+
+// Comment lines right before end_header (and elsewhere in the header) of a binary file with
+// normals, vertex colours and face colours: every value reads back exactly.
+TEST_F(PlyIoTest, BinaryFileWithACommentBeforeEndHeaderReadsExactly) {
+  const TriangleMesh mesh = TestMesh();
+  const fs::path path = Path("mesh.ply");
+  WritePly(path, mesh);
+  std::string text = ReadAll(path);
+  const size_t end = text.find("end_header\n");
+  ASSERT_NE(end, std::string::npos);
+  text.insert(end, "comment written by hand\ncomment the last header line\n");
+  text.insert(text.find("element vertex"), "obj_info before the vertices\n");
+  WriteText("mesh.ply", text);
+  ExpectSameMesh(mesh, ReadPly(path));
+}
+
+// Two non-manifold meshes of 5 vertices and 4 faces, written in binary and ASCII: three faces on
+// edge 0-1 (a fin), and two triangles sharing only vertex 0 (a bowtie) with a fan on the others.
+// They read back as 5 vertices / 4 faces with the same indices and per-face colours.
+TEST_F(PlyIoTest, NonManifoldMeshesOfFiveVerticesAndFourFacesReadAsTheyAre) {
+  TriangleMesh fin;
+  fin.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}};
+  fin.faces = {{0, 1, 2}, {1, 0, 3}, {0, 1, 4}, {2, 3, 4}};
+  TriangleMesh bowtie;
+  bowtie.vertices = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {-1, 0, 0}, {-1, -1, 0}};
+  bowtie.faces = {{0, 1, 2}, {0, 3, 4}, {1, 3, 2}, {3, 1, 4}};
+  for (TriangleMesh* mesh : {&fin, &bowtie}) {
+    for (int f = 0; f < 4; ++f) mesh->face_colors.emplace_back(0.1f * f, 0.5f, 1.0f - 0.2f * f);
+    for (const bool binary : {true, false}) {
+      PlyWriteOptions options;
+      options.binary = binary;
+      const fs::path path = Path(binary ? "binary.ply" : "ascii.ply");
+      WritePly(path, *mesh, options);
+      const TriangleMesh read = ReadPly(path);
+      ASSERT_EQ(read.vertices.size(), 5u) << path;
+      ASSERT_EQ(read.faces.size(), 4u) << path;
+      ExpectSameMesh(*mesh, read);
+    }
+  }
+}
+
+// Layouts other writers produce: the face element before the vertex element, a list property in
+// an element before the faces, a ushort list length with uint indices, a face property before
+// the index list, double positions, a vertex_index list.
+TEST_F(PlyIoTest, ElementAndPropertyLayoutsOfOtherWritersRead) {
+  const TriangleMesh faces_first = ReadPly(WriteText(
+      "faces_first.ply",
+      "ply\nformat ascii 1.0\nelement face 2\nproperty float albedo_r\nproperty float albedo_g\n"
+      "property float albedo_b\nproperty list uchar int vertex_index\nelement vertex 4\n"
+      "property double x\nproperty double y\nproperty double z\nend_header\n"
+      "0.5 0.25 0.125 3 0 1 2\n1 1 1 3 2 1 3\n0 0 0\n1 0 0\n0 1 0\n1 1 0\n"));
+  ASSERT_EQ(faces_first.vertices.size(), 4u);
+  ASSERT_EQ(faces_first.faces.size(), 2u);
+  EXPECT_EQ(faces_first.faces[1], Eigen::Vector3i(2, 1, 3));
+  EXPECT_EQ(faces_first.vertices[3], Eigen::Vector3f(1, 1, 0));
+  ASSERT_EQ(faces_first.face_colors.size(), 2u);
+  EXPECT_EQ(faces_first.face_colors[0], Eigen::Vector3f(0.5f, 0.25f, 0.125f));
+
+  std::string binary =
+      "ply\nformat binary_little_endian 1.0\nelement group 1\nproperty list uchar int members\n"
+      "element vertex 4\nproperty double x\nproperty double y\nproperty double z\n"
+      "element face 1\nproperty uchar flags\nproperty list ushort uint vertex_indices\n"
+      "end_header\n";
+  binary += std::string("\x02\x07\0\0\0\x08\0\0\0", 9);
+  const double positions[12] = {0.1, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0};
+  binary.append(reinterpret_cast<const char*>(positions), sizeof positions);
+  binary += std::string("\x05\x04\0", 3);
+  const uint32_t corners[4] = {0, 1, 2, 3};
+  binary.append(reinterpret_cast<const char*>(corners), sizeof corners);
+  const TriangleMesh quad = ReadPly(WriteText("quad.ply", binary));
+  ASSERT_EQ(quad.vertices.size(), 4u);
+  EXPECT_EQ(quad.vertices[0], Eigen::Vector3f(static_cast<float>(0.1), 0, 0));
+  ASSERT_EQ(quad.faces.size(), 2u);  // fan-triangulated
+  EXPECT_EQ(quad.faces[0], Eigen::Vector3i(0, 1, 2));
+  EXPECT_EQ(quad.faces[1], Eigen::Vector3i(0, 2, 3));
+}
+
+// A binary face with a corrupt list length (4e9 corners) is a truncated file, found before the
+// corners are allocated; a corner index beyond int is named as it is.
+TEST_F(PlyIoTest, CorruptBinaryFaceListsAreErrors) {
+  const std::string header =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+      "property float y\nproperty float z\nelement face 1\n"
+      "property list uint uint vertex_indices\nend_header\n";
+  const std::string vertices(36, '\0');
+  auto face = [](uint32_t length, uint32_t last) {
+    const uint32_t values[4] = {length, 0, 1, last};
+    return std::string(reinterpret_cast<const char*>(values), sizeof values);
+  };
+  const fs::path corrupt = WriteText("corrupt.ply", header + vertices + face(4000000000u, 2));
+  EXPECT_EQ(ErrorOf([&] { ReadPly(corrupt); }),
+            corrupt.string() + ": truncated or corrupt PLY data: it ends in face 0 of 1");
+  const fs::path big = WriteText("big.ply", header + vertices + face(3, 4294967295u));
+  EXPECT_EQ(ErrorOf([&] { ReadPly(big); }),
+            big.string() + ": face 0 uses vertex 4294967295 but the file has 3 vertices");
 }
 
 TEST_F(PlyIoTest, EmptyMeshRoundTrips) {
