@@ -21,15 +21,16 @@ namespace fs = std::filesystem;
 using namespace genscene::inverse;
 using namespace genscene::render;
 
-std::vector<bool> ChooseMeshes(const Scene& scene, const std::vector<std::string>& names,
-                               std::vector<std::string>* chosen) {
-  std::vector<bool> refined(scene.meshes.size(), false);
+// The indices of the meshes to refine, in scene order: those named, or every non-emitter.
+std::vector<int> ChooseMeshes(const Scene& scene, const std::vector<std::string>& names,
+                              std::vector<std::string>* chosen) {
+  std::vector<int> refined;
   for (size_t m = 0; m < scene.meshes.size(); ++m) {
     const SceneMesh& mesh = scene.meshes[m];
     if (mesh.IsEmitter()) continue;
     const bool named = std::find(names.begin(), names.end(), mesh.name) != names.end();
     if (names.empty() || named) {
-      refined[m] = true;
+      refined.push_back(static_cast<int>(m));
       chosen->push_back(mesh.name);
     }
   }
@@ -44,19 +45,14 @@ std::vector<bool> ChooseMeshes(const Scene& scene, const std::vector<std::string
   return refined;
 }
 
-// The refined meshes as one mesh (vertices in parameter order), normals area-weighted, with the
-// vertex colours of the meshes when every one has them.
-TriangleMesh RefinedMesh(const Scene& scene, const std::vector<bool>& refined) {
+// The meshes as one mesh (vertices in order), normals area-weighted, with the vertex colours of
+// the meshes when every one has them.
+TriangleMesh JoinMeshes(const std::vector<TriangleMesh>& meshes) {
   TriangleMesh out;
   bool colored = true;
-  for (size_t m = 0; m < scene.meshes.size(); ++m) {
-    if (refined[m])
-      colored = colored &&
-                scene.meshes[m].mesh.vertex_colors.size() == scene.meshes[m].mesh.vertices.size();
-  }
-  for (size_t m = 0; m < scene.meshes.size(); ++m) {
-    if (!refined[m]) continue;
-    const TriangleMesh& mesh = scene.meshes[m].mesh;
+  for (const TriangleMesh& mesh : meshes)
+    colored = colored && mesh.vertex_colors.size() == mesh.vertices.size();
+  for (const TriangleMesh& mesh : meshes) {
     const int offset = static_cast<int>(out.vertices.size());
     out.vertices.insert(out.vertices.end(), mesh.vertices.begin(), mesh.vertices.end());
     if (colored)
@@ -69,89 +65,23 @@ TriangleMesh RefinedMesh(const Scene& scene, const std::vector<bool>& refined) {
   return out;
 }
 
-}  // namespace
-
-RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& options, uint64_t seed,
-                              const Workspace& ws) {
-  options.Validate();
-  RefineSummary out;
-  Scene scene = LoadGeometry(in.geometry, ws, &out.warnings);
-  const fs::path lights = !in.lights.empty()                                       ? in.lights
-                          : (in.geometry.scene.empty() && fs::exists(ws.Lights())) ? ws.Lights()
-                                                                                   : fs::path();
-  if (!lights.empty()) scene.voxel_lights = ReadLightsJson(lights);
-  const bool lit = scene.voxel_lights || !scene.point_lights.empty() ||
-                   std::any_of(scene.meshes.begin(), scene.meshes.end(),
-                               [](const SceneMesh& m) { return m.IsEmitter(); });
-  if (!lit) {
-    throw Error(
-        in.geometry.scene.empty()
-            ? Format(ws.Lights().string(), ": no lights (run genscene-lights, or give --lights)")
-            : Format(in.geometry.scene.string(), ": the scene has no lights (give --lights)"));
+// The true positions of the refined vertices from a PLY, (x, y, z) each; throws Error when the
+// count is not `vertices`.
+Eigen::VectorXd ReadTruth(const fs::path& path, int vertices) {
+  const TriangleMesh t = ReadPly(path);
+  if (static_cast<int>(t.vertices.size()) != vertices) {
+    throw Error(Format(path.string(), ": ", t.vertices.size(),
+                       " vertices, but the refined meshes have ", vertices));
   }
-  const std::vector<PosedImage> targets =
-      ReadPosedImages(in.views.empty() ? ws.Keyframes() : in.views);
-  const std::vector<bool> refined = ChooseMeshes(scene, in.refine, &out.refined);
+  Eigen::VectorXd truth(3 * t.vertices.size());
+  for (size_t v = 0; v < t.vertices.size(); ++v)
+    truth.segment<3>(3 * v) = t.vertices[v].cast<double>();
+  return truth;
+}
 
-  DifferentiablePathTracer tracer(scene, refined);
-  out.vertices = tracer.VertexCount();
-  std::optional<Eigen::VectorXd> truth;
-  if (!in.truth.empty()) {
-    const TriangleMesh t = ReadPly(in.truth);
-    if (static_cast<int>(t.vertices.size()) != tracer.VertexCount()) {
-      throw Error(Format(in.truth.string(), ": ", t.vertices.size(),
-                         " vertices, but the refined meshes have ", tracer.VertexCount()));
-    }
-    truth = Eigen::VectorXd(3 * t.vertices.size());
-    for (size_t v = 0; v < t.vertices.size(); ++v)
-      truth->segment<3>(3 * v) = t.vertices[v].cast<double>();
-  }
-  const TriangleMesh start = RefinedMesh(scene, refined);
-  const fs::path dir = ws.RefineDir();
-  fs::create_directories(dir);
-  RenderOptions render = options.paths;
-  render.spp = std::max(1, in.render_spp);
-
-  const auto progress = [&](const RefineIteration& it, const DifferentiablePathTracer& at) {
-    std::printf(
-        "genscene-refine: iteration %d: cost %.6g, image RMSE %.4f, step %.2e m%s (%.1f s)\n",
-        it.iteration, it.cost, it.data_rmse, it.step_rms, it.accepted ? "" : ", rejected",
-        it.seconds);
-    std::fflush(stdout);
-    if (truth) {
-      const Eigen::VectorXd d = at.Positions() - *truth;
-      double max = 0.0;
-      for (int v = 0; v < at.VertexCount(); ++v) max = std::max(max, d.segment<3>(3 * v).norm());
-      out.vertex_rms.push_back(std::sqrt(d.squaredNorm() / at.VertexCount()));
-      out.vertex_max.push_back(max);
-    }
-    if (in.render_spp > 0) {
-      char name[32];
-      std::snprintf(name, sizeof(name), "iter_%02d", it.iteration);
-      const PosedView& view = targets.front().view;
-      WritePng(dir / (std::string(name) + ".png"),
-               PathTracer(at.scene()).Render(view, render, 1).radiance);
-      WritePng(dir / (std::string(name) + "_shading.png"),
-               PathTracer(ShadingOnly(at.scene())).Render(view, render, 1).radiance);
-    }
-  };
-  out.result = RefineVertices(tracer, targets, options, seed, progress);
-  // Judged on pixels it did not fit: never a mesh that explains the images worse than its input.
-  out.held_out = CompareOnFreshPixels(tracer, targets, options, seed ^ 0x6a09e667f3bcc909ull,
-                                      out.result.initial, out.result.positions);
-  if (out.held_out.rmse_b > out.held_out.rmse_a) {
-    out.kept_unrefined = true;
-    tracer.SetPositions(out.result.initial, false);
-    out.warnings.push_back(Format("the refined mesh fits ", out.held_out.pixels,
-                                  " held-out pixels worse than the unrefined one "
-                                  "(image RMSE ",
-                                  out.held_out.rmse_b, " against ", out.held_out.rmse_a,
-                                  "): the unrefined mesh is kept as ",
-                                  ws.RefinedMesh().filename().string()));
-  }
-  const TriangleMesh final_mesh = RefinedMesh(tracer.scene(), refined);
-  out.flipped_faces = FlippedFaces(start, final_mesh);
-
+// report.json: the options, the refined meshes, the held-out comparison and the iterations.
+nlohmann::ordered_json Report(const RefineSummary& out, const RefineOptions& options,
+                              uint64_t seed) {
   nlohmann::ordered_json report;
   report["options"] = nlohmann::ordered_json::parse(OptionsToJson(options).dump());
   report["seed"] = seed;
@@ -182,7 +112,87 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
     iterations.push_back(j);
   }
   report["iterations"] = iterations;
-  WriteTextFileAtomically(dir / "report.json", report.dump(1) + "\n");
+  return report;
+}
+
+}  // namespace
+
+RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& options, uint64_t seed,
+                              const Workspace& ws) {
+  options.Validate();
+  RefineSummary out;
+  Scene scene = LoadGeometry(in.geometry, ws, &out.warnings);
+  const fs::path lights = !in.lights.empty()                                       ? in.lights
+                          : (in.geometry.scene.empty() && fs::exists(ws.Lights())) ? ws.Lights()
+                                                                                   : fs::path();
+  if (!lights.empty()) scene.voxel_lights = ReadLightsJson(lights);
+  const bool lit = scene.voxel_lights || !scene.point_lights.empty() ||
+                   std::any_of(scene.meshes.begin(), scene.meshes.end(),
+                               [](const SceneMesh& m) { return m.IsEmitter(); });
+  if (!lit) {
+    throw Error(
+        in.geometry.scene.empty()
+            ? Format(ws.Lights().string(), ": no lights (run genscene-lights, or give --lights)")
+            : Format(in.geometry.scene.string(), ": the scene has no lights (give --lights)"));
+  }
+  const std::vector<PosedImage> targets =
+      ReadPosedImages(in.views.empty() ? ws.Keyframes() : in.views);
+  const std::vector<int> refined = ChooseMeshes(scene, in.refine, &out.refined);
+  std::vector<TriangleMesh> start_meshes;
+  for (int m : refined) start_meshes.push_back(scene.meshes[m].mesh);
+  const TriangleMesh start = JoinMeshes(start_meshes);
+
+  out.vertices = static_cast<int>(start.vertices.size());
+  std::optional<Eigen::VectorXd> truth;  // in the order of the joined refined meshes
+  if (!in.truth.empty()) truth = ReadTruth(in.truth, out.vertices);
+  const fs::path dir = ws.RefineDir();
+  fs::create_directories(dir);
+  RenderOptions render = options.paths;
+  render.spp = std::max(1, in.render_spp);
+
+  const auto progress = [&](const RefineIteration& it, const DifferentiablePathTracer& at) {
+    std::printf(
+        "genscene-refine: iteration %d: cost %.6g, image RMSE %.4f, step %.2e m%s (%.1f s)\n",
+        it.iteration, it.cost, it.data_rmse, it.step_rms, it.accepted ? "" : ", rejected",
+        it.seconds);
+    std::fflush(stdout);
+    if (truth) {
+      const Eigen::VectorXd d = at.Positions() - *truth;
+      double max = 0.0;
+      for (int v = 0; v < at.VertexCount(); ++v) max = std::max(max, d.segment<3>(3 * v).norm());
+      out.vertex_rms.push_back(std::sqrt(d.squaredNorm() / at.VertexCount()));
+      out.vertex_max.push_back(max);
+    }
+    if (in.render_spp > 0) {
+      char name[32];
+      std::snprintf(name, sizeof(name), "iter_%02d", it.iteration);
+      const PosedView& view = targets.front().view;
+      WritePng(dir / (std::string(name) + ".png"),
+               PathTracer(at.scene()).Render(view, render, 1).radiance);
+      WritePng(dir / (std::string(name) + "_shading.png"),
+               PathTracer(ShadingOnly(at.scene())).Render(view, render, 1).radiance);
+    }
+  };
+  // The tracer's positions in `progress` are the refined meshes' vertices in scene order, as
+  // `refined` and the truth.
+  out.result = RefineVertices(scene, refined, targets, options, seed, progress);
+  // Judged on pixels it did not fit: never a mesh that explains the images worse than its input.
+  out.held_out =
+      CompareOnFreshPixels(scene, refined, targets, options, seed ^ 0x6a09e667f3bcc909ull,
+                           out.result.initial, out.result.positions);
+  if (out.held_out.rmse_b > out.held_out.rmse_a) {
+    out.kept_unrefined = true;
+    out.warnings.push_back(Format("the refined mesh fits ", out.held_out.pixels,
+                                  " held-out pixels worse than the unrefined one "
+                                  "(image RMSE ",
+                                  out.held_out.rmse_b, " against ", out.held_out.rmse_a,
+                                  "): the unrefined mesh is kept as ",
+                                  ws.RefinedMesh().filename().string()));
+  }
+  const TriangleMesh final_mesh = out.kept_unrefined ? start : JoinMeshes(out.result.meshes);
+  out.flipped_faces = FlippedFaces(start, final_mesh);
+
+  WriteTextFileAtomically(dir / "report.json", Report(out, options, seed).dump(1) + "\n");
   // The mesh last: its presence means the stage is complete.
   WritePly(ws.RefinedMesh(), final_mesh);
   return out;

@@ -6,8 +6,7 @@
 //     OUT/fig4_refine.png: the reference, then the shading-only render (every albedo grey) per
 //     iteration.
 //  2. With --cycles ../shared/data: the same from Blender Cycles' icosphere_flat and
-//  icosphere_smooth
-//     renders (cbox-cycles), with their geometry.
+//     icosphere_smooth renders (cbox-cycles), with their geometry.
 //  3. Every vertex perturbed with noise sigma = 5 % of the radius (per coordinate, or with
 //     --radial-noise 1 along the radius): RMS vertex error per iteration and flipped faces, from
 //     the replica's view and the two high ones behind the sphere (--views 3, the default), or with
@@ -81,15 +80,15 @@ void Paste(ImageRgb& canvas, const ImageRgb& image, int x0) {
   }
 }
 
-// Refines `sphere` of `scene` from `start` against `reference`; prints the table; returns the
-// shading renders per iteration.
-std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere,
-                              const std::vector<PosedImage>& targets, const Eigen::VectorXd& truth,
-                              const Eigen::VectorXd& start, const std::vector<int>& watched,
-                              const Settings& s) {
-  const PosedView& view = targets[0].view;
-  std::vector<bool> refined(scene.meshes.size(), false);
-  refined[sphere] = true;
+// The mesh's vertices, (x, y, z) each.
+Eigen::VectorXd VertexPositions(const TriangleMesh& mesh) {
+  Eigen::VectorXd x(3 * mesh.vertices.size());
+  for (size_t v = 0; v < mesh.vertices.size(); ++v)
+    x.segment<3>(3 * v) = mesh.vertices[v].cast<double>();
+  return x;
+}
+
+RefineOptions OptionsOf(const Settings& s) {
   RefineOptions options;
   options.paths.spp = s.spp;
   options.iterations = s.iterations;
@@ -106,41 +105,107 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere,
   options.smooth_sigma = s.smooth_sigma;
   options.refined_pixels_only = s.refined_only;
   options.refine_unseen = s.refine_unseen;
-  DifferentiablePathTracer at_truth(scene, refined);
+  return options;
+}
+
+// Diagnostic (--gradcheck): the data term along -gradient against its slope, and along the way
+// from `start` to the truth against the Gauss-Newton model.
+void GradientCheck(const Scene& scene, int sphere, const std::vector<PosedImage>& targets,
+                   const Eigen::VectorXd& truth, const Eigen::VectorXd& start,
+                   const RefineOptions& options) {
+  std::vector<bool> mask(scene.meshes.size(), false);
+  mask[sphere] = true;
+  DifferentiablePathTracer tracer(scene, mask);
+  tracer.SetPositions(start);
+  const RefineLinearization l = LinearizeRefinement(tracer, targets, options);
+  const Eigen::VectorXd d = -l.gradient.normalized();
+  std::printf("gradient check: E %.6g, |g| %.4g\n", l.cost, l.gradient.norm());
+  for (double eps : {1e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2}) {
+    tracer.SetPositions(start + eps * d);
+    const double e = LinearizeRefinement(tracer, targets, options).cost;
+    std::printf("  eps %.0e: E change %.6g, predicted %.6g\n", eps, e - l.cost,
+                -eps * l.gradient.norm());
+  }
+  const Eigen::VectorXd to_truth = truth - start;
+  const double curvature = LinearizeRefinement(tracer, targets, options, 1, &to_truth).curvature;
+  std::printf(
+      "  slope towards the truth: AD %.6g per unit t, Gauss-Newton curvature %.6g: model E(1) - "
+      "E(0) = %.6g\n",
+      l.gradient.dot(to_truth), curvature, l.gradient.dot(to_truth) + 0.5 * curvature);
+  for (double t : {0.0, 0.01, 0.05, 0.1, 0.25, 0.5, 0.75, 1.0}) {
+    tracer.SetPositions(start + t * to_truth);
+    std::printf("  t %.2f: E %.6g\n", t, LinearizeRefinement(tracer, targets, options).cost);
+  }
+}
+
+// Diagnostic (--radial 1): the LM state and the vertex errors `d` = x - truth split along the
+// sphere's radius (signed) and across it, for the watched vertices and as RMS over all; with
+// --radial 2 every vertex's radial error, marked F (facing `view`), s (side) or b (back).
+void PrintRadialErrors(const RefineIteration& it, const Eigen::VectorXd& d,
+                       const Eigen::VectorXd& truth, const std::vector<int>& watched,
+                       const PosedView& view, int radial_level) {
+  const int vertices = static_cast<int>(d.size() / 3);
+  std::printf("   cost %.6g step %.5f rejected %d damping %.3g accepted %d\n", it.cost, it.step_rms,
+              it.rejected, it.damping, it.accepted ? 1 : 0);
+  // Both spheres are centred at (0, 0, 0.201).
+  const auto split = [&](int v) {
+    const Eigen::Vector3d e = d.segment<3>(3 * v);
+    const Eigen::Vector3d n =
+        (truth.segment<3>(3 * v) - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
+    return std::make_pair(e.dot(n), (e - e.dot(n) * n).norm());
+  };
+  for (int v : watched) {
+    const auto [radial, across] = split(v);
+    std::printf("   v%d radial %+.5f tangential %.5f\n", v, radial, across);
+  }
+  double rad = 0.0, tan = 0.0;
+  for (int v = 0; v < vertices; ++v) {
+    const auto [radial, across] = split(v);
+    rad += radial * radial;
+    tan += across * across;
+  }
+  if (radial_level == 2) {
+    std::printf("   radial mm:");
+    const Eigen::Vector3d eye = view.world_from_camera.translation().cast<double>();
+    for (int v = 0; v < vertices; ++v) {
+      const Eigen::Vector3d p = truth.segment<3>(3 * v),
+                            n = (p - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
+      std::printf(" %d%s:%+.1f", v,
+                  n.dot((eye - p).normalized()) > 0.3 ? "F"
+                  : n.dot(eye - p) > 0                ? "s"
+                                                      : "b",
+                  1000.0 * split(v).first);
+    }
+    std::printf("\n");
+  }
+  std::printf("   all: radial RMS %.5f tangential RMS %.5f\n", std::sqrt(rad / vertices),
+              std::sqrt(tan / vertices));
+}
+
+// Refines `sphere` of `scene` from `start` against `targets`; prints the table; returns the
+// shading renders per iteration.
+std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere,
+                              const std::vector<PosedImage>& targets, const Eigen::VectorXd& truth,
+                              const Eigen::VectorXd& start, const std::vector<int>& watched,
+                              const Settings& s) {
+  const PosedView& view = targets[0].view;
+  const std::vector<int> refined = {sphere};
+  const RefineOptions options = OptionsOf(s);
   RefineOptions none = options;
   none.iterations = 0;
-  const double truth_rmse = RefineVertices(at_truth, targets, none).history[0].data_rmse;
+  const double truth_rmse = RefineVertices(scene, refined, targets, none).history[0].data_rmse;
+  if (s.gradcheck) GradientCheck(scene, sphere, targets, truth, start, options);
 
-  DifferentiablePathTracer tracer(scene, refined);
-  tracer.SetPositions(start);
-  if (s.gradcheck) {  // diagnostic: the objective along -gradient against its slope
-    const RefineLinearization l = LinearizeRefinement(tracer, targets, options);
-    const Eigen::VectorXd d = -l.gradient.normalized();
-    std::printf("gradient check: E %.6g, |g| %.4g\n", l.cost, l.gradient.norm());
-    for (double eps : {1e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2}) {
-      tracer.SetPositions(start + eps * d);
-      const double e = LinearizeRefinement(tracer, targets, options).cost;
-      std::printf("  eps %.0e: E change %.6g, predicted %.6g\n", eps, e - l.cost,
-                  -eps * l.gradient.norm());
-    }
-    const Eigen::VectorXd to_truth = truth - start;
-    const double curvature = LinearizeRefinement(tracer, targets, options, 1, &to_truth).curvature;
-    std::printf(
-        "  slope towards the truth: AD %.6g per unit t, Gauss-Newton curvature %.6g: model E(1) - "
-        "E(0) = %.6g\n",
-        l.gradient.dot(to_truth), curvature, l.gradient.dot(to_truth) + 0.5 * curvature);
-    for (double t : {0.0, 0.01, 0.05, 0.1, 0.25, 0.5, 0.75, 1.0}) {
-      tracer.SetPositions(start + t * to_truth);
-      std::printf("  t %.2f: E %.6g\n", t, LinearizeRefinement(tracer, targets, options).cost);
-    }
-    tracer.SetPositions(start);
-  }
-  const TriangleMesh start_mesh = tracer.scene().meshes[sphere].mesh;
+  // The sphere at the start, for the flipped faces.
+  TriangleMesh start_mesh = scene.meshes[sphere].mesh;
+  for (size_t v = 0; v < start_mesh.vertices.size(); ++v)
+    start_mesh.vertices[v] = start.segment<3>(3 * v).cast<float>();
+  const int vertices = static_cast<int>(start_mesh.vertices.size());
   std::printf(
       "\n%s: %d vertices, %zu view(s) of %dx%d, %d spp per evaluation; image RMSE of the truth "
       "itself %.4f\n",
-      name, tracer.VertexCount(), targets.size(), view.intrinsics.width, view.intrinsics.height,
-      s.spp, truth_rmse);
+      name, vertices, targets.size(), view.intrinsics.width, view.intrinsics.height, s.spp,
+      truth_rmse);
   std::printf("%5s %9s %10s %11s %12s %12s %9s %8s\n", "iter", "seconds", "image", "vertex RMS",
               "watched max", "(fraction)", "nnz/px", "flipped");
   std::vector<ImageRgb> shading;
@@ -156,44 +221,7 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere,
     const Eigen::VectorXd d = at.Positions() - truth;
     double watched_max = 0.0;
     for (int v : watched) watched_max = std::max(watched_max, d.segment<3>(3 * v).norm());
-    if (s.radial > 0) {
-      std::printf("   cost %.6g step %.5f rejected %d damping %.3g accepted %d\n", it.cost,
-                  it.step_rms, it.rejected, it.damping, it.accepted ? 1 : 0);
-      // Vertex v's error along the sphere's radius (signed) and across it; both spheres are
-      // centred at (0, 0, 0.201).
-      const auto split = [&](int v) {
-        const Eigen::Vector3d e = d.segment<3>(3 * v);
-        const Eigen::Vector3d n =
-            (truth.segment<3>(3 * v) - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
-        return std::make_pair(e.dot(n), (e - e.dot(n) * n).norm());
-      };
-      for (int v : watched) {
-        const auto [radial, across] = split(v);
-        std::printf("   v%d radial %+.5f tangential %.5f\n", v, radial, across);
-      }
-      double rad = 0.0, tan = 0.0;
-      for (int v = 0; v < at.VertexCount(); ++v) {
-        const auto [radial, across] = split(v);
-        rad += radial * radial;
-        tan += across * across;
-      }
-      if (s.radial == 2) {
-        std::printf("   radial mm:");
-        const Eigen::Vector3d eye = view.world_from_camera.translation().cast<double>();
-        for (int v = 0; v < at.VertexCount(); ++v) {
-          const Eigen::Vector3d p = truth.segment<3>(3 * v),
-                                n = (p - Eigen::Vector3d(0.0, 0.0, 0.201)).normalized();
-          std::printf(" %d%s:%+.1f", v,
-                      n.dot((eye - p).normalized()) > 0.3 ? "F"
-                      : n.dot(eye - p) > 0                ? "s"
-                                                          : "b",
-                      1000.0 * split(v).first);
-        }
-        std::printf("\n");
-      }
-      std::printf("   all: radial RMS %.5f tangential RMS %.5f\n",
-                  std::sqrt(rad / at.VertexCount()), std::sqrt(tan / at.VertexCount()));
-    }
+    if (s.radial > 0) PrintRadialErrors(it, d, truth, watched, view, s.radial);
     total += it.seconds;
     std::printf("%5d %9.2f %10.4f %11.5f %12.5f %12.3f %9.1f %8d\n", it.iteration, it.seconds,
                 it.data_rmse, std::sqrt(d.squaredNorm() / at.VertexCount()), watched_max,
@@ -202,7 +230,8 @@ std::vector<ImageRgb> RunCase(const char* name, const Scene& scene, int sphere,
     std::fflush(stdout);
     shading.push_back(PathTracer(ShadingOnly(at.scene())).Render(view, render, 3).radiance);
   };
-  const RefineResult result = RefineVertices(tracer, targets, options, s.seed, progress);
+  const RefineResult result =
+      RefineVertices(scene, refined, targets, options, s.seed, progress, {start});
   std::printf("total %.1f s for %zu iterations (%.2f s per iteration)\n", total,
               result.history.size() - 1,
               (total - result.history[0].seconds) / std::max<size_t>(1, result.history.size() - 1));
@@ -214,10 +243,8 @@ std::pair<ImageRgb, Eigen::VectorXd> ReferenceAndTruth(const IcosphereBox& box, 
   RenderOptions render;
   render.spp = s.ref_spp;
   render.max_depth = s.max_depth;
-  std::vector<bool> refined(box.scene.meshes.size(), false);
-  refined[box.sphere] = true;
   return {PathTracer(box.scene).Render(box.view, render, 1234).radiance,
-          DifferentiablePathTracer(box.scene, refined).Positions()};
+          VertexPositions(box.scene.meshes[box.sphere].mesh)};
 }
 
 void Replica(const Settings& s) {
@@ -253,9 +280,7 @@ void Cycles(const fs::path& data, const Settings& s) {
     auto source = OpenFrameSource((root / "views" / "full").string(), SourceOptions());
     const auto frame = source->Next();
     const PosedView view{frame->intrinsics, *frame->world_from_camera, frame->timestamp};
-    std::vector<bool> refined(scene.meshes.size(), false);
-    refined[sphere] = true;
-    const Eigen::VectorXd truth = DifferentiablePathTracer(scene, refined).Positions();
+    const Eigen::VectorXd truth = VertexPositions(scene.meshes[sphere].mesh);
     const Eigen::Vector3d center(0.0, 0.0, 0.201);
     const SpikeAndDent start = PerturbFacingVertices(scene.meshes[sphere].mesh, center, 0.2,
                                                      view.world_from_camera.translation(), 0.04);

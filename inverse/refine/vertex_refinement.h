@@ -1,52 +1,34 @@
-// Vertex refinement (issue 8, the paper's section IV): vertex positions estimated from images
-// through the differentiable path tracer, by Levenberg-Marquardt on
+// Vertex refinement (the paper's section IV): the vertex positions x of chosen meshes of a scene,
+// estimated from posed images through the differentiable path tracer by Levenberg-Marquardt on
 //
-//   E(x) = sum_pixels sum_c rho((I_c(x) - I*_c) / (noise * s)) + sum_i huber(sqrt(d_i^T P_i d_i))
-//          + sum_i |T_i (x_i - c_i)|^2 / (2 relax_sigma^2) + sum_i (k_i - mean_ring k_j)^2 / (2
-//          smooth_sigma^2),
-//   d_i = x_i - x0_i,  P_i = n n^T / sigma_n^2 + (I - n n^T) / sigma_t^2
+//   E(x) = sum_p sum_c HuberCost(r_pc, robust)                              data
+//        + sum_i HuberCost(sqrt(d_i^T P_i d_i), prior_robust)                prior
+//        + sum_i |T_i (x_i - c_i)|^2 / (2 relax_sigma^2)                     relaxation
+//        + sum_i (k_i - mean_{j in ring(i)} k_j)^2 / (2 smooth_sigma^2)      bending
+//   r_pc = (I_c(x) - I*_c) / (noise * s),  d_i = x_i - x0_i,  T_i = I - n_i n_i^T,
+//   P_i = n0_i n0_i^T / prior_sigma^2 + (I - n0_i n0_i^T) / prior_tangent_sigma^2,
+//   k_i = n_i . (x_i - c_i) * l / l_i
 //
-// where I(x) is the path-traced pixel (options.paths.spp samples with fixed random numbers, so E is
-// a deterministic function of x between visibility changes), I* the reference image, s the RMS of
-// the reference over the sampled pixels, and the second term the weak prior on the starting
-// positions x0 that removes the null spaces of sparse sampling (vertices no sample sees): sigma_n
-// (prior_sigma) along the vertex's starting normal n, sigma_t (prior_tangent_sigma; by default the
-// same) across the surface. The third term is a tangential relaxation: c_i is the centroid of the
-// vertex's one-ring and T_i = I - n_i n_i^T the projection across the surface at its current
-// normal (held within an iteration), so it charges a vertex's offset from its neighbours' centroid
-// across the surface and nothing along the normal, which the images see. A vertex that slides
-// across a smooth surface barely changes the images: noise across the surface in the starting
-// positions stays where a prior on x0 holds it and drifts with the render noise where none does;
-// the relaxation spreads the vertices evenly instead (as isotropic remeshing does), which on the
-// noisy sphere of bench_refine's section 3 takes out most of the error across the surface. The
-// fourth is a bending term: k_i = n_i . (x_i - c_i) / l_i * l is the vertex's offset along its
-// normal from its ring's centroid over the mean squared length l_i of its edges (half the mean
-// curvature; l, the mean of l_i, makes it a length), the same at every vertex of a sphere or a
-// plane whatever the valence, so the term charges changes of curvature: a single vertex that
-// walks along the normal, where visibility changes (not differentiated) at a silhouette pull it.
-// Vertices on a mesh boundary get no relaxation row (their one-ring's centroid lies inside). The
-// prior's Huber loss of the distance (threshold prior_robust) holds noise-sized moves quadratically
-// and pulls a large move the images support with a constant force, not in proportion. rho is
-// Huber's loss of the residual (threshold robust). The pixels are those that see a refined mesh (by
-// default), and vertices that no fitted pixel sees directly are held in place (by default).
-// Each iteration traces every sampled pixel (the residuals from the full paths, the sparse
-// Jacobian rows from the paths' first jacobian_max_depth segments, by default direct light only:
-// deeper derivatives are mostly Monte Carlo noise, whose square inflates J^T J and shortens every
-// step, and their truncated bias walked vertices by the floor), forms the normal
-// equations and solves the damped system, by sparse Cholesky factorisation of
-// 3 x 3 blocks per vertex pair (Eigen's SimplicialLDLT) up to `direct_max_vertices` refined
-// vertices, else by block-Jacobi preconditioned conjugate gradients on the Jacobian rows (a pixel
-// depends on vertices all over the scene, so a large factor fills in); a step is kept only when a
-// value-only trace shows a lower E. Every iteration draws fresh random numbers, so a full step
-// lands on the optimum of its own sample's noise; steps after average_after are shortened to
-// 1 / (k - average_after), which makes the positions the mean of those optima (Polyak-Ruppert
-// averaging). Visibility changes are not differentiated (as in the paper).
+//   data:       path-traced pixel I(x) against the reference I*, s the RMS of I* (noise, robust)
+//   prior:      distance from the start x0 at its normals n0 (prior_sigma, prior_tangent_sigma)
+//   relaxation: offset across the surface from the centroid c_i of the one-ring (relax_sigma)
+//   bending:    change of curvature; l_i: mean squared edge length at i, l: mean l_i (smooth_sigma)
+//
+// The terms' details are next to their code: data_term.h, regularisers.h. Each iteration traces
+// the sampled pixels with fresh random numbers (residuals from the full paths, the sparse Jacobian
+// from their first jacobian_max_depth segments), forms the normal equations with Huber's IRLS
+// weights and solves the damped system (sparse Cholesky up to direct_max_vertices refined
+// vertices, else preconditioned conjugate gradients; linear_solve.h). A trust region (max_step)
+// and the fold guard bound the step, which is kept only when a trace with the same random numbers
+// shows a lower E; steps after average_after are averaged. Visibility changes are not
+// differentiated (as in the paper).
 #pragma once
 
 #include <functional>
 #include <vector>
 
 #include "core/image.h"
+#include "core/view_set.h"
 #include "render/differentiable_tracer.h"
 
 namespace genscene::inverse {
@@ -145,13 +127,19 @@ struct RefineIteration {
   render::RayCounts rays;
 };
 
+// What RefineVertices returns: per refined mesh, in the order of `refined_meshes`, the mesh at the
+// final positions (the scene's mesh with its vertices moved, float, area-weighted vertex normals)
+// and its vertex positions in double precision before and after; and the figures per iteration.
 struct RefineResult {
-  Eigen::VectorXd initial;    // x0
-  Eigen::VectorXd positions;  // final x (also set in the tracer)
-  int pixels = 0;             // sampled pixels (each gives 3 residuals)
-  std::vector<RefineIteration> history;
+  std::vector<TriangleMesh> meshes;
+  std::vector<Eigen::VectorXd> initial;    // x0 per mesh, (x, y, z) per vertex
+  std::vector<Eigen::VectorXd> positions;  // final x per mesh, (x, y, z) per vertex
+  int pixels = 0;                          // sampled pixels (each gives 3 residuals)
+  std::vector<RefineIteration> history;    // the start, then one per iteration
 };
 
+// Called with each iteration's figures and the tracer at its positions (the scene at x, and x
+// numbered as the tracer's parameter vertices: mesh by mesh in scene order).
 using RefineProgress =
     std::function<void(const RefineIteration&, const render::DifferentiablePathTracer&)>;
 
@@ -164,13 +152,18 @@ using RefineProgress =
 int HoldFoldingVertices(const std::vector<Eigen::Vector3i>& faces, const Eigen::VectorXd& start,
                         const Eigen::VectorXd& x, Eigen::VectorXd* step);
 
-// Refines the tracer's parameter vertices so that its renders match the targets; leaves the
-// tracer at the final positions. `seed` keys the random numbers of the traces and of the pixel
-// sample. `progress` is called after the start and after every iteration.
-// Throws Error when a target's size does not match its view or the image is not finite.
-RefineResult RefineVertices(render::DifferentiablePathTracer& tracer,
+// Refines the vertices of the scene meshes `refined_meshes` (indices into scene.meshes, each once,
+// no emitter) so that renders of the scene match the targets. They start at the scene's vertices,
+// or at `start` when given: per refined mesh (same order), (x, y, z) per vertex in double
+// precision. `seed` keys the random numbers of the traces and of the pixel sample. `progress` is
+// called after the start and after every iteration.
+// Throws Error when a mesh index is out of range, repeated or an emitter, when `start` does not
+// match the meshes, when there are no targets or no vertices, or when a target's size does not
+// match its view or the image is not finite.
+RefineResult RefineVertices(const render::Scene& scene, const std::vector<int>& refined_meshes,
                             const std::vector<PosedImage>& targets, const RefineOptions& options,
-                            uint64_t seed = 1, const RefineProgress& progress = {});
+                            uint64_t seed = 1, const RefineProgress& progress = {},
+                            const std::vector<Eigen::VectorXd>& start = {});
 
 // The data term of E at the tracer's positions and its gradient J^T r (3 per parameter vertex),
 // for checks of the objective against finite differences.
@@ -184,18 +177,20 @@ RefineLinearization LinearizeRefinement(const render::DifferentiablePathTracer& 
                                         const RefineOptions& options, uint64_t seed = 1,
                                         const Eigen::VectorXd* direction = nullptr);
 
-// The image error of two sets of positions on the same pixels: a fresh sample (keyed by `seed`,
-// drawn at the tracer's current positions; with a seed other than the refinement's, pixels the
-// refinement did not fit) traced with the same random numbers at both. RMS of (I - I*) over RMS of
-// I*, as RefineIteration::data_rmse. Leaves the tracer at `b`.
+// The image error of two sets of positions of the refined meshes (per mesh, as
+// RefineResult::initial and positions) on the same pixels: a fresh sample (keyed by `seed`, drawn
+// at `b`; with a seed other than the refinement's, pixels the refinement did not fit) traced with
+// the same random numbers at both. RMS of (I - I*) over RMS of I*, as RefineIteration::data_rmse.
 struct HeldOutComparison {
   int pixels = 0;
   double rmse_a = 0.0, rmse_b = 0.0;
 };
-HeldOutComparison CompareOnFreshPixels(render::DifferentiablePathTracer& tracer,
+HeldOutComparison CompareOnFreshPixels(const render::Scene& scene,
+                                       const std::vector<int>& refined_meshes,
                                        const std::vector<PosedImage>& targets,
                                        const RefineOptions& options, uint64_t seed,
-                                       const Eigen::VectorXd& a, const Eigen::VectorXd& b);
+                                       const std::vector<Eigen::VectorXd>& a,
+                                       const std::vector<Eigen::VectorXd>& b);
 
 // Faces whose normal turned by more than 90 degrees between `before` and `after` (same faces),
 // plus faces that lost all their area: the tangles a refinement must not create.

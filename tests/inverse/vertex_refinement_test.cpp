@@ -18,19 +18,34 @@ namespace genscene::inverse {
 using namespace genscene::render;  // the renderer the inverse stages are built on
 namespace {
 
+// The mesh's vertices, (x, y, z) each.
+Eigen::VectorXd VertexPositions(const TriangleMesh& mesh) {
+  Eigen::VectorXd x(3 * mesh.vertices.size());
+  for (size_t v = 0; v < mesh.vertices.size(); ++v)
+    x.segment<3>(3 * v) = mesh.vertices[v].cast<double>();
+  return x;
+}
+
+// `mesh` with its vertices at `x`.
+TriangleMesh MeshAt(TriangleMesh mesh, const Eigen::VectorXd& x) {
+  for (size_t v = 0; v < mesh.vertices.size(); ++v)
+    mesh.vertices[v] = x.segment<3>(3 * v).cast<float>();
+  return mesh;
+}
+
 struct Replica {
   IcosphereBox box = MakeIcosphereBox(true);
   Eigen::Vector3d eye = box.view.world_from_camera.translation();
   std::vector<PosedImage> targets;
-  std::vector<bool> refined;
+  std::vector<int> refined = {box.sphere};
   Replica(int reference_spp, int max_depth) {
     RenderOptions render;
     render.spp = reference_spp;
     render.max_depth = max_depth;
     targets.push_back({box.view, PathTracer(box.scene).Render(box.view, render, 1234).radiance});
-    refined.assign(box.scene.meshes.size(), false);
-    refined[box.sphere] = true;
   }
+  // The sphere's true vertices, (x, y, z) each.
+  Eigen::VectorXd Truth() const { return VertexPositions(box.scene.meshes[box.sphere].mesh); }
   // 20 % of the radius along the normals of the two vertices that face the camera: a spike out
   // and a dent in.
   SpikeAndDent Perturbed() const {
@@ -42,44 +57,51 @@ struct Replica {
 // The replica of the paper's Fig. 4 at test size (direct light, 64 samples per pixel as by default,
 // 3000 pixels, 3 iterations). What holds here: the image error falls, the spike and the dent come
 // back most of the way (measured: 3.5 % of the perturbation left at most; with 16 samples per pixel
-// 9.3 % before the bending term and 16 % with it, which lets the spike's ring rise while the spike
+// 9.3 % without the bending term and 16 % with it, which lets the spike's ring rise while the spike
 // sinks below the truth when the samples are few), no face flips and the vertices the view does
 // not see stay put. bench_refine runs the acceptance case (5 iterations at the defaults, every path
 // length).
 TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   Replica replica(256, 2);
-  DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
-  const Eigen::VectorXd truth = tracer.Positions();
+  const Eigen::VectorXd truth = replica.Truth();
   // A spike out at a, a dent in at b.
   const double size = 0.2 * replica.box.radius;
   const SpikeAndDent perturbed = replica.Perturbed();
   const int a = perturbed.spike, b = perturbed.dent;
   const Eigen::VectorXd& start = perturbed.positions;
-  tracer.SetPositions(start);
-  const TriangleMesh start_mesh = tracer.scene().meshes[replica.box.sphere].mesh;
+  const TriangleMesh start_mesh = MeshAt(replica.box.scene.meshes[replica.box.sphere].mesh, start);
 
   RefineOptions options;
   options.paths.spp = 64;
   options.paths.max_depth = 2;
   options.iterations = 3;
   options.pixels_per_view = 3000;
-  const RefineResult result = RefineVertices(tracer, replica.targets, options);
+  const RefineResult result =
+      RefineVertices(replica.box.scene, replica.refined, replica.targets, options, 1, {}, {start});
   ASSERT_GE(result.history.size(), 2u);
+  ASSERT_EQ(result.meshes.size(), 1u);
+  ASSERT_EQ(result.positions.size(), 1u);
   EXPECT_LT(result.history.back().data_rmse, 0.9 * result.history.front().data_rmse);
-  const auto error = [&](int v) {
-    return (result.positions.segment<3>(3 * v) - truth.segment<3>(3 * v)).norm();
-  };
+  const Eigen::VectorXd& x = result.positions[0];
+  EXPECT_EQ(result.initial[0], start);
+  const auto error = [&](int v) { return (x.segment<3>(3 * v) - truth.segment<3>(3 * v)).norm(); };
   std::printf("spike: error %.4f m, dent: error %.4f m, of %.4f m perturbations\n", error(a),
               error(b), size);
   EXPECT_LT(error(a), 0.5 * size);
   EXPECT_LT(error(b), 0.5 * size);
   EXPECT_LT(std::max(error(a), error(b)), 0.15 * size);
-  EXPECT_EQ(FlippedFaces(start_mesh, tracer.scene().meshes[replica.box.sphere].mesh), 0);
+  EXPECT_EQ(FlippedFaces(start_mesh, result.meshes[0]), 0);
+  // The mesh is the sphere at x, with area-weighted normals.
+  TriangleMesh expected = MeshAt(replica.box.scene.meshes[replica.box.sphere].mesh, x);
+  expected.ComputeVertexNormals();
+  EXPECT_EQ(result.meshes[0].vertices, expected.vertices);
+  EXPECT_EQ(result.meshes[0].normals, expected.normals);
+  EXPECT_EQ(result.meshes[0].faces, expected.faces);
   // Vertices on the far side, which no pixel sees, stay where the prior holds them.
-  for (int v = 0; v < tracer.VertexCount(); ++v) {
+  for (int v = 0; v < static_cast<int>(truth.size() / 3); ++v) {
     const Eigen::Vector3d p = truth.segment<3>(3 * v);
     if ((p - replica.box.center).normalized().dot((replica.eye - p).normalized()) < -0.7) {
-      EXPECT_LT((result.positions - start).segment<3>(3 * v).norm(), 0.05 * size)
+      EXPECT_LT((x - start).segment<3>(3 * v).norm(), 0.05 * size)
           << "hidden vertex " << v << " moved";
     }
   }
@@ -96,14 +118,12 @@ TEST(VertexRefinement, SameSeedSameVerticesWithOneOrTwoThreads) {
   std::vector<Eigen::VectorXd> results;
   for (int threads : {1, 2}) {
     SetThreadCount(threads);
-    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
-    tracer.SetPositions(start.positions);
-    results.push_back(RefineVertices(tracer, replica.targets, options, 9).positions);
+    results.push_back(RefineVertices(replica.box.scene, replica.refined, replica.targets, options,
+                                     9, {}, {start.positions})
+                          .positions[0]);
   }
   SetThreadCount(0);
-  EXPECT_GT((results[0] - DifferentiablePathTracer(replica.box.scene, replica.refined).Positions())
-                .norm(),
-            0.0);
+  EXPECT_GT((results[0] - replica.Truth()).norm(), 0.0);
   EXPECT_EQ(results[0], results[1]);  // bit for bit
 }
 
@@ -122,9 +142,9 @@ TEST(VertexRefinement, ConjugateGradientsGiveTheCholeskySteps) {
   for (int direct_max : {1 << 20, 0, 0}) {
     options.direct_max_vertices = direct_max;
     SetThreadCount(results.size() == 2 ? 1 : 0);
-    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
-    tracer.SetPositions(start.positions);
-    results.push_back(RefineVertices(tracer, replica.targets, options, 9).positions);
+    results.push_back(RefineVertices(replica.box.scene, replica.refined, replica.targets, options,
+                                     9, {}, {start.positions})
+                          .positions[0]);
   }
   SetThreadCount(0);
   const double moved = (results[0] - start.positions).cwiseAbs().maxCoeff();
@@ -135,27 +155,64 @@ TEST(VertexRefinement, ConjugateGradientsGiveTheCholeskySteps) {
 
 TEST(VertexRefinement, BadTargetsAreClearErrors) {
   Replica replica(1, 2);
-  DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
+  const Scene& scene = replica.box.scene;
   RefineOptions options;
   options.paths.spp = 1;
   std::vector<PosedImage> wrong_size = {{replica.box.view, ImageRgb(10, 10)}};
   EXPECT_NE(test::ErrorOf([&] {
-              RefineVertices(tracer, wrong_size, options);
+              RefineVertices(scene, replica.refined, wrong_size, options);
             }).find("is 10x10 but its view is 106x80"),
             std::string::npos);
   std::vector<PosedImage> nan = replica.targets;
   nan[0].image(3, 4) = Eigen::Vector3f(NAN, 0, 0);
   EXPECT_NE(test::ErrorOf([&] {
-              RefineVertices(tracer, nan, options);
+              RefineVertices(scene, replica.refined, nan, options);
             }).find("pixel (3, 4) is not finite"),
             std::string::npos);
-  EXPECT_NE(test::ErrorOf([&] { RefineVertices(tracer, {}, options); }).find("no reference images"),
+  EXPECT_NE(test::ErrorOf([&] {
+              RefineVertices(scene, replica.refined, {}, options);
+            }).find("no reference images"),
             std::string::npos);
-  DifferentiablePathTracer nothing(replica.box.scene,
-                                   std::vector<bool>(replica.box.scene.meshes.size(), false));
-  EXPECT_NE(
-      test::ErrorOf([&] { RefineVertices(nothing, replica.targets, options); }).find("no vertices"),
-      std::string::npos);
+  EXPECT_NE(test::ErrorOf([&] {
+              RefineVertices(scene, {}, replica.targets, options);
+            }).find("no vertices"),
+            std::string::npos);
+}
+
+// The meshes to refine are scene indices, each once, never an emitter; a starting position set
+// has one entry per refined mesh, three coordinates per vertex.
+TEST(VertexRefinement, BadMeshesOrStartsAreClearErrors) {
+  Replica replica(1, 2);
+  const Scene& scene = replica.box.scene;
+  RefineOptions options;
+  options.paths.spp = 1;
+  options.iterations = 0;
+  int emitter = -1;
+  for (size_t m = 0; m < scene.meshes.size(); ++m) {
+    if (scene.meshes[m].IsEmitter()) emitter = static_cast<int>(m);
+  }
+  ASSERT_GE(emitter, 0);
+  const auto error = [&](const std::vector<int>& meshes,
+                         const std::vector<Eigen::VectorXd>& start) {
+    return test::ErrorOf(
+        [&] { RefineVertices(scene, meshes, replica.targets, options, 1, {}, start); });
+  };
+  const int count = static_cast<int>(scene.meshes.size());
+  EXPECT_CONTAINS(error({count}, {}),
+                  "mesh " + std::to_string(count) + " to refine, but the scene has");
+  EXPECT_CONTAINS(error({-1}, {}), "mesh -1 to refine");
+  EXPECT_CONTAINS(error({emitter}, {}), "is an emitter and cannot be refined");
+  EXPECT_CONTAINS(error({replica.box.sphere, replica.box.sphere}, {}), "is given twice");
+  const Eigen::VectorXd truth = replica.Truth();
+  EXPECT_CONTAINS(error(replica.refined, {truth, truth}),
+                  "the start has positions for 2 meshes, but 1 are refined");
+  EXPECT_CONTAINS(error(replica.refined, {truth.head(truth.size() - 3)}),
+                  "the start has 123 coordinates for mesh");
+  // A good start: the result starts there.
+  const RefineResult ok =
+      RefineVertices(scene, replica.refined, replica.targets, options, 1, {}, {truth});
+  EXPECT_EQ(ok.initial[0], truth);
+  EXPECT_EQ(ok.positions[0], truth);
 }
 
 TEST(VertexRefinement, FlippedFacesAreCounted) {
@@ -205,16 +262,45 @@ TEST(VertexRefinement, StepsThatWouldTurnFacesOverHoldThoseVertices) {
   EXPECT_EQ(HoldFoldingVertices(mesh.faces, start, x, &step), 0);
 }
 
+// Several meshes: the result holds one mesh and one position set per refined mesh, in the order
+// given (here not the scene's), each starting where its `start` entry says.
+TEST(VertexRefinement, MeshesComeBackInTheOrderGiven) {
+  Replica replica(1, 2);
+  const Scene& scene = replica.box.scene;
+  int wall = -1;  // the first non-emitting mesh before the sphere
+  for (int m = 0; m < replica.box.sphere && wall < 0; ++m) {
+    if (!scene.meshes[m].IsEmitter() && !scene.meshes[m].mesh.vertices.empty()) wall = m;
+  }
+  ASSERT_GE(wall, 0);
+  RefineOptions options;
+  options.paths.spp = 1;
+  options.iterations = 0;
+  const SpikeAndDent perturbed = replica.Perturbed();
+  const Eigen::VectorXd wall_start = VertexPositions(scene.meshes[wall].mesh);
+  const RefineResult result = RefineVertices(scene, {replica.box.sphere, wall}, replica.targets,
+                                             options, 1, {}, {perturbed.positions, wall_start});
+  ASSERT_EQ(result.meshes.size(), 2u);
+  ASSERT_EQ(result.initial.size(), 2u);
+  ASSERT_EQ(result.positions.size(), 2u);
+  EXPECT_EQ(result.initial[0], perturbed.positions);
+  EXPECT_EQ(result.initial[1], wall_start);
+  EXPECT_EQ(result.positions[0], perturbed.positions);  // no iterations: x = x0
+  EXPECT_EQ(result.meshes[0].vertices,
+            MeshAt(scene.meshes[replica.box.sphere].mesh, perturbed.positions).vertices);
+  EXPECT_EQ(result.meshes[1].vertices, scene.meshes[wall].mesh.vertices);
+  EXPECT_EQ(result.meshes[1].faces, scene.meshes[wall].mesh.faces);
+  EXPECT_EQ(result.meshes[1].normals.size(), scene.meshes[wall].mesh.vertices.size());
+}
+
 // Refines the replica's sphere from `start` with `options`; expects no flipped face; returns the
 // refined positions.
 Eigen::VectorXd RefinedFrom(const Replica& replica, const Eigen::VectorXd& start,
                             const RefineOptions& options) {
-  DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
-  tracer.SetPositions(start);
-  const TriangleMesh start_mesh = tracer.scene().meshes[replica.box.sphere].mesh;
-  const Eigen::VectorXd x = RefineVertices(tracer, replica.targets, options).positions;
-  EXPECT_EQ(FlippedFaces(start_mesh, tracer.scene().meshes[replica.box.sphere].mesh), 0);
-  return x;
+  const TriangleMesh start_mesh = MeshAt(replica.box.scene.meshes[replica.box.sphere].mesh, start);
+  const RefineResult result =
+      RefineVertices(replica.box.scene, replica.refined, replica.targets, options, 1, {}, {start});
+  EXPECT_EQ(FlippedFaces(start_mesh, result.meshes[0]), 0);
+  return result.positions[0];
 }
 
 // The relaxation (relax_sigma): every vertex slid across the sphere by noise of 5 % of the radius
@@ -226,8 +312,7 @@ Eigen::VectorXd RefinedFrom(const Replica& replica, const Eigen::VectorXd& start
 // firmly as the relaxation pulled them (11.9 mm relaxed, 11.8 mm not).
 TEST(VertexRefinement, TheRelaxationUndoesSlidesAcrossTheSurface) {
   Replica replica(256, 2);
-  const Eigen::VectorXd truth =
-      DifferentiablePathTracer(replica.box.scene, replica.refined).Positions();
+  const Eigen::VectorXd truth = replica.Truth();
   const int vertices = static_cast<int>(truth.size() / 3);
   Eigen::VectorXd start = truth;
   CounterRng rng(7, 3);
@@ -283,8 +368,7 @@ TEST(VertexRefinement, TheBendingTermKeepsSingleVerticesFromWalkingAlongTheNorma
     replica.targets.push_back(
         {view, PathTracer(replica.box.scene).Render(view, render, 1235).radiance});
   }
-  const Eigen::VectorXd truth =
-      DifferentiablePathTracer(replica.box.scene, replica.refined).Positions();
+  const Eigen::VectorXd truth = replica.Truth();
   Eigen::VectorXd start = truth;
   CounterRng rng(5, 1);
   for (int i = 0; i < start.size(); ++i) start[i] += 0.05 * replica.box.radius * rng.Normal();
@@ -310,11 +394,11 @@ TEST(VertexRefinement, TheBendingTermKeepsSingleVerticesFromWalkingAlongTheNorma
 
 // The spike and the dent of the replica at test size, refined with `options` from the start.
 double LargerErrorOfTheReplica(const Replica& replica, const RefineOptions& options) {
-  DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
-  const Eigen::VectorXd truth = tracer.Positions();
+  const Eigen::VectorXd truth = replica.Truth();
   const SpikeAndDent perturbed = replica.Perturbed();
-  tracer.SetPositions(perturbed.positions);
-  const Eigen::VectorXd x = RefineVertices(tracer, replica.targets, options).positions;
+  const Eigen::VectorXd x = RefineVertices(replica.box.scene, replica.refined, replica.targets,
+                                           options, 1, {}, {perturbed.positions})
+                                .positions[0];
   return std::max((x - truth).segment<3>(3 * perturbed.spike).norm(),
                   (x - truth).segment<3>(3 * perturbed.dent).norm());
 }
@@ -346,8 +430,6 @@ TEST(VertexRefinement, VerticesNoPixelSeesDirectlyStayPut) {
   Replica replica(64, -1);
   const SpikeAndDent perturbed = replica.Perturbed();
   const auto moves = [&](bool refine_unseen) {
-    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
-    tracer.SetPositions(perturbed.positions);
     RefineOptions options;
     options.paths.spp = 4;
     options.paths.max_depth = -1;     // indirect light: every vertex has derivatives
@@ -355,9 +437,12 @@ TEST(VertexRefinement, VerticesNoPixelSeesDirectlyStayPut) {
     options.iterations = 2;
     options.refine_unseen = refine_unseen;
     const Eigen::VectorXd moved =
-        RefineVertices(tracer, replica.targets, options).positions - perturbed.positions;
-    std::vector<double> m(tracer.VertexCount());
-    for (int v = 0; v < tracer.VertexCount(); ++v) m[v] = moved.segment<3>(3 * v).norm();
+        RefineVertices(replica.box.scene, replica.refined, replica.targets, options, 1, {},
+                       {perturbed.positions})
+            .positions[0] -
+        perturbed.positions;
+    std::vector<double> m(moved.size() / 3);
+    for (size_t v = 0; v < m.size(); ++v) m[v] = moved.segment<3>(3 * v).norm();
     return m;
   };
   const std::vector<double> held = moves(false), free = moves(true);
@@ -380,7 +465,9 @@ TEST(VertexRefinement, VerticesNoPixelSeesDirectlyStayPut) {
 // in bench_refine with six views, two of them low by the floor).
 TEST(VertexRefinement, TheJacobianFromShortPathsKeepsTheFullPathsResiduals) {
   Replica replica(64, -1);
-  DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
+  std::vector<bool> mask(replica.box.scene.meshes.size(), false);
+  mask[replica.box.sphere] = true;
+  DifferentiablePathTracer tracer(replica.box.scene, mask);
   const Eigen::VectorXd truth = tracer.Positions();
   tracer.SetPositions(replica.Perturbed().positions);
   const Eigen::VectorXd to_truth = truth - tracer.Positions();
@@ -418,8 +505,6 @@ TEST(VertexRefinement, TheJacobianFromShortPathsKeepsTheFullPathsResiduals) {
 TEST(VertexRefinement, LaterStepsAreAveraged) {
   Replica replica(64, 2);
   const auto positions = [&](int average_after) {
-    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
-    tracer.SetPositions(replica.Perturbed().positions);
     RefineOptions options;
     options.paths.spp = 16;
     options.paths.max_depth = 2;
@@ -429,11 +514,12 @@ TEST(VertexRefinement, LaterStepsAreAveraged) {
     options.average_after = average_after;
     std::vector<Eigen::VectorXd> x;
     std::vector<int> rejected;
-    RefineVertices(tracer, replica.targets, options, 1,
+    RefineVertices(replica.box.scene, replica.refined, replica.targets, options, 1,
                    [&](const RefineIteration& it, const DifferentiablePathTracer& t) {
                      x.push_back(t.Positions());
                      rejected.push_back(it.rejected);
-                   });
+                   },
+                   {replica.Perturbed().positions});
     EXPECT_EQ(rejected, std::vector<int>(4, 0));  // every step taken at once: the same damping
     return x;
   };
@@ -461,12 +547,11 @@ TEST(VertexRefinement, OnlyPixelsThatSeeARefinedMeshAreFitted) {
     for (int u = 0; u < object.width(); ++u) sphere += object(u, v) == replica.box.sphere;
   }
   const auto fitted = [&](bool refined_only) {
-    DifferentiablePathTracer tracer(replica.box.scene, replica.refined);
     RefineOptions options;
     options.paths.spp = 1;
     options.iterations = 0;
     options.refined_pixels_only = refined_only;
-    return RefineVertices(tracer, replica.targets, options).pixels;
+    return RefineVertices(replica.box.scene, replica.refined, replica.targets, options).pixels;
   };
   const int only = fitted(true), all = fitted(false);
   std::printf("%d pixels see the sphere; fitted %d (refined only), %d (all)\n", sphere, only, all);

@@ -1,0 +1,123 @@
+// The options of light estimation (section "lights" of the configuration), read and checked
+// through Visit and Validate. light_estimation.h describes the method they steer.
+#pragma once
+
+#include "render/path_tracer.h"
+
+namespace genscene::inverse {
+
+struct LightEstimationOptions {
+  static constexpr const char* kSection = "lights";
+
+  int grid = 7;                 // voxels per axis over the scene's bounding box
+  double boundary_inset = 0.1;  // the outer voxel centres lie this many voxels inside the
+                                // bounding box (0.5: cells that tile it; see MakeVoxelGrid)
+  int pixels_per_view = 3000;   // sampled pixels per training view
+  // Camera paths per sampled pixel (spp; box filter over the pixel; even: two independent halves
+  // give the normal equations), max_depth (-1: Russian roulette ends a path) and rr_depth.
+  render::RenderOptions paths = render::RenderOptions::Paths(16);
+  int direct_paths = 2;           // of each half's paths, those whose first vertex connects to
+                                  // every voxel (direct light); deeper vertices draw voxels
+  int split_depth = 1 << 20;      // path vertices up to this depth connect to every voxel
+                                  // (default: all; the coefficients' noise is shared by the
+                                  // voxels instead of drawn per voxel); deeper ones draw
+                                  // resample_voxels voxels
+  double penalty_weight = 1e-3;   // w of the activation penalty
+  double penalty_epsilon = 0.01;  // eps relative to s_ref
+  int rounds = 1;                 // tracing rounds at most (1 = no resampling); the normal
+                                  // equations of all rounds add up. With the default split_depth
+                                  // a later round only adds fresh paths: on the replica a second
+                                  // round changed the powers 3 % and the refined result not at all
+  double round_tolerance = 0.05;  // stop when the voxel powers change less than this (relative)
+  int resample_voxels = 8;        // voxels drawn per deeper path vertex (indirect light):
+                                  // uniformly in round 0, then by the estimated powers
+  double resample_uniform = 0.1;  // share of the uniform distribution in the resampling pmf
+  int max_iterations = 300;       // alternating iterations per solve
+  int move_passes = 1;            // passes of moves handing a lit voxel's light to a neighbour
+                                  // (EstimateLights: in a final solve after the rounds)
+  int move_voxels = 4;            // the strongest voxels that try moves
+  int move_iterations = 10;       // alternating iterations after a move
+  double tolerance = 1e-7;        // stop when the cost decreases less than this (relative)
+  double saturation = 0.0;        // observed values >= this are masked (0: no saturation)
+  double emitter_factor = 8.0;    // pixels brighter than this x the view's 95th percentile
+                                  // luminance are taken for emitters seen directly (masked)
+  double noise_correction = 0.5;  // gamma of NormalEquations::FromCaches, in [0, 1]: the share
+                                  // of the coefficients' noise taken out of G; near 1 G can be
+                                  // indefinite and the solve diverge
+  int refine_levels = 1;          // adaptive refinement: levels of a grid twice as fine, each
+                                  // traced and solved over the voxels near the previous level's
+                                  // lights only (0: none)
+  int refine_coarse_pixels = 1000;  // with refine_levels > 0, the coarse rounds (which only find
+                                    // where the lights are) use this many of each view's sampled
+                                    // pixels (0: all of them)
+  double refine_fraction = 0.05;  // voxels with at least this share of the largest power are split
+  double refine_reach = 1.0;      // the finer voxels within this many (coarser) voxel sizes of a
+                                  // split voxel's centre, per axis, are the next level's candidates
+  double refine_penalty_scale =
+      0.1;                        // the finer levels' penalty weight, relative to penalty_weight
+  int refine_max_voxels = 500;    // candidates per finer level at most; when the lights need more,
+                                  // refinement stops and the coarser result stands
+  int refine_spp = 32;            // camera paths per pixel at the finer levels (0: spp)
+  int refine_grow = 1;            // passes per finer level that add the neighbours (within
+                                  // refine_reach finer voxels) of its lights and solve again
+  double active_fraction = 1e-3;  // voxels with at least this share of the largest power are
+                                  // "active" in reports
+  double memory_cap = 4000.0;     // MB the path-coefficient caches and the normal equations
+                                  // may take; exceeding it is an error (checked before tracing
+                                  // for the equations, while tracing for the caches)
+
+  template <typename V>
+  void Visit(V&& v) {
+    v("grid", grid, "voxels", "voxels per axis over the scene's bounding box");
+    v("boundary_inset", boundary_inset, "voxels",
+      "outer voxel centres this far inside the bounding box (0.5: cells tile it)");
+    v("pixels_per_view", pixels_per_view, "", "random valid pixels sampled per training view");
+    paths.VisitPaths(v, "camera paths per sampled pixel (even: two independent halves)");
+    v("direct_paths", direct_paths, "",
+      "paths per half whose first vertex connects to every voxel");
+    v("split_depth", split_depth, "vertices",
+      "path vertices up to this depth connect to every voxel (deeper: drawn)");
+    v("penalty_weight", penalty_weight, "", "weight of the log activation penalty (0: none)");
+    v("penalty_epsilon", penalty_epsilon, "",
+      "activation scale, relative to the best uniform lighting");
+    v("rounds", rounds, "", "tracing rounds at most (later rounds resample voxels by power)");
+    v("round_tolerance", round_tolerance, "", "stop when the voxel powers change less than this");
+    v("resample_voxels", resample_voxels, "",
+      "voxels drawn per deeper path vertex (indirect light)");
+    v("resample_uniform", resample_uniform, "", "share of uniform voxel sampling when resampling");
+    v("max_iterations", max_iterations, "", "alternating L / lambda iterations per solve");
+    v("move_passes", move_passes, "",
+      "passes of moves that hand a lit voxel's light to a neighbour (0: none)");
+    v("move_voxels", move_voxels, "", "the strongest voxels that try moves");
+    v("move_iterations", move_iterations, "",
+      "alternating iterations after a move before it is judged");
+    v("tolerance", tolerance, "", "relative cost decrease that ends a solve");
+    v("saturation", saturation, "", "observed values at or above this are masked (0: none)");
+    v("emitter_factor", emitter_factor, "", "mask pixels brighter than this x the 95th percentile");
+    v("noise_correction", noise_correction, "",
+      "share of the coefficient noise taken out of the Gram matrix");
+    v("refine_levels", refine_levels, "",
+      "adaptive refinement: levels of twice finer voxels near the lights (0: none)");
+    v("refine_coarse_pixels", refine_coarse_pixels, "",
+      "with refinement, sampled pixels per view the coarse rounds use (0: all)");
+    v("refine_fraction", refine_fraction, "",
+      "voxels with this share of the largest power are split");
+    v("refine_reach", refine_reach, "voxels",
+      "finer candidates within this many coarser voxels of a split one");
+    v("refine_penalty_scale", refine_penalty_scale, "",
+      "penalty weight of the finer levels, relative to penalty_weight");
+    v("refine_max_voxels", refine_max_voxels, "",
+      "candidate voxels per finer level at most (more: refinement stops)");
+    v("refine_grow", refine_grow, "",
+      "passes per finer level that add its lights' neighbours and solve again");
+    v("refine_spp", refine_spp, "",
+      "camera paths per sampled pixel at the finer levels (0: spp; even)");
+    v("active_fraction", active_fraction, "",
+      "share of the largest voxel power that counts as active");
+    v("memory_cap", memory_cap, "MB",
+      "memory the path-coefficient caches and normal equations may take (error beyond)");
+  }
+  void Validate() const;
+};
+
+}  // namespace genscene::inverse
