@@ -12,22 +12,6 @@ namespace fs = std::filesystem;
 using namespace genscene::inverse;
 using namespace genscene::render;
 
-namespace {
-
-// Albedo from Mesh Colors (linear lookup), clamped to [0, 1].
-class MeshColorsAlbedo : public AlbedoField {
- public:
-  explicit MeshColorsAlbedo(MeshColors colors) : colors_(std::move(colors)) {}
-  Eigen::Vector3f Eval(int face, float b1, float b2) const override {
-    return colors_.Linear(face, b1, b2).cwiseMax(0.0f).cwiseMin(1.0f);
-  }
-
- private:
-  MeshColors colors_;
-};
-
-}  // namespace
-
 Scene LoadGeometry(const GeometryInputs& in, const Workspace& ws,
                    std::vector<std::string>* warnings) {
   if (!in.scene.empty()) {
@@ -44,8 +28,7 @@ Scene LoadGeometry(const GeometryInputs& in, const Workspace& ws,
   const fs::path albedo =
       !in.albedo.empty() ? in.albedo : (fs::exists(ws.Albedo()) ? ws.Albedo() : fs::path());
   if (!albedo.empty()) {
-    m.albedo.kind = SurfaceAlbedo::Kind::kField;
-    m.albedo.field = std::make_shared<MeshColorsAlbedo>(ReadMeshColors(albedo, m.mesh));
+    m.albedo = SurfaceAlbedo::FromMeshColors(ReadMeshColors(albedo, m.mesh));
   } else {
     m.albedo = SurfaceAlbedo::FromMesh(m.mesh, Eigen::Vector3f::Constant(0.5f));
     if (m.mesh.face_colors.empty() && m.mesh.vertex_colors.empty()) {

@@ -135,6 +135,28 @@ Eigen::AlignedBox3d Scene::Bounds() const {
   return box;
 }
 
+namespace {
+
+class MeshColorsAlbedo : public AlbedoField {
+ public:
+  explicit MeshColorsAlbedo(MeshColors colors) : colors_(std::move(colors)) {}
+  Eigen::Vector3f Eval(int face, float b1, float b2) const override {
+    return colors_.Linear(face, b1, b2).cwiseMax(0.0f).cwiseMin(1.0f);
+  }
+
+ private:
+  MeshColors colors_;
+};
+
+}  // namespace
+
+SurfaceAlbedo SurfaceAlbedo::FromMeshColors(MeshColors colors) {
+  SurfaceAlbedo a;
+  a.kind = Kind::kField;
+  a.field = std::make_shared<MeshColorsAlbedo>(std::move(colors));
+  return a;
+}
+
 Scene ShadingOnly(Scene scene) {
   for (SceneMesh& m : scene.meshes) {
     if (!m.IsEmitter()) m.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.8f));

@@ -18,6 +18,7 @@
 #include "core/image.h"
 #include "core/light_set.h"
 #include "core/mesh.h"
+#include "core/mesh_colors.h"
 #include "core/view_set.h"
 
 namespace genscene::render {
@@ -41,6 +42,8 @@ struct SurfaceAlbedo {
   static SurfaceAlbedo Constant(const Eigen::Vector3f& albedo);
   // The mesh's face colours, else its vertex colours, else `fallback`.
   static SurfaceAlbedo FromMesh(const TriangleMesh& mesh, const Eigen::Vector3f& fallback);
+  // A field looked up linearly in Mesh Colors (texturing's albedo.mcol), clamped to [0, 1].
+  static SurfaceAlbedo FromMeshColors(MeshColors colors);
 
   Eigen::Vector3f Eval(const TriangleMesh& mesh, int face, float b1, float b2) const;
 };

@@ -1,4 +1,5 @@
-// Mitsuba 3 XML export (ExportMitsubaXml in mitsuba_xml.h; the import is in mitsuba_xml.cpp).
+// Mitsuba 3 XML export (ExportMitsubaXml in mitsuba_xml.h; the import is in mitsuba_xml.cpp, its
+// element helpers in mitsuba_xml_elements.cpp).
 #include <array>
 #include <cctype>
 #include <charconv>

@@ -1,9 +1,22 @@
-// Internal to the Mitsuba XML code: the helpers that both the import (mitsuba_xml.cpp) and the
-// export (mitsuba_xml_export.cpp) use. Not part of the library's interface; include it only from
-// those two files. The public API is in mitsuba_xml.h.
+// Internal to the Mitsuba XML code, not part of the library's interface (the public API is in
+// mitsuba_xml.h); include it only from the mitsuba_xml*.cpp files. It holds the angle and matrix
+// helpers that the import (mitsuba_xml.cpp) and the export (mitsuba_xml_export.cpp) share, and the
+// element-level helpers of the import, defined in mitsuba_xml_elements.cpp: where an element is,
+// attribute and number checks, the properties of one object element (Props) and the perspective
+// sensor's field of view and pose.
 #pragma once
 
 #include <Eigen/Core>
+#include <functional>
+#include <initializer_list>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace tinyxml2 {
+class XMLElement;
+}  // namespace tinyxml2
 
 namespace genscene::render::mitsuba_detail {
 
@@ -22,5 +35,76 @@ inline Eigen::Matrix4d Affine(const Eigen::Matrix3d& linear, const Eigen::Vector
   m.topRightCorner<3, 1>() = translation;
   return m;
 }
+
+// ------------------------------------------------------------------------------------------------
+// Element helpers of the import (mitsuba_xml_elements.cpp). The § numbers are the sections of the
+// subset in mitsuba_xml.h.
+
+// "file:line: <shape type="ply" id="floor">" (each document carries its path as user data).
+std::string Where(const tinyxml2::XMLElement* el);
+
+// Throws an Error "Where(el): what".
+[[noreturn]] void Fail(const tinyxml2::XMLElement* el, const std::string& what);
+
+// Fails on an attribute of `el` that is not in `allowed`.
+void CheckAttributes(const tinyxml2::XMLElement* el, std::initializer_list<const char*> allowed);
+
+// The attribute's value; fails when it is missing.
+std::string RequiredAttribute(const tinyxml2::XMLElement* el, const char* name);
+
+// Lists split on commas and spaces only (§1); empty tokens are dropped.
+std::vector<std::string> Tokens(const std::string& text);
+
+// One finite number (the whole token); fails naming `el` otherwise.
+double Number(const std::string& token, const tinyxml2::XMLElement* el);
+
+// Whether the tag names an object (shape, bsdf, emitter, sensor, ...) rather than a property.
+bool IsObjectTag(const std::string& tag);
+
+// The `type` attribute, or "" without one.
+std::string Type(const tinyxml2::XMLElement* el);
+
+// The properties of one object element. Every getter marks its property as used; Finish() fails
+// on properties nobody read, as Mitsuba HEAD does (§1).
+class Props {
+ public:
+  // Sorts the children of `object`: nested objects and <ref>s (resolved by `resolve_ref`) go to
+  // children(), named properties to the getters; anything else fails.
+  Props(tinyxml2::XMLElement* object,
+        const std::function<tinyxml2::XMLElement*(tinyxml2::XMLElement*)>& resolve_ref);
+
+  std::optional<double> Float(const std::string& name);
+  std::optional<long long> Integer(const std::string& name);
+  std::optional<bool> Boolean(const std::string& name);
+  std::optional<std::string> String(const std::string& name);
+  std::optional<Eigen::Vector3d> Point(const std::string& name);
+  // rgb (1 or 3 values), a float, or a spectrum with a single value (a constant).
+  std::optional<Eigen::Vector3d> Color(const std::string& name);
+  // A <transform> (§4): each element left-multiplies the transform built so far.
+  std::optional<Eigen::Matrix4d> Transform(const std::string& name);
+  const std::vector<tinyxml2::XMLElement*>& children() const { return children_; }
+
+  void Finish() const;
+
+ private:
+  struct Entry {
+    tinyxml2::XMLElement* el;
+    bool used;
+  };
+  const tinyxml2::XMLElement* Take(const std::string& name,
+                                   std::initializer_list<const char*> tags);
+
+  tinyxml2::XMLElement* object_;
+  std::map<std::string, Entry> props_;
+  std::vector<tinyxml2::XMLElement*> children_;
+};
+
+// A perspective sensor's horizontal field of view in degrees from fov / fov_axis, or from
+// focal_length (default 50 mm, a diagonal fov of the 36 x 24 mm frame), as Mitsuba does (§5).
+double HorizontalFov(const tinyxml2::XMLElement* el, Props* p, double aspect);
+
+// Mitsuba refuses scale in a camera's to_world; we also refuse shear and mirrors, and snap the
+// rotation to the nearest orthonormal matrix (files print matrices with a few digits).
+Eigen::Matrix4d RigidCameraToWorld(const tinyxml2::XMLElement* el, Eigen::Matrix4d to_world);
 
 }  // namespace genscene::render::mitsuba_detail

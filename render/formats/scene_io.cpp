@@ -1,5 +1,5 @@
-// Scene files: our JSON format, the cbox-cycles loader, LoadScene, and the mesh sources the
-// loaders share (OBJ, Mitsuba's primitives, normals). The formats are documented in scene_io.h.
+// Scene files: our JSON format, the cbox-cycles loader and LoadScene (the mesh sources the loaders
+// share are in mesh_sources.cpp). The formats are documented in scene_io.h.
 #include "render/formats/scene_io.h"
 
 #include <algorithm>
@@ -303,96 +303,119 @@ void SaveSceneJson(const fs::path& path, const Scene& scene, const std::vector<P
 
 namespace {
 
-Scene LoadCyclesSceneUnguarded(const fs::path& folder) {
-  const fs::path geometry = folder / "geometry";
+// A per-face albedo that is one colour must be the object's albedo_rgb: a constant albedo then.
+SurfaceAlbedo CyclesObjectAlbedo(std::vector<Vector3f> albedo, const json& o,
+                                 const std::string& where) {
+  const Vector3f listed =
+      JsonVector<3>(o.value("albedo_rgb", json()), where + ".albedo_rgb").cast<float>();
+  const bool constant =
+      std::all_of(albedo.begin(), albedo.end(), [&](const Vector3f& a) { return a == albedo[0]; });
+  if (constant && !albedo.empty()) {
+    if ((albedo[0] - listed).cwiseAbs().maxCoeff() > 1e-6f) {
+      throw Error(Format(where, ": albedo_rgb (", listed.transpose(), ") differs from the PLY's (",
+                         albedo[0].transpose(), ")"));
+    }
+    return SurfaceAlbedo::Constant(albedo[0]);
+  }
+  SurfaceAlbedo out;
+  out.kind = SurfaceAlbedo::Kind::kPerFace;
+  out.values = std::move(albedo);
+  return out;
+}
+
+// One entry of objects.json: faces [f0, f1) and vertices [v0, v1) of the shared PLY `all`
+// (`ply` names it). Adds the number of faces it takes to *covered.
+SceneMesh CyclesObject(const json& o, const TriangleMesh& all, const std::string& ply,
+                       const std::string& where, size_t* covered) {
+  const Eigen::Vector2d fr = JsonVector<2>(o.value("face_range", json()), where + ".face_range");
+  const Eigen::Vector2d vr =
+      JsonVector<2>(o.value("vertex_range", json()), where + ".vertex_range");
+  const int f0 = static_cast<int>(fr[0]), f1 = static_cast<int>(fr[1]);
+  const int v0 = static_cast<int>(vr[0]), v1 = static_cast<int>(vr[1]);
+  if (f0 < 0 || f1 < f0 || f1 > static_cast<int>(all.faces.size()) || v0 < 0 || v1 < v0 ||
+      v1 > static_cast<int>(all.vertices.size())) {
+    throw Error(Format(where, ": ranges [", f0, ", ", f1, ") / [", v0, ", ", v1, ") exceed ", ply));
+  }
+  SceneMesh m;
+  m.name = o.value("name", "object");
+  m.smooth_shading = o.value("smooth_shaded", false);
+  m.mesh.vertices.assign(all.vertices.begin() + v0, all.vertices.begin() + v1);
+  if (m.smooth_shading) {
+    if (all.normals.empty())
+      throw Error(Format(where, ": smooth, but ", ply, " has no vertex normals"));
+    m.mesh.normals.assign(all.normals.begin() + v0, all.normals.begin() + v1);
+  }
+  std::vector<Vector3f> albedo(all.face_colors.begin() + f0, all.face_colors.begin() + f1);
+  for (int f = f0; f < f1; ++f) {
+    const Eigen::Vector3i local = all.faces[static_cast<size_t>(f)].array() - v0;
+    if (local.minCoeff() < 0 || local.maxCoeff() >= v1 - v0) {
+      throw Error(Format(where, ": face ", f, " uses a vertex outside its vertex_range"));
+    }
+    m.mesh.faces.push_back(local);
+  }
+  m.albedo = CyclesObjectAlbedo(std::move(albedo), o, where);
+  *covered += static_cast<size_t>(f1 - f0);
+  return m;
+}
+
+// geometry/scene.ply split into the objects of geometry/objects.json, which must cover its faces.
+void AddCyclesObjects(const fs::path& geometry, Scene* scene) {
   const TriangleMesh all = ReadPly(geometry / "scene.ply");
   const std::string ply = (geometry / "scene.ply").string();
   if (all.face_colors.empty()) throw Error(Format(ply, ": no per-face albedo (albedo_r/g/b)"));
-  Scene scene;
   const fs::path objects_file = geometry / "objects.json";
   const json objects = ParseJsonFile(objects_file);
   size_t covered = 0;
   for (const json& o :
        JsonArray(objects.value("objects", json()), objects_file.string() + ": objects")) {
     const std::string where = Format(objects_file.string(), ": object ", o.value("name", "?"));
-    const Eigen::Vector2d fr = JsonVector<2>(o.value("face_range", json()), where + ".face_range");
-    const Eigen::Vector2d vr =
-        JsonVector<2>(o.value("vertex_range", json()), where + ".vertex_range");
-    const int f0 = static_cast<int>(fr[0]), f1 = static_cast<int>(fr[1]);
-    const int v0 = static_cast<int>(vr[0]), v1 = static_cast<int>(vr[1]);
-    if (f0 < 0 || f1 < f0 || f1 > static_cast<int>(all.faces.size()) || v0 < 0 || v1 < v0 ||
-        v1 > static_cast<int>(all.vertices.size())) {
-      throw Error(
-          Format(where, ": ranges [", f0, ", ", f1, ") / [", v0, ", ", v1, ") exceed ", ply));
-    }
-    SceneMesh m;
-    m.name = o.value("name", "object");
-    m.smooth_shading = o.value("smooth_shaded", false);
-    m.mesh.vertices.assign(all.vertices.begin() + v0, all.vertices.begin() + v1);
-    if (m.smooth_shading) {
-      if (all.normals.empty())
-        throw Error(Format(where, ": smooth, but ", ply, " has no vertex normals"));
-      m.mesh.normals.assign(all.normals.begin() + v0, all.normals.begin() + v1);
-    }
-    std::vector<Vector3f> albedo(all.face_colors.begin() + f0, all.face_colors.begin() + f1);
-    for (int f = f0; f < f1; ++f) {
-      const Eigen::Vector3i local = all.faces[static_cast<size_t>(f)].array() - v0;
-      if (local.minCoeff() < 0 || local.maxCoeff() >= v1 - v0) {
-        throw Error(Format(where, ": face ", f, " uses a vertex outside its vertex_range"));
-      }
-      m.mesh.faces.push_back(local);
-    }
-    const Vector3f listed =
-        JsonVector<3>(o.value("albedo_rgb", json()), where + ".albedo_rgb").cast<float>();
-    const bool constant = std::all_of(albedo.begin(), albedo.end(),
-                                      [&](const Vector3f& a) { return a == albedo[0]; });
-    if (constant && !albedo.empty()) {
-      if ((albedo[0] - listed).cwiseAbs().maxCoeff() > 1e-6f) {
-        throw Error(Format(where, ": albedo_rgb (", listed.transpose(),
-                           ") differs from the PLY's (", albedo[0].transpose(), ")"));
-      }
-      m.albedo = SurfaceAlbedo::Constant(albedo[0]);
-    } else {
-      m.albedo.kind = SurfaceAlbedo::Kind::kPerFace;
-      m.albedo.values = albedo;
-    }
-    covered += static_cast<size_t>(f1 - f0);
-    scene.meshes.push_back(std::move(m));
+    scene->meshes.push_back(CyclesObject(o, all, ply, where, &covered));
   }
   if (covered != all.faces.size()) {
     throw Error(Format(objects_file.string(), ": objects cover ", covered, " of the ",
                        all.faces.size(), " faces of ", ply));
   }
+}
+
+// One entry of emitters.json: one-sided quads (two triangles each) with a constant radiance.
+SceneMesh CyclesEmitter(const json& e, const std::string& where) {
+  if (!e.value("one_sided", false))
+    throw Error(Format(where, ": only one-sided emitters are supported"));
+  SceneMesh m;
+  m.name = e.value("name", "emitter");
+  m.albedo = SurfaceAlbedo::Constant(Vector3f::Zero());
+  m.emission =
+      JsonVector<3>(e.value("radiance_rgb", json()), where + ".radiance_rgb").cast<float>();
+  for (const json& f : JsonArray(e.value("faces", json()), where + ".faces")) {
+    const json corners = JsonArray(f.value("corners", json()), where + ".corners");
+    if (corners.size() != 4) throw Error(Format(where, ": a face needs 4 corners"));
+    const int base = static_cast<int>(m.mesh.vertices.size());
+    for (const json& c : corners)
+      m.mesh.vertices.push_back(JsonVector<3>(c, where + ".corners").cast<float>());
+    m.mesh.faces.push_back({base, base + 1, base + 2});
+    m.mesh.faces.push_back({base, base + 2, base + 3});
+    // Counter-clockwise seen from the emitting side: the winding normal must be `normal`.
+    const Vector3d normal = JsonVector<3>(f.value("normal", json()), where + ".normal");
+    for (size_t k = m.mesh.faces.size() - 2; k < m.mesh.faces.size(); ++k) {
+      if (m.mesh.FaceNormalScaled(k).normalized().cast<double>().dot(normal) < 0.999) {
+        throw Error(Format(where, ": corners are not counter-clockwise around normal (",
+                           normal.transpose(), ")"));
+      }
+    }
+  }
+  return m;
+}
+
+Scene LoadCyclesSceneUnguarded(const fs::path& folder) {
+  const fs::path geometry = folder / "geometry";
+  Scene scene;
+  AddCyclesObjects(geometry, &scene);
   const fs::path emitters_file = geometry / "emitters.json";
   const json emitters = ParseJsonFile(emitters_file);
   for (const json& e :
        JsonArray(emitters.value("emitters", json()), emitters_file.string() + ": emitters")) {
     const std::string where = Format(emitters_file.string(), ": emitter ", e.value("name", "?"));
-    if (!e.value("one_sided", false))
-      throw Error(Format(where, ": only one-sided emitters are supported"));
-    SceneMesh m;
-    m.name = e.value("name", "emitter");
-    m.albedo = SurfaceAlbedo::Constant(Vector3f::Zero());
-    m.emission =
-        JsonVector<3>(e.value("radiance_rgb", json()), where + ".radiance_rgb").cast<float>();
-    for (const json& f : JsonArray(e.value("faces", json()), where + ".faces")) {
-      const json corners = JsonArray(f.value("corners", json()), where + ".corners");
-      if (corners.size() != 4) throw Error(Format(where, ": a face needs 4 corners"));
-      const int base = static_cast<int>(m.mesh.vertices.size());
-      for (const json& c : corners)
-        m.mesh.vertices.push_back(JsonVector<3>(c, where + ".corners").cast<float>());
-      m.mesh.faces.push_back({base, base + 1, base + 2});
-      m.mesh.faces.push_back({base, base + 2, base + 3});
-      // Counter-clockwise seen from the emitting side: the winding normal must be `normal`.
-      const Vector3d normal = JsonVector<3>(f.value("normal", json()), where + ".normal");
-      for (size_t k = m.mesh.faces.size() - 2; k < m.mesh.faces.size(); ++k) {
-        if (m.mesh.FaceNormalScaled(k).normalized().cast<double>().dot(normal) < 0.999) {
-          throw Error(Format(where, ": corners are not counter-clockwise around normal (",
-                             normal.transpose(), ")"));
-        }
-      }
-    }
-    scene.meshes.push_back(std::move(m));
+    scene.meshes.push_back(CyclesEmitter(e, where));
   }
   scene.Validate();
   return scene;
