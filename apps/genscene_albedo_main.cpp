@@ -17,8 +17,7 @@ int main(int argc, char** argv) {
     texturing::AlbedoOptions options;
     cli.Add(options, "Albedo");
     std::string ws_path, mesh;
-    app.add_option("workspace,--out", ws_path, "workspace folder holding mesh.ply and texture.mcol")
-        ->required();
+    cli.AddFolder(ws_path, "workspace", "workspace folder holding mesh.ply and texture.mcol");
     app.add_option("--mesh", mesh, "mesh PLY the texture was made for (default: WS/mesh.ply)");
     if (auto code = cli.Parse(argc, argv)) return *code;
     if (!std::filesystem::is_directory(ws_path))

@@ -41,9 +41,10 @@ int main(int argc, char** argv) {
                    "openni2 (first camera), openni2:URI, a .oni recording, or a TUM / Redwood "
                    "folder or view set")
         ->capture_default_str();
-    app.add_option("workspace,--out", out,
-                   "write the frames as a TUM folder (rgb/, depth/, rgb.txt, depth.txt, "
-                   "intrinsics.txt); frames are held in memory until the end");
+    cli.AddFolder(out, "workspace",
+                  "write the frames as a TUM folder (rgb/, depth/, rgb.txt, depth.txt, "
+                  "intrinsics.txt); frames are held in memory until the end",
+                  false);
     app.add_option("--record", record,
                    "write the frames as an uncompressed .oni recording (OpenNI2 plays it)");
     app.add_option("--frames", frames,

@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
            "--input", input,
            "TUM or Redwood folder, view set, .oni recording, or openni2[:URI] (live camera)")
         ->required();
-    app.add_option("workspace,--out", out, "workspace folder (created when missing)")->required();
+    cli.AddFolder(out, "workspace", "workspace folder (created when missing)");
     if (auto code = cli.Parse(argc, argv)) return *code;
 
     const genscene::Workspace workspace(out);

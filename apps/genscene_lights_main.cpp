@@ -21,9 +21,8 @@ int main(int argc, char** argv) {
     cli.Add(options, "Light estimation");
     std::string ws_path;
     apps::LightsInputs in;
-    app.add_option("workspace,--out", ws_path,
-                   "workspace folder (inputs default to its mesh.ply, albedo.mcol, keyframes/)")
-        ->required();
+    cli.AddFolder(ws_path, "workspace",
+                  "workspace folder (inputs default to its mesh.ply, albedo.mcol, keyframes/)");
     app.add_option(
         "--scene", in.scene,
         "scene file (.xml Mitsuba 3 subset or .json): geometry and albedo; emitters ignored");

@@ -74,7 +74,7 @@ int Demo(int argc, char** argv) {
   chain.AddTo(cli);
   std::string out = "genscene-demo";
   bool redo = false, report = true;
-  app.add_option("out,--out", out, "workspace folder")->capture_default_str();
+  cli.AddFolder(out, "out", "workspace folder", false);
   app.add_flag("!--no-report", report, "do not write the report (WS/report/report.md) at the end");
   std::string until;
   app.add_option("--until", until,
@@ -154,7 +154,7 @@ int Run(int argc, char** argv) {
   app.add_option("--input", input,
                  "TUM folder, view set, Redwood folder, .oni recording or openni2[:URI]")
       ->required();
-  app.add_option("out,--out", out, "workspace folder")->required();
+  cli.AddFolder(out, "out", "workspace folder");
   app.add_flag("--redo", redo, "re-run stages whose outputs are up to date");
   std::string until;
   app.add_option("--until", until,
@@ -236,6 +236,10 @@ int main(int argc, char** argv) {
     const std::string command = argv[1];
     if (command == "--help" || command == "-h" || command == "help") {
       PrintUsage();
+      return 0;
+    }
+    if (command == "--version") {
+      std::cout << "genscene " << genscene::Version() << "\n";
       return 0;
     }
     // The sub-command sees argv without the program name.

@@ -20,7 +20,7 @@ int main(int argc, char** argv) {
     meshing::MeshingOptions options;
     cli.Add(options, "Meshing");
     std::string ws_path;
-    app.add_option("workspace,--out", ws_path, "workspace folder holding tsdf.gsv")->required();
+    cli.AddFolder(ws_path, "workspace", "workspace folder holding tsdf.gsv");
     if (auto code = cli.Parse(argc, argv)) return *code;
 
     // Check the input before Workspace() would create a missing folder.

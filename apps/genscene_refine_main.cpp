@@ -22,10 +22,9 @@ int main(int argc, char** argv) {
     cli.Add(options, "Vertex refinement");
     std::string ws_path;
     apps::RefineInputs in;
-    app.add_option("workspace,--out", ws_path,
-                   "workspace folder (inputs default to its mesh.ply, albedo.mcol, lights.json, "
-                   "keyframes/)")
-        ->required();
+    cli.AddFolder(ws_path, "workspace",
+                  "workspace folder (inputs default to its mesh.ply, albedo.mcol, lights.json, "
+                  "keyframes/)");
     app.add_option("--scene", in.geometry.scene,
                    "scene file (.xml Mitsuba 3 subset or .json): geometry, albedo and lights");
     app.add_option("--mesh", in.geometry.mesh,

@@ -1,7 +1,8 @@
-// genscene-render: renders a scene (Mitsuba XML or our JSON) from the views of a view set, one
-// given pose, or the scene file's own cameras. Writes one linear EXR and one sRGB PNG per view,
-// named by the view's timestamp so that names sort in list order, optional depth/normal passes,
-// and rgb.txt + groundtruth.txt + intrinsics.txt so that the output is itself a view set.
+// genscene-render: renders a scene (Mitsuba XML, our JSON, or a workspace's model) from the views
+// of a view set, one given pose, or the scene file's own cameras. Writes one linear EXR and one
+// sRGB PNG per view, named by the view's timestamp so that names sort in list order, optional
+// depth/normal passes, and rgb.txt + groundtruth.txt + intrinsics.txt so that the output is itself
+// a view set.
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -15,6 +16,7 @@
 #include "core/view_set.h"
 #include "render/formats/mitsuba_xml.h"
 #include "render/formats/scene_io.h"
+#include "render/formats/workspace_scene.h"
 #include "render/path_tracer.h"
 
 namespace {
@@ -74,14 +76,16 @@ int main(int argc, char** argv) {
     cli.Add(options, "Rendering");
     std::string scene_path, views_dir, pose, intrinsics, out;
     bool aovs = false;
-    app.add_option("--scene", scene_path, "scene file: .xml (Mitsuba 3 subset) or .json (genscene)")
+    app.add_option("--scene", scene_path,
+                   "scene file: .xml (Mitsuba 3 subset) or .json (genscene), or a workspace folder "
+                   "(its model: mesh, albedo, lights; its keyframe cameras)")
         ->required();
     app.add_option("--views", views_dir,
                    "view set folder (intrinsics.txt, groundtruth.txt, rgb.txt)");
     app.add_option("--pose", pose, "one camera pose 'tx ty tz qx qy qz qw' (world_from_camera)");
     app.add_option("--intrinsics", intrinsics,
                    "intrinsics for --pose: file or tum1|tum2|tum3|primesense");
-    app.add_option("out,--out", out, "output folder")->required();
+    cli.AddFolder(out, "out", "output folder");
     app.add_flag("--aovs", aovs,
                  "also write <stamp>_depth.exr (planar z, m) and <stamp>_normal.exr (world)");
     std::string export_xml, export_json;
@@ -91,7 +95,8 @@ int main(int argc, char** argv) {
                    "also write the scene and views in genscene's JSON format");
     if (auto code = cli.Parse(argc, argv)) return *code;
 
-    const LoadedScene loaded = LoadScene(scene_path);
+    const LoadedScene loaded =
+        IsWorkspaceFolder(scene_path) ? LoadWorkspaceScene(scene_path) : LoadScene(scene_path);
     for (const std::string& w : loaded.warnings)
       std::cerr << "genscene-render: warning: " << w << "\n";
     ApplySceneSettings(loaded.settings, cli, &options);

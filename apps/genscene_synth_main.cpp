@@ -13,8 +13,7 @@ int main(int argc, char** argv) {
     genscene::apps::SynthOptions synth;
     cli.Add(synth, "Scene");
     std::string out;
-    app.add_option("out,--out", out, "output folder (created; replaced only if genscene wrote it)")
-        ->required();
+    cli.AddFolder(out, "out", "output folder (created; replaced only if genscene wrote it)");
     if (auto code = cli.Parse(argc, argv)) return *code;
 
     const auto s = genscene::apps::Synthesize(synth, cli.seed(), out);

@@ -21,9 +21,7 @@ int main(int argc, char** argv) {
     std::string ws_path;
     apps::TextureInputs inputs;
     std::string mesh, views, response = source.camera_response;
-    app.add_option("workspace,--out", ws_path,
-                   "workspace folder (outputs; inputs unless given below)")
-        ->required();
+    cli.AddFolder(ws_path, "workspace", "workspace folder (outputs; inputs unless given below)");
     app.add_option("--mesh", mesh, "mesh PLY (default: WS/mesh.ply)");
     app.add_option("--views", views,
                    "posed colour images: a keyframes folder or view set (default: WS/keyframes)");

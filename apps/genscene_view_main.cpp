@@ -53,7 +53,7 @@ int main(int argc, char** argv) {
     ViewerOptions options;
     cli.Add(options, "Viewer");
     std::string ws_path;
-    app.add_option("workspace,--out", ws_path, "workspace folder")->required();
+    cli.AddFolder(ws_path, "workspace", "workspace folder");
     if (auto code = cli.Parse(argc, argv)) return *code;
 
     const std::string example = Format("xvfb-run -a genscene-view ", ws_path,

@@ -93,7 +93,7 @@ def main():
     with tempfile.TemporaryDirectory() as ws:
         env = dict(os.environ)
         subprocess.run([os.path.join(a.build, "apps", "genscene-fuse"), "--input", a.folder, ws, "--tracking", "known",
-                        "--voxel-size", str(a.voxel), "--truncation", str(a.trunc), "--depth-max", "6", *EXTRA,
+                        "--voxel-size", str(a.voxel), "--truncation", str(a.trunc), "--range-max", "6", *EXTRA,
                         "--threads", str(a.threads)], check=True, env=env, capture_output=True)
         report = json.load(open(os.path.join(ws, "fusion.json")))
         gs_seconds = sum(f["ms_integrate"] for f in report["frames"]) / 1e3

@@ -19,6 +19,13 @@ class Error : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// An error in how a program was called: an unknown flag, a bad option value, a missing argument,
+// a config file that cannot be applied. The apps exit 2 on it (1 on every other Error).
+class UsageError : public Error {
+ public:
+  using Error::Error;
+};
+
 namespace detail {
 
 // Concatenates any streamable values into one string.

@@ -10,6 +10,7 @@
 
 #include <CLI/CLI.hpp>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -22,8 +23,14 @@ namespace genscene {
 
 class CommandLine {
  public:
-  // Adds --config, --threads and --seed to `app`.
+  // Adds --version, --config, --threads and --seed to `app`.
   explicit CommandLine(CLI::App& app);
+
+  // The folder an app writes (or reads and writes), given as the positional `name` or as --out
+  // (one option each in --help); an error when both are given and differ, and when `required` and
+  // neither is given (else `folder` keeps its value).
+  void AddFolder(std::string& folder, const std::string& name, const std::string& help,
+                 bool required = true);
 
   // Registers one flag per field of `options` (help text "<help> [unit]", default shown). With a
   // `prefix`, flags are --<prefix>-<key> (for apps that take two stages with the same keys); the
@@ -39,8 +46,10 @@ class CommandLine {
       if (unit && *unit) text += Format(" [", unit, "]");
       CLI::Option* opt = nullptr;
       if constexpr (std::is_same_v<T, bool>) {
-        // Unbound options (no variable): values are copied in after the config is applied.
-        opt = app_.add_flag(flag(key))->description(text);
+        // Unbound options (no variable): values are copied in after the config is applied. A
+        // flag that defaults to true is turned off by --no-<flag> (or --<flag>=false).
+        const std::string names = value ? flag(key) + ",!--no-" + flag(key).substr(2) : flag(key);
+        opt = app_.add_flag(names)->description(text);
         opt->default_str(value ? "true" : "false");
       } else {
         opt = app_.add_option(flag(key))->description(text);
@@ -69,9 +78,9 @@ class CommandLine {
     });
   }
 
-  // Parses argv. Returns an exit code when the app should stop now (after --help: 0; after a
-  // usage error: 2, message printed), std::nullopt when it should go on. Applies the config file
-  // and the flags to every registered struct and validates them; throws Error on bad values.
+  // Parses argv. Returns 0 when the app should stop now (after --help or --version),
+  // std::nullopt when it should go on. Applies the config file and the flags to every registered
+  // struct and validates them; throws UsageError on a usage error or a bad value.
   std::optional<int> Parse(int argc, char** argv);
 
   // True when the flag of `key` (e.g. "max_depth") was given on the command line.
@@ -90,10 +99,22 @@ class CommandLine {
   int threads_ = 0;
   unsigned long long seed_ = 0;
   std::vector<std::function<void(ConfigFile*)>> appliers_;
+  struct Folder {
+    std::string* value;
+    std::string name;
+    std::string flag_value;
+    bool required;
+    CLI::Option* positional;
+  };
+  std::vector<std::unique_ptr<Folder>> folders_;
+  void ParseUnguarded(int argc, char** argv);
 };
 
+// The version of genscene the apps print with --version.
+const char* Version();
+
 // Runs an app's body, turning genscene::Error (and any std::exception) into one line on stderr
-// ("<app>: error: <message>") and exit code 1.
+// ("<app>: error: <message>") and exit code 1; a UsageError exits 2.
 int RunApp(const char* app_name, const std::function<int()>& body);
 
 }  // namespace genscene

@@ -225,7 +225,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     if (options_.feature_tracking && !frame.color.empty()) {
       last_fused_.color = frame.color;
       last_fused_.depth =
-          frame.depth;  // unmasked: features far beyond depth_max still fix the pose
+          frame.depth;  // unmasked: features far beyond range_max still fix the pose
       last_fused_.world_from_camera = pose;
     }
   }

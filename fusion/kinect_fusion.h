@@ -95,8 +95,8 @@ struct FusionOptions {
     v("holdout", holdout, "frames",
       "keep every Nth frame out of the model (tracked for its pose only) to judge the model on it "
       "(0 = none)");
-    v("depth_min", preprocess.min_depth, "m", "nearer depth is invalid");
-    v("depth_max", preprocess.max_depth, "m", "farther depth is invalid");
+    v("range_min", preprocess.min_depth, "m", "depth nearer than this is invalid (sensor range)");
+    v("range_max", preprocess.max_depth, "m", "depth farther than this is invalid (sensor range)");
     v("bilateral_radius", preprocess.bilateral_radius, "px",
       "bilateral filter half-width for tracking (0 = off)");
     v("bilateral_sigma_space", preprocess.bilateral_sigma_space, "px", "bilateral spatial sigma");

@@ -9,8 +9,8 @@
 namespace genscene::fusion {
 
 void PreprocessOptions::Validate() const {
-  RequireRange("depth_min", min_depth, 0.0, 100.0);
-  RequireRange("depth_max", max_depth, min_depth, 1000.0);
+  RequireRange("range_min", min_depth, 0.0, 100.0);
+  RequireRange("range_max", max_depth, min_depth, 1000.0);
   RequireRange("bilateral_radius", bilateral_radius, 0, 10);
   RequireRange("bilateral_sigma_space", bilateral_sigma_space, 0.1, 20.0);
   RequireRange("bilateral_sigma_depth", bilateral_sigma_depth, 1e-4, 1.0);

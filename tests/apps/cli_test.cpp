@@ -3,9 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <map>
+#include <sstream>
 
 #include "core/file_util.h"
 #include "core/image_io.h"
+#include "core/view_set.h"
 #include "tests/test_util.h"
 
 namespace genscene {
@@ -74,6 +77,107 @@ TEST_F(Apps, HelpDocumentsFlagsWithUnitsAndDefaults) {
   EXPECT_NE(RunCommand(AppPath("genscene") + " frobnicate").exit_code, 0);
 }
 
+// Every app and every genscene command, as a user calls them.
+const std::vector<std::string>& AllCommands() {
+  static const std::vector<std::string> commands = {
+      "genscene demo",    "genscene run",     "genscene report", "genscene inspect",
+      "genscene-synth",   "genscene-capture", "genscene-fuse",   "genscene-mesh",
+      "genscene-texture", "genscene-albedo",  "genscene-lights", "genscene-refine",
+      "genscene-render",  "genscene-view"};
+  return commands;
+}
+std::string CommandPath(const std::string& command) {
+  const auto space = command.find(' ');
+  return space == std::string::npos ? AppPath(command)
+                                    : AppPath(command.substr(0, space)) + command.substr(space);
+}
+
+TEST_F(Apps, EveryAppPrintsItsVersion) {
+  for (const std::string& command : AllCommands()) {
+    const auto r = RunCommand(CommandPath(command) + " --version");
+    EXPECT_EQ(r.exit_code, 0) << command << ": " << r.output;
+    EXPECT_NE(r.output.find("genscene 0."), std::string::npos) << command << ": " << r.output;
+  }
+  const auto r = RunCommand(AppPath("genscene") + " --version");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("genscene 0."), std::string::npos) << r.output;
+}
+
+// Each flag is listed once, no option is shown as REQUIRED twice (a positional folder and its
+// --out alias), and one name has one meaning: path length is --max-depth, the sensor's range
+// --range-min / --range-max.
+TEST_F(Apps, HelpListsEachFlagOnceWithOneNamePerMeaning) {
+  for (const std::string& command : AllCommands()) {
+    const auto r = RunCommand(CommandPath(command) + " --help");
+    ASSERT_EQ(r.exit_code, 0) << command << ": " << r.output;
+    std::map<std::string, int> listed;
+    int required = 0;
+    std::istringstream lines(r.output);
+    for (std::string line; std::getline(lines, line);) {
+      const auto first = line.find_first_not_of(' ');
+      if (first == std::string::npos) continue;
+      if (line.compare(first, 2, "--") == 0 || line.compare(first, 1, "-") == 0) {
+        const std::string names = line.substr(first, line.find_first_of(" =", first) - first);
+        std::istringstream parts(names);
+        for (std::string name; std::getline(parts, name, ',');) {
+          name = name.substr(0, name.find('{'));
+          ++listed[name];
+        }
+      }
+      if (line.find("REQUIRED") != std::string::npos && line.find("--out") != std::string::npos)
+        ++required;
+    }
+    for (const auto& [name, count] : listed) EXPECT_EQ(count, 1) << command << ": " << name;
+    EXPECT_EQ(required, 0) << command << ": --out shown as REQUIRED";
+    EXPECT_EQ(listed.count("--depth-max") + listed.count("--depth-min"), 0u) << command;
+  }
+  const auto run = RunCommand(AppPath("genscene") + " run --help");
+  EXPECT_NE(run.output.find("--range-max"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("--lights-max-depth"), std::string::npos) << run.output;
+}
+
+// Usage errors exit 2, every other error 1; the folder is the positional or --out, not both.
+TEST_F(Apps, UsageErrorsExitTwo) {
+  MakeSequence(dir_ / "seq");
+  const std::string fuse = AppPath("genscene-fuse") + " --input " + (dir_ / "seq").string();
+  const auto unknown = RunCommand(fuse + " --out " + (dir_ / "a").string() + " --frobnicate");
+  EXPECT_EQ(unknown.exit_code, 2) << unknown.output;
+  EXPECT_NE(LastLine(unknown.output).find("unknown flag --frobnicate"), std::string::npos);
+  const auto missing = RunCommand(fuse);
+  EXPECT_EQ(missing.exit_code, 2) << missing.output;
+  EXPECT_NE(LastLine(missing.output).find("workspace is required"), std::string::npos);
+  const auto two =
+      RunCommand(fuse + " " + (dir_ / "a").string() + " --out " + (dir_ / "b").string());
+  EXPECT_EQ(two.exit_code, 2) << two.output;
+  EXPECT_NE(LastLine(two.output).find("two folders given"), std::string::npos);
+  const auto value = RunCommand(fuse + " --out " + (dir_ / "a").string() + " --voxel-size -1");
+  EXPECT_EQ(value.exit_code, 2) << value.output;
+  EXPECT_NE(LastLine(value.output).find("voxel_size"), std::string::npos) << value.output;
+  const auto config = RunCommand(fuse + " --out " + (dir_ / "a").string() + " --config " +
+                                 (dir_ / "no_such.json").string());
+  EXPECT_EQ(config.exit_code, 2) << config.output;
+  const auto input = RunCommand(AppPath("genscene-fuse") + " --input " +
+                                (dir_ / "no_such_folder").string() + " " + (dir_ / "a").string());
+  EXPECT_EQ(input.exit_code, 1) << input.output;
+  EXPECT_EQ(RunCommand(AppPath("genscene") + " frobnicate").exit_code, 2);
+}
+
+// A flag that defaults to true is turned off by --no-<flag>; the positional folder and --out are
+// the same folder.
+TEST_F(Apps, NoFlagTurnsOffATrueDefault) {
+  MakeSequence(dir_ / "seq");
+  const std::string fuse =
+      AppPath("genscene-fuse") + " --tracking known --input " + (dir_ / "seq").string();
+  const auto off = RunCommand(fuse + " " + (dir_ / "off").string() + " --no-feature-tracking");
+  ASSERT_EQ(off.exit_code, 0) << off.output;
+  const auto on = RunCommand(fuse + " --out " + (dir_ / "on").string());
+  ASSERT_EQ(on.exit_code, 0) << on.output;
+  EXPECT_NE(ReadTextFile(dir_ / "off" / "fusion.json").find("\"feature_tracking\": false"),
+            std::string::npos);
+  EXPECT_NE(ReadTextFile(dir_ / "on" / "fusion.json").find("\"feature_tracking\": true"),
+            std::string::npos);
+}
+
 // (ICP cannot track frames of 32 x 24 pixels: the synthetic poses are fused instead.)
 TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
   const fs::path ws = dir_ / "ws";
@@ -107,6 +211,28 @@ TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
   }
   EXPECT_NE(ReadTextFile(ws / "report/report.md").find("## Light estimation"), std::string::npos);
   EXPECT_NE(r.output.find("peak MB"), std::string::npos) << r.output;
+  // genscene-render renders the workspace's model from its keyframe cameras, lit.
+  const auto render = RunCommand(AppPath("genscene-render") + " --scene " + ws.string() +
+                                 " --spp 4 --out " + (dir_ / "render").string());
+  ASSERT_EQ(render.exit_code, 0) << render.output;
+  const std::vector<PosedView> keyframes = ReadViewSet(ws / "keyframes");
+  const std::vector<PosedView> rendered = ReadViewSet(dir_ / "render");
+  ASSERT_EQ(rendered.size(), keyframes.size());
+  for (size_t i = 0; i < rendered.size(); ++i) {
+    EXPECT_TRUE(rendered[i].world_from_camera.isApprox(keyframes[i].world_from_camera, 1e-6));
+  }
+  double sum = 0.0;
+  int images = 0;
+  for (const auto& e : fs::directory_iterator(dir_ / "render")) {
+    if (e.path().extension() != ".exr") continue;
+    const ImageRgb image = ReadColorImage(e.path(), CameraResponse::Parse("linear"));
+    for (int v = 0; v < image.height(); ++v) {
+      for (int u = 0; u < image.width(); ++u) sum += image(u, v).sum();
+    }
+    ++images;
+  }
+  EXPECT_EQ(images, static_cast<int>(keyframes.size()));
+  EXPECT_GT(sum, 0.0) << "the workspace's renders are black";
   r = RunCommand(demo);
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("up to date"), std::string::npos) << r.output;
