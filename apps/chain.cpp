@@ -362,7 +362,7 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
     const auto r = meshing::ExtractMesh(volume, options.meshing);
     if (r.mesh.empty())
       throw Error(Format(ws.Tsdf().string(), ": the volume holds no surface; no mesh written"));
-    WritePly(ws.Mesh(), r.mesh);
+    WritePly(ws.Mesh(), r.mesh, {true, PlyColors::kObserved});
     return Format(r.stats.vertices, " vertices, ", r.stats.triangles, " triangles (",
                   ws.Mesh().string(), ")");
   });

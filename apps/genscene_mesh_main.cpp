@@ -38,7 +38,7 @@ int main(int argc, char** argv) {
                          " blocks) holds no surface at iso level ", options.iso_level,
                          " m; no mesh written"));
     }
-    WritePly(ws.Mesh(), result.mesh);
+    WritePly(ws.Mesh(), result.mesh, {true, PlyColors::kObserved});
 
     const meshing::MeshingStats& s = result.stats;
     std::printf("genscene-mesh: %zu blocks, %zu cells (%zu active) -> %zu vertices, %zu triangles",

@@ -189,12 +189,18 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
                                   "): the unrefined mesh is kept as ",
                                   ws.RefinedMesh().filename().string()));
   }
-  const TriangleMesh final_mesh = out.kept_unrefined ? start : JoinMeshes(out.result.meshes);
+  TriangleMesh final_mesh = out.kept_unrefined ? start : JoinMeshes(out.result.meshes);
+  // The refined mesh keeps the colours of the mesh it started from.
+  if (final_mesh.vertices.size() == start.vertices.size())
+    final_mesh.vertex_colors = start.vertex_colors;
+  if (final_mesh.faces.size() == start.faces.size()) final_mesh.face_colors = start.face_colors;
   out.flipped_faces = FlippedFaces(start, final_mesh);
 
   WriteTextFileAtomically(dir / "report.json", Report(out, options, seed).dump(1) + "\n");
   // The mesh last: its presence means the stage is complete.
-  WritePly(ws.RefinedMesh(), final_mesh);
+  // A workspace mesh's colours are what the camera saw; a scene file's PLY colours are albedo.
+  WritePly(ws.RefinedMesh(), final_mesh,
+           {true, in.geometry.scene.empty() ? PlyColors::kObserved : PlyColors::kAlbedo});
   return out;
 }
 

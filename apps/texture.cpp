@@ -48,7 +48,7 @@ TextureSummary TextureWorkspace(const TextureInputs& inputs, const SourceOptions
   const texturing::TexturingResult result = texturing::TextureMesh(mesh, keyframes, options);
 
   WriteMeshColors(ws.Texture(), result.texture);
-  WritePly(ws.TexturePly(), result.texture.ToSubdividedMesh(mesh));
+  WritePly(ws.TexturePly(), result.texture.ToSubdividedMesh(mesh), {true, PlyColors::kObserved});
 
   TextureSummary summary;
   summary.stats = result.stats;

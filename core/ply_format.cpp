@@ -274,6 +274,8 @@ void CheckVertexElement(const PlyElement& vertex, const std::string& name, PlyLa
   for (const char* p : kDiffuseRgb) RequireColorType(vertex, p, name);
   layout->vertex_albedo = HasAllOrNone(vertex, kAlbedo, name);
   RequireFloat(vertex, kAlbedo, name);
+  layout->vertex_color = HasAllOrNone(vertex, kObserved, name);
+  RequireFloat(vertex, kObserved, name);
 }
 
 void CheckFaceElement(const PlyElement& face, const std::string& name, PlyLayout* layout) {
@@ -294,6 +296,8 @@ void CheckFaceElement(const PlyElement& face, const std::string& name, PlyLayout
   for (const char* p : kRgb) RequireColorType(face, p, name);
   layout->face_albedo = HasAllOrNone(face, kAlbedo, name);
   RequireFloat(face, kAlbedo, name);
+  layout->face_color = HasAllOrNone(face, kObserved, name);
+  RequireFloat(face, kObserved, name);
 }
 
 }  // namespace

@@ -89,9 +89,11 @@ struct PlyLayout {
   bool vertex_normals = false;  // nx/ny/nz
   bool vertex_rgb = false;      // red/green/blue (or diffuse_*): sRGB 8-bit, or float in [0, 1]
   bool vertex_albedo = false;   // float albedo_r/g/b: linear, preferred over vertex_rgb
+  bool vertex_color = false;    // float color_r/g/b: linear observed colour, after albedo_r/g/b
   bool vertex_diffuse = false;  // vertex_rgb is spelled diffuse_red/green/blue
   bool face_rgb = false;
   bool face_albedo = false;
+  bool face_color = false;
   int face_indices_property = -1;  // index of vertex_indices (or vertex_index) in the face element
 };
 
@@ -100,8 +102,10 @@ inline constexpr std::array<const char*, 3> kNormal = {"nx", "ny", "nz"};
 inline constexpr std::array<const char*, 3> kRgb = {"red", "green", "blue"};
 inline constexpr std::array<const char*, 3> kDiffuseRgb = {"diffuse_red", "diffuse_green",
                                                            "diffuse_blue"};
-// The linear float colour properties, of vertices or faces.
+// The linear float colour properties, of vertices or faces: albedo (reflectance), or the colour a
+// camera observed (shading included).
 inline constexpr std::array<const char*, 3> kAlbedo = {"albedo_r", "albedo_g", "albedo_b"};
+inline constexpr std::array<const char*, 3> kObserved = {"color_r", "color_g", "color_b"};
 
 // Finds what ReadPly decodes (see PlyLayout). Throws Error naming the file `name` for a header
 // without vertex x/y/z, with a face element but no integer vertex_indices list, with only some

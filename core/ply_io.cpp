@@ -159,16 +159,16 @@ std::vector<Field> PlyDecoder::MakeFields(size_t e) const {
   if (vertex) {
     assign(ply::kPosition, kX);
     if (layout_.vertex_normals) assign(ply::kNormal, kNx);
-    if (layout_.vertex_albedo) {
-      assign(ply::kAlbedo, kAlbR);
+    if (layout_.vertex_albedo || layout_.vertex_color) {
+      assign(layout_.vertex_albedo ? ply::kAlbedo : ply::kObserved, kAlbR);
     } else if (layout_.vertex_rgb) {
       assign(layout_.vertex_diffuse ? ply::kDiffuseRgb : ply::kRgb, kRed);
     }
   }
   if (face) {
     fields[static_cast<size_t>(layout_.face_indices_property)].corners = true;
-    if (layout_.face_albedo) {
-      assign(ply::kAlbedo, kAlbR);
+    if (layout_.face_albedo || layout_.face_color) {
+      assign(layout_.face_albedo ? ply::kAlbedo : ply::kObserved, kAlbR);
     } else if (layout_.face_rgb) {
       assign(ply::kRgb, kRed);
     }
@@ -197,11 +197,13 @@ void PlyDecoder::DecodeElement(size_t e) {
   if (vertex) {
     mesh_.vertices.reserve(reserve);
     if (layout_.vertex_normals) mesh_.normals.reserve(reserve);
-    if (layout_.vertex_albedo || layout_.vertex_rgb) mesh_.vertex_colors.reserve(reserve);
+    if (layout_.vertex_albedo || layout_.vertex_color || layout_.vertex_rgb)
+      mesh_.vertex_colors.reserve(reserve);
   }
   if (face) {
     mesh_.faces.reserve(reserve);
-    if (layout_.face_albedo || layout_.face_rgb) mesh_.face_colors.reserve(reserve);
+    if (layout_.face_albedo || layout_.face_color || layout_.face_rgb)
+      mesh_.face_colors.reserve(reserve);
   }
   float values[kSlotCount] = {};
   for (record_ = 0; record_ < count; ++record_) {
@@ -239,7 +241,7 @@ Eigen::Vector3f SrgbBytesToLinear(const float* bytes) {
 void PlyDecoder::AddVertex(const float* values) {
   mesh_.vertices.emplace_back(values[kX], values[kY], values[kZ]);
   if (layout_.vertex_normals) mesh_.normals.emplace_back(values[kNx], values[kNy], values[kNz]);
-  if (layout_.vertex_albedo) {
+  if (layout_.vertex_albedo || layout_.vertex_color) {
     mesh_.vertex_colors.emplace_back(values[kAlbR], values[kAlbG], values[kAlbB]);
   } else if (layout_.vertex_rgb) {
     mesh_.vertex_colors.push_back(SrgbBytesToLinear(values + kRed));
@@ -255,12 +257,12 @@ void PlyDecoder::AddFace(const float* values) {
   }
   if (!problem_.empty()) return;  // the file is refused: build nothing more
   Eigen::Vector3f color = Eigen::Vector3f::Zero();
-  if (layout_.face_albedo) {
+  if (layout_.face_albedo || layout_.face_color) {
     color = Eigen::Vector3f(values[kAlbR], values[kAlbG], values[kAlbB]);
   } else if (layout_.face_rgb) {
     color = SrgbBytesToLinear(values + kRed);
   }
-  const bool colored = layout_.face_albedo || layout_.face_rgb;
+  const bool colored = layout_.face_albedo || layout_.face_color || layout_.face_rgb;
   for (size_t k = 1; k + 1 < corners_.size(); ++k) {  // fan triangulation
     mesh_.faces.emplace_back(static_cast<int>(corners_[0]), static_cast<int>(corners_[k]),
                              static_cast<int>(corners_[k + 1]));
@@ -408,8 +410,8 @@ unsigned char LinearToSrgbByte(float linear) {
       std::lround(LinearToSrgb(std::clamp(linear, 0.0f, 1.0f)) * 255.0f));
 }
 
-// Vertex and face colours are stored exactly as float albedo_r/g/b (their 8-bit red/green/blue
-// copy, for viewers, is clamped to [0, 1]); they only have to be finite.
+// Vertex and face colours are stored exactly as float albedo_r/g/b or color_r/g/b (their 8-bit
+// red/green/blue copy, for viewers, is clamped to [0, 1]); they only have to be finite.
 void CheckColorsWritable(const TriangleMesh& mesh, const std::string& name) {
   for (size_t i = 0; i < mesh.vertex_colors.size(); ++i) {
     if (!mesh.vertex_colors[i].allFinite()) {
@@ -422,7 +424,9 @@ void CheckColorsWritable(const TriangleMesh& mesh, const std::string& name) {
   }
 }
 
-std::string WriteHeader(const TriangleMesh& mesh, bool binary) {
+std::string WriteHeader(const TriangleMesh& mesh, const PlyWriteOptions& options) {
+  const bool binary = options.binary;
+  const auto& linear = options.colors == PlyColors::kObserved ? ply::kObserved : ply::kAlbedo;
   auto properties = [](const char* type, const std::array<const char*, 3>& names) {
     std::string text;
     for (const char* n : names) text += Format("property ", type, " ", n, "\n");
@@ -434,12 +438,12 @@ std::string WriteHeader(const TriangleMesh& mesh, bool binary) {
   text += properties("float", ply::kPosition);
   if (!mesh.normals.empty()) text += properties("float", ply::kNormal);
   if (!mesh.vertex_colors.empty()) {
-    text += properties("uchar", ply::kRgb) + properties("float", ply::kAlbedo);
+    text += properties("uchar", ply::kRgb) + properties("float", linear);
   }
   text += Format("element face ", mesh.faces.size(), "\n");
   text += "property list uchar int vertex_indices\n";
   if (!mesh.face_colors.empty()) {
-    text += properties("uchar", ply::kRgb) + properties("float", ply::kAlbedo);
+    text += properties("uchar", ply::kRgb) + properties("float", linear);
   }
   return text + "end_header\n";
 }
@@ -537,7 +541,7 @@ void WritePly(const fs::path& path, const TriangleMesh& mesh, const PlyWriteOpti
     std::ofstream out(tmp, std::ios::binary);
     if (!out)
       throw Error(Format(name, ": cannot write ", tmp.string(), " (", std::strerror(errno), ")"));
-    out << WriteHeader(mesh, options.binary);
+    out << WriteHeader(mesh, options);
     WriteRecords(mesh, options.binary, &out);
     out.close();
     if (!out) throw Error(Format(name, ": write failed (disk full?)"));

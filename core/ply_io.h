@@ -3,8 +3,9 @@
 //
 // Colour convention on disk: `red/green/blue` uchar properties are sRGB-encoded 8-bit (what
 // MeshLab and Open3D display) and are converted to/from linear on read/write; float vertex and
-// face properties `albedo_r/albedo_g/albedo_b` are linear (DESIGN.md §2) and are preferred on
-// read.
+// face properties are linear (DESIGN.md §2), named for what they hold: `albedo_r/g/b` the
+// reflectance, `color_r/g/b` the colour a camera observed (shading included). On read the float
+// properties are preferred (albedo first).
 #pragma once
 
 #include <filesystem>
@@ -13,8 +14,15 @@
 
 namespace genscene {
 
+// What a mesh's vertex and face colours are, which names the float colour properties.
+enum class PlyColors {
+  kAlbedo,    // albedo_r/g/b: reflectance (the albedo stage, the exported model)
+  kObserved,  // color_r/g/b: observed colour, shading included (fusion, the texture)
+};
+
 struct PlyWriteOptions {
   bool binary = true;  // false: ASCII
+  PlyColors colors = PlyColors::kAlbedo;
 };
 
 // Reads ASCII or binary little-endian PLY: positions, faces (polygons are fan-triangulated), and
@@ -27,8 +35,8 @@ struct PlyWriteOptions {
 TriangleMesh ReadPly(const std::filesystem::path& path);
 
 // Writes the mesh atomically: positions, faces, and normals / vertex colours / face colours when
-// non-empty (vertex and face colours as exact float albedo_r/g/b, and as uchar red/green/blue
-// sRGB, clamped to [0, 1], for viewers).
+// non-empty (vertex and face colours as exact float albedo_r/g/b or color_r/g/b, as
+// options.colors says, and as uchar red/green/blue sRGB, clamped to [0, 1], for viewers).
 void WritePly(const std::filesystem::path& path, const TriangleMesh& mesh,
               const PlyWriteOptions& options = PlyWriteOptions());
 

@@ -210,6 +210,17 @@ TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
     EXPECT_TRUE(fs::exists(ws / output)) << output;
   }
   EXPECT_NE(ReadTextFile(ws / "report/report.md").find("## Light estimation"), std::string::npos);
+  // PLY colours are named for what they hold: observed colour in the fused, textured and refined
+  // meshes (the refined one keeps them), albedo in albedo.ply and the exported model.
+  for (const char* observed : {"mesh.ply", "texture.ply", "mesh_refined.ply"}) {
+    const std::string header = ReadTextFile(ws / observed).substr(0, 1000);
+    EXPECT_NE(header.find("property float color_r"), std::string::npos) << observed;
+    EXPECT_EQ(header.find("albedo_r"), std::string::npos) << observed;
+  }
+  for (const char* albedo : {"albedo.ply", "export/model.ply"}) {
+    const std::string header = ReadTextFile(ws / albedo).substr(0, 1000);
+    EXPECT_NE(header.find("property float albedo_r"), std::string::npos) << albedo;
+  }
   EXPECT_NE(r.output.find("peak MB"), std::string::npos) << r.output;
   // genscene-render renders the workspace's model from its keyframe cameras, lit.
   const auto render = RunCommand(AppPath("genscene-render") + " --scene " + ws.string() +

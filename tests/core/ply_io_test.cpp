@@ -91,6 +91,19 @@ void ExpectSameMesh(const TriangleMesh& written, const TriangleMesh& read) {
   }
 }
 
+// Observed colours are named color_r/g/b (not albedo), in binary and ASCII, and read back exactly.
+TEST_F(PlyIoTest, ObservedColoursAreNamedForWhatTheyHold) {
+  const TriangleMesh mesh = TestMesh();
+  for (bool binary : {true, false}) {
+    const fs::path path = Path(binary ? "observed.ply" : "observed_ascii.ply");
+    WritePly(path, mesh, {binary, PlyColors::kObserved});
+    const std::string text = ReadAll(path);
+    EXPECT_NE(text.find("property float color_r\n"), std::string::npos);
+    EXPECT_EQ(text.find("albedo_r"), std::string::npos);
+    ExpectSameMesh(mesh, ReadPly(path));
+  }
+}
+
 TEST_F(PlyIoTest, RoundTripBinary) {
   const TriangleMesh mesh = TestMesh();
   const fs::path path = Path("mesh.ply");
