@@ -181,7 +181,7 @@ struct Renderer::Impl {
   void UploadOverlay(const std::vector<LightGlyph>& lights) {
     Overlay overlay = base_overlay;
     const double size = base_bounds.isEmpty() ? 1.0 : base_bounds.diagonal().norm();
-    AddLightGlyphs(lights, 0.02 * size, &overlay);
+    AddLightGlyphs(lights, 0.012 * size, &overlay);
     lines.Upload(overlay.lines, true);
     triangles.Upload(overlay.triangles, true);
     bounds = base_bounds;

@@ -41,9 +41,19 @@ ClipRange ClipRangeFor(const Eigen::AlignedBox3d& bounds, const Eigen::Vector3d&
   return range;
 }
 
+std::pair<Eigen::Vector3d, Eigen::Vector3d> OrbitController::Horizontal() const {
+  // e1: +x made normal to up (+y when up is along x), e2 = up x e1.
+  const Eigen::Vector3d axis =
+      std::abs(up.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d e1 = (axis - axis.dot(up) * up).normalized();
+  return {e1, up.cross(e1)};
+}
+
 Eigen::Vector3d OrbitController::Eye() const {
-  const Eigen::Vector3d dir(std::cos(elevation) * std::cos(azimuth),
-                            std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+  const auto [e1, e2] = Horizontal();
+  const Eigen::Vector3d dir = std::cos(elevation) * std::cos(azimuth) * e1 +
+                              std::cos(elevation) * std::sin(azimuth) * e2 +
+                              std::sin(elevation) * up;
   return target + distance * dir;
 }
 
@@ -51,7 +61,7 @@ Eigen::Isometry3d OrbitController::WorldFromCamera() const {
   // OpenCV axes: z towards the target, x = z x up (right), y = z x x (image down).
   const Eigen::Vector3d eye = Eye();
   const Eigen::Vector3d z = (target - eye).normalized();
-  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();  // |elevation| < 90
+  const Eigen::Vector3d x = z.cross(up).normalized();  // |elevation| < 90
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   pose.linear().col(0) = x;
   pose.linear().col(1) = z.cross(x);
@@ -77,29 +87,54 @@ void OrbitController::Zoom(double steps) {
 }
 
 OrbitController OrbitController::FromPose(const Eigen::Isometry3d& world_from_camera,
-                                          double distance) {
+                                          double distance, const Eigen::Vector3d& up) {
   constexpr double kLimit = 89.0 * M_PI / 180.0;
   OrbitController orbit;
+  orbit.up = up.normalized();
+  const auto [e1, e2] = orbit.Horizontal();
   const Eigen::Vector3d forward = world_from_camera.linear().col(2).normalized();
   orbit.distance = std::max(distance, 1e-3);
   orbit.target = world_from_camera.translation() + orbit.distance * forward;
   // The eye is at target - distance * forward, i.e. in direction -forward from the target.
-  orbit.azimuth = std::atan2(-forward.y(), -forward.x());
-  orbit.elevation = std::clamp(std::asin(std::clamp(-forward.z(), -1.0, 1.0)), -kLimit, kLimit);
+  orbit.azimuth = std::atan2(-forward.dot(e2), -forward.dot(e1));
+  orbit.elevation =
+      std::clamp(std::asin(std::clamp(-forward.dot(orbit.up), -1.0, 1.0)), -kLimit, kLimit);
   return orbit;
 }
 
-OrbitController OverviewOrbit(const Eigen::AlignedBox3d& bounds, const CameraIntrinsics& k) {
+Eigen::Vector3d CamerasUp(const std::vector<Eigen::Isometry3d>& world_from_cameras) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const Eigen::Isometry3d& pose : world_from_cameras) sum -= pose.linear().col(1);
+  // Cameras that roll every way have no common up: keep +z.
+  if (world_from_cameras.empty() || sum.norm() < 0.5 * world_from_cameras.size())
+    return Eigen::Vector3d::UnitZ();
+  return sum.normalized();
+}
+
+OrbitController OverviewOrbit(const Eigen::AlignedBox3d& bounds, const CameraIntrinsics& k,
+                              const std::vector<Eigen::Isometry3d>& world_from_cameras) {
   OrbitController orbit;
   orbit.azimuth = -M_PI / 2;
   orbit.elevation = 20.0 * M_PI / 180.0;
+  if (!world_from_cameras.empty()) {
+    Eigen::Vector3d forward = Eigen::Vector3d::Zero();
+    for (const Eigen::Isometry3d& pose : world_from_cameras) forward += pose.linear().col(2);
+    if (forward.norm() > 1e-9) {
+      const Eigen::Isometry3d mean = Eigen::Isometry3d(
+          Eigen::Translation3d(Eigen::Vector3d::Zero()) *
+          Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), forward.normalized()));
+      orbit = OrbitController::FromPose(mean, 1.0, CamerasUp(world_from_cameras));
+      orbit.elevation = std::clamp(orbit.elevation, 20.0 * M_PI / 180.0, 60.0 * M_PI / 180.0);
+    }
+  }
   if (bounds.isEmpty()) return orbit;
   orbit.target = bounds.center();
-  // The bounding sphere, roughly, fills the narrower field of view.
+  // The bounding sphere fills 1.1 times the narrower field of view: a box's outline is smaller
+  // than its sphere's, so the model fills most of the image without leaving it.
   const double radius = std::max(0.5 * bounds.diagonal().norm(), 1e-3);
   const double half_fov =
       std::min(std::atan(0.5 * k.width / k.fx), std::atan(0.5 * k.height / k.fy));
-  orbit.distance = radius / std::tan(half_fov);
+  orbit.distance = 0.9 * radius / std::tan(half_fov);
   return orbit;
 }
 

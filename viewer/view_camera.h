@@ -36,12 +36,18 @@ CameraIntrinsics DefaultIntrinsics(int width, int height, double hfov_degrees = 
 // Clip planes that enclose `bounds` seen from `eye` (near at least 1 mm, far/near <= 1e5).
 ClipRange ClipRangeFor(const Eigen::AlignedBox3d& bounds, const Eigen::Vector3d& eye);
 
-// Orbit camera with world up +z: the eye sits on a sphere around `target`.
+// Orbit camera: the eye sits on a sphere around `target`, at an azimuth about the world's `up`
+// and an elevation above the plane normal to it. Azimuth 0 is the direction of `Horizontal()[0]`
+// (+x for up = +z), pi/2 that of `Horizontal()[1]` (+y for up = +z).
 struct OrbitController {
   Eigen::Vector3d target = Eigen::Vector3d::Zero();
   double distance = 3.0;       // meters from the target
-  double azimuth = -M_PI / 2;  // radians about +z; -pi/2 = the eye on the -y side
-  double elevation = 0.35;     // radians above the xy plane, kept within +-89 degrees
+  double azimuth = -M_PI / 2;  // radians about `up`; -pi/2 = the eye on the -y side for up = +z
+  double elevation = 0.35;     // radians above the plane normal to `up`, within +-89 degrees
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  // unit world up (image up of the camera)
+
+  // The unit horizontal axes (e1, e2) with e1 x e2 = up: (+x, +y) for up = +z.
+  std::pair<Eigen::Vector3d, Eigen::Vector3d> Horizontal() const;
 
   Eigen::Vector3d Eye() const;
   Eigen::Isometry3d WorldFromCamera() const;
@@ -52,14 +58,23 @@ struct OrbitController {
   void Pan(double dx, double dy, double fx);
   // Scroll by `steps`: distance scaled by 0.9^steps.
   void Zoom(double steps);
-  // The controller whose eye and viewing direction are those of `world_from_camera` (roll is
-  // dropped), looking at a target `distance` meters ahead.
-  static OrbitController FromPose(const Eigen::Isometry3d& world_from_camera, double distance);
+  // The controller whose eye and viewing direction are those of `world_from_camera` (roll about
+  // `up` is dropped), looking at a target `distance` meters ahead.
+  static OrbitController FromPose(const Eigen::Isometry3d& world_from_camera, double distance,
+                                  const Eigen::Vector3d& up = Eigen::Vector3d::UnitZ());
 };
 
-// The overview: the whole of `bounds` in view, seen from the -y side and 20 degrees above.
-OrbitController OverviewOrbit(const Eigen::AlignedBox3d& bounds,
-                              const CameraIntrinsics& intrinsics);
+// The world's up as the recording's cameras saw it: the mean of their image-up axes (-y of an
+// OpenCV camera); +z without cameras or when they disagree.
+Eigen::Vector3d CamerasUp(const std::vector<Eigen::Isometry3d>& world_from_cameras);
+
+// The overview: the bounding sphere of `bounds` fills 1.1 times the narrower field of view.
+// Without cameras, seen from the -y side and 20 degrees above, +z up. With the recording's cameras,
+// up is theirs (CamerasUp) and the eye looks along their mean viewing direction, from at least 20
+// and at most 60 degrees above the horizontal, so that a scan is seen as it was recorded, from
+// above.
+OrbitController OverviewOrbit(const Eigen::AlignedBox3d& bounds, const CameraIntrinsics& intrinsics,
+                              const std::vector<Eigen::Isometry3d>& world_from_cameras = {});
 
 // --camera: "overview", "keyframe:N" (N-th keyframe, 0-based) or "tx ty tz qx qy qz qw"
 // (world_from_camera, TUM order).

@@ -101,12 +101,40 @@ Eigen::AlignedBox3d SceneBounds(const ViewData& data) {
   return box;
 }
 
+namespace {
+
+std::vector<Eigen::Isometry3d> RecordingCameras(const ViewData& data) {
+  std::vector<Eigen::Isometry3d> poses;
+  for (const PosedView& v : data.keyframes) poses.push_back(v.world_from_camera);
+  if (poses.empty()) {
+    for (const StampedPose& p : data.trajectory.poses()) poses.push_back(p.world_from_camera);
+  }
+  return poses;
+}
+
+}  // namespace
+
+Eigen::Vector3d WorkspaceUp(const ViewData& data) {
+  return CamerasUp(RecordingCameras(data));
+}
+
+OrbitController Overview(const ViewData& data, const CameraIntrinsics& intrinsics) {
+  Eigen::AlignedBox3d model;
+  for (const auto* mesh :
+       {data.mesh ? &*data.mesh : nullptr, data.refined_mesh ? &*data.refined_mesh : nullptr}) {
+    if (!mesh) continue;
+    for (const Eigen::Vector3f& p : mesh->vertices) model.extend(p.cast<double>());
+  }
+  return OverviewOrbit(model.isEmpty() ? SceneBounds(data) : model, intrinsics,
+                       RecordingCameras(data));
+}
+
 PosedView ResolveCamera(const CameraSpec& spec, const ViewData& data, const Eigen::Vector2i& size) {
   PosedView view;
   view.intrinsics = DefaultIntrinsics(size.x(), size.y());
   switch (spec.kind) {
     case CameraSpec::Kind::kOverview:
-      view.world_from_camera = OverviewOrbit(SceneBounds(data), view.intrinsics).WorldFromCamera();
+      view.world_from_camera = Overview(data, view.intrinsics).WorldFromCamera();
       break;
     case CameraSpec::Kind::kPose:
       view.world_from_camera = spec.world_from_camera;
@@ -214,11 +242,16 @@ void AddLightGlyphs(const std::vector<LightGlyph>& lights, double scale, Overlay
   // Octahedron faces as triples of axis indices (+x -x +y -y +z -z), counter-clockwise outside.
   static const int kFaces[8][3] = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4},
                                    {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+  float strongest = 0.0f;
+  for (const LightGlyph& light : lights) {
+    const float mean = light.power.mean();
+    if (std::isfinite(mean)) strongest = std::max(strongest, mean);
+  }
   for (const LightGlyph& light : lights) {
     const float mean = std::max(0.0f, light.power.mean());
     if (!(mean > 0.0f) || !std::isfinite(mean)) continue;  // a dark light has no glyph
     const Eigen::Vector3f color = (light.power / light.power.maxCoeff()).cwiseMax(0.0f);
-    const double radius = scale * std::cbrt(static_cast<double>(mean));
+    const double radius = scale * std::cbrt(static_cast<double>(mean / strongest));
     for (const auto& face : kFaces) {
       for (int k : face) PushVertex(&overlay->triangles, light.position + radius * kAxes[k], color);
     }

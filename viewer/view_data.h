@@ -60,6 +60,12 @@ MeshColorsTables BuildMeshColorsTables(const MeshColors& colors);
 // there is nothing).
 Eigen::AlignedBox3d SceneBounds(const ViewData& data);
 
+// The overview of a workspace: its model (mesh, else everything drawn) framed as OverviewOrbit
+// does, with the keyframe cameras (else the trajectory's) giving up and viewing direction.
+OrbitController Overview(const ViewData& data, const CameraIntrinsics& intrinsics);
+// The world up of the workspace's cameras (CamerasUp), for orbiting.
+Eigen::Vector3d WorkspaceUp(const ViewData& data);
+
 // The camera of --camera for an image of `size` pixels: keyframe N with its intrinsics (rescaled
 // per axis, pixel-centre convention, when `size` differs), or the default 60 degree pinhole at the
 // overview or at a given pose. Throws Error when keyframe N does not exist.
@@ -77,7 +83,9 @@ struct Overlay {
 // The trajectory as a polyline (orange) and each keyframe as a frustum (cyan) `depth` meters deep.
 void AddTrajectory(const Trajectory& trajectory, Overlay* overlay);
 void AddFrusta(const std::vector<PosedView>& keyframes, double depth, Overlay* overlay);
-// Each light's glyph; `scale` is the octahedron radius of a light of unit mean power (meters).
+// Each light's glyph; `scale` is the octahedron radius of the strongest light (meters), the others
+// smaller as the cube root of their share of its mean power, so that glyphs stay small however
+// bright the estimate.
 void AddLightGlyphs(const std::vector<LightGlyph>& lights, double scale, Overlay* overlay);
 
 }  // namespace genscene::viewer

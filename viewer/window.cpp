@@ -102,7 +102,7 @@ struct Session {
     const Eigen::AlignedBox3d bounds = renderer->Bounds();
     const double distance =
         bounds.isEmpty() ? 3.0 : (bounds.center() - view.world_from_camera.translation()).norm();
-    orbit = OrbitController::FromPose(view.world_from_camera, distance);
+    orbit = OrbitController::FromPose(view.world_from_camera, distance, WorkspaceUp(*data));
     orbiting = true;
     keyframe = -1;
   }
@@ -158,7 +158,7 @@ void OnKey(GLFWwindow* window, int key, int, int action, int) {
         std::printf("genscene-view: no mesh_refined.ply in this workspace\n");
       break;
     case GLFW_KEY_V:
-      s.orbit = OverviewOrbit(s.renderer->Bounds(), s.view.intrinsics);
+      s.orbit = Overview(*s.data, s.view.intrinsics);
       s.orbiting = true;
       s.keyframe = -1;
       break;

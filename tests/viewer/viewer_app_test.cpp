@@ -130,7 +130,7 @@ TEST(ViewerApp, LightGlyphsAppearWhereTheLightsAre) {
   WritePly(ws / "mesh.ply", MakeCornellScene().ToMesh(1));
   const std::string camera = PoseText(LookAt({0.0, -3.0, 1.0}, {0.0, 0.0, 1.0}));
   const std::string common =
-      ws.path().string() + " --size 160x120 --cull-back-faces --camera \"" + camera + "\"";
+      ws.path().string() + " --size 320x240 --cull-back-faces --camera \"" + camera + "\"";
   const auto before = RunViewer(common + " --screenshot " + (ws / "before.png").string());
   ASSERT_EQ(before.exit_code, 0) << before.output;
   EXPECT_CONTAINS(before.output, "lights.json: missing");
@@ -157,8 +157,8 @@ TEST(ViewerApp, LightGlyphsAppearWhereTheLightsAre) {
   ASSERT_GT(changed, 10) << "no glyph drawn";
   // (0, 0, 1.8) seen from (0, -3, 1) looking at (0, 0, 1): on the vertical centre line, above
   // the centre row.
-  EXPECT_NEAR(su / changed, 79.5, 8.0);
-  EXPECT_LT(sv / changed, 50.0);
+  EXPECT_NEAR(su / changed, 159.5, 16.0);
+  EXPECT_LT(sv / changed, 100.0);
 }
 
 // A camera 1.2 m above the unit quad, looking down at it (96 x 96 pixels), written as the

@@ -105,8 +105,42 @@ TEST(ViewCamera, ParsesCameraNamesAndRejectsOthers) {
   EXPECT_CONTAINS(test::ErrorOf([] { ParseSize("8x8"); }), "[16, 8192]");
 }
 
+// The overview of a recording whose world has y down (a TUM-style first camera at the origin):
+// the view keeps the cameras' up, looks from their side and from above, and frames the box: every
+// corner inside the image, the box's outline at least half the image's narrower side.
+TEST(Overview, FramesTheModelWithTheRecordingsUp) {
+  Eigen::AlignedBox3d box(Eigen::Vector3d(-1.0, 0.2, 1.0), Eigen::Vector3d(1.0, 1.0, 3.0));
+  std::vector<Eigen::Isometry3d> cameras;
+  for (double yaw : {-0.2, 0.0, 0.2}) {
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitY()) *
+                     Eigen::AngleAxisd(-0.3, Eigen::Vector3d::UnitX()))
+                        .toRotationMatrix();
+    cameras.push_back(pose);
+  }
+  EXPECT_GT(CamerasUp(cameras).dot(-Eigen::Vector3d::UnitY()), 0.9);
+  const CameraIntrinsics k = DefaultIntrinsics(640, 480);
+  const Eigen::Isometry3d pose = OverviewOrbit(box, k, cameras).WorldFromCamera();
+  EXPECT_GT((-pose.linear().col(1)).dot(-Eigen::Vector3d::UnitY()), 0.7);  // image up = their up
+  EXPECT_GT(pose.linear().col(2).dot(Eigen::Vector3d::UnitZ()), 0.3);      // looks their way
+  EXPECT_GT(pose.linear().col(2).dot(Eigen::Vector3d::UnitY()), 0.3);      // and down on it
+  Eigen::AlignedBox2d outline;
+  for (int c = 0; c < 8; ++c) {
+    const Eigen::Vector3d corner = box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(c));
+    const auto uv = k.Project(pose.inverse() * corner);
+    ASSERT_TRUE(uv.has_value()) << c;
+    EXPECT_GE(uv->x(), 0.0);
+    EXPECT_LT(uv->x(), k.width);
+    EXPECT_GE(uv->y(), 0.0);
+    EXPECT_LT(uv->y(), k.height);
+    outline.extend(*uv);
+  }
+  EXPECT_GT(std::max(outline.sizes().x() / k.width, outline.sizes().y() / k.height), 0.5);
+}
+
 // Glyphs: one octahedron (8 triangles) per lit light, radius growing as the cube root of the
-// power, coloured by the power's chromaticity; spokes as long as the directional weights say.
+// power up to `scale` for the strongest, coloured by the power's chromaticity; spokes as long as
+// the directional weights say.
 TEST(LightGlyphs, SizeAndSpokesFollowPowerAndWeights) {
   LightGlyph dim, bright;
   dim.position = {0, 0, 1};
@@ -130,7 +164,18 @@ TEST(LightGlyphs, SizeAndSpokesFollowPowerAndWeights) {
     return r;
   };
   EXPECT_NEAR(extent(1) / extent(0), 2.0, 1e-5);  // 8x the power, 2x the radius
-  EXPECT_FLOAT_EQ(overlay.triangles[3], 1.0f);    // colour = power / max channel
+  EXPECT_NEAR(extent(1), 0.1, 1e-5);              // the strongest light's radius is `scale`
+  // Brighter lights do not make bigger glyphs: the sizes are relative to the strongest.
+  Overlay brighter;
+  dim.power *= 1000.0f;
+  bright.power *= 1000.0f;
+  AddLightGlyphs({dim, bright}, 0.1, &brighter);
+  ASSERT_EQ(brighter.triangles.size(), 2u * 8 * 3 * 6);
+  for (size_t i = 0; i < brighter.triangles.size(); i += 6) {
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(brighter.triangles[i + c], overlay.triangles[i + c], 1e-5);
+  }
+  EXPECT_FLOAT_EQ(overlay.triangles[3], 1.0f);  // colour = power / max channel
   EXPECT_FLOAT_EQ(overlay.triangles[4], 0.5f);
   // Spokes of the dim light: +x as long as 3 radii, -z half of that.
   const float* s = overlay.lines.data();
