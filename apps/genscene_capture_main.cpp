@@ -1,8 +1,8 @@
 // genscene-capture: record RGB-D frames from an OpenNI2 camera (or convert any frame source) into
 // a .oni recording and/or a TUM folder.
 //
-//   genscene-capture --record room.oni --frames 300          live camera -> .oni
-//   genscene-capture --out room_tum --frames 300             live camera -> TUM folder
+//   genscene-capture --record room.oni --max-frames 300      live camera -> .oni
+//   genscene-capture --out room_tum --max-frames 300         live camera -> TUM folder
 //   genscene-capture --input data/tum --record data.oni      TUM folder -> .oni (no camera needed)
 //   genscene-capture --input room.oni --out room_tum         .oni -> TUM folder
 #include <atomic>
@@ -35,7 +35,6 @@ int main(int argc, char** argv) {
     cli.Add(source, "Input");
     cli.Add(camera, "Camera");
     std::string input = "openni2", out, record;
-    size_t frames = 0;
     int file_fps = 30;
     app.add_option("--input", input,
                    "openni2 (first camera), openni2:URI, a .oni recording, or a TUM / Redwood "
@@ -47,9 +46,6 @@ int main(int argc, char** argv) {
                   false);
     app.add_option("--record", record,
                    "write the frames as an uncompressed .oni recording (OpenNI2 plays it)");
-    app.add_option("--frames", frames,
-                   "stop after N frames (0 = until the source ends; a live camera until Ctrl-C)")
-        ->capture_default_str();
     app.add_option("--record-fps", file_fps, "frame rate stored in the .oni file")
         ->capture_default_str();
     bool mirror = false;
@@ -75,7 +71,7 @@ int main(int argc, char** argv) {
     if (!frame_source->FrameCount()) std::signal(SIGINT, OnInterrupt);
 
     genscene::capture::RecordSettings settings;
-    settings.max_frames = frames;
+    settings.max_frames = static_cast<size_t>(source.max_frames);  // the source stops there too
     settings.fps = file_fps;
     settings.mirror = mirror;
     settings.response = genscene::CameraResponse::Parse(source.camera_response);

@@ -53,7 +53,7 @@ TEST(GensceneCapture, NoCameraIsOneClearLineAndNonZeroExit) {
 TEST(GensceneCapture, HelpAndUsageErrors) {
   auto r = RunCommand(AppPath("genscene-capture") + " --help", 10);
   EXPECT_EQ(r.exit_code, 0);
-  for (const char* flag : {"--input", "--record", "--out", "--frames", "--mode", "--intrinsics",
+  for (const char* flag : {"--input", "--record", "--out", "--max-frames", "--mode", "--intrinsics",
                            "--camera-response"}) {
     EXPECT_CONTAINS(r.output, flag);
   }
@@ -147,7 +147,7 @@ TEST_F(SynthOni, FuseOnTheOniGivesTheFolderTrajectory) {
 
 TEST_F(SynthOni, OniToTumFolderAndTheChainRunOnIt) {
   auto r = RunCommand(AppPath("genscene-capture") + " --input " + (dir_ / "seq.oni").string() +
-                      " --out " + (dir_ / "back").string() + " --frames 5");
+                      " --out " + (dir_ / "back").string() + " --max-frames 5");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const auto rgb = ReadDataLines(dir_ / "back" / "rgb.txt");
   EXPECT_EQ(rgb.size(), 5u);
