@@ -33,6 +33,7 @@
 #include "core/ply_io.h"
 #include "core/trajectory.h"
 #include "core/tsdf_volume.h"
+#include "render/formats/gltf_export.h"
 #include "render/formats/mitsuba_xml.h"
 #include "render/formats/scene_io.h"
 #include "render/path_tracer.h"
@@ -286,7 +287,8 @@ render::Scene LoadModel(const Workspace& ws, const fs::path& mesh,
   return scene;
 }
 
-// WS/export/: model.ply, model.xml (+ model_meshes/), trajectory.txt. model.xml is written last.
+// WS/export/: model.ply, model.glb, model.xml (+ model_meshes/), trajectory.txt. model.xml is
+// written last.
 std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings) {
   const fs::path dir = ws.ExportDir();
   fs::create_directories(dir);
@@ -300,6 +302,20 @@ std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings)
   const render::Scene scene = LoadModel(ws, mesh_path, warnings);
   std::vector<PosedView> views;  // the keyframe cameras as sensors
   for (const PosedImage& v : ReadPosedImages(ws.Keyframes())) views.push_back(v.view);
+  // model.glb: the albedo atlas, the observed colour of texture.mcol as a material variant, the
+  // active voxel lights as point lights and the keyframe cameras.
+  std::optional<MeshColors> observed;
+  if (fs::exists(ws.Texture())) {
+    try {
+      observed = ReadMeshColors(ws.Texture(), mesh);
+    } catch (const Error& e) {
+      warnings->push_back(Format("observed colour left out of model.glb: ", e.what()));
+    }
+  }
+  const render::GltfExportSummary glb =
+      render::ExportGltf(dir / "model.glb", mesh, albedo, observed ? &*observed : nullptr,
+                         scene.voxel_lights ? &*scene.voxel_lights : nullptr, views);
+  for (const std::string& w : glb.warnings) warnings->push_back(w);
   try {
     for (std::string& w : render::ExportMitsubaXml(dir / "model.xml", scene, views))
       warnings->push_back(std::move(w));
@@ -312,8 +328,10 @@ std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings)
                 "), ", scene.voxel_lights->ActiveVoxels().size(), " active voxel lights (",
                 scene.voxel_lights->ActiveVoxels(0.0).size(),
                 " with any power, all exported) as emissive cube faces (",
-                (dir / "model.xml").string(), "), trajectory (", (dir / "trajectory.txt").string(),
-                ")");
+                (dir / "model.xml").string(), "), glTF binary with a ", glb.atlas_width, "x",
+                glb.atlas_height, " albedo atlas, ", glb.cameras, " cameras and ", glb.lights,
+                " point lights (", (dir / "model.glb").string(), ", ", glb.bytes / 1024,
+                " KiB), trajectory (", (dir / "trajectory.txt").string(), ")");
 }
 
 template <typename O>
@@ -395,13 +413,17 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
             });
 
   const fs::path exported = ws.ExportDir();
-  stage.Run("export", {exported / "model.xml", exported / "model.ply", exported / "trajectory.txt"},
-            {ws.RefinedMesh(), ws.Albedo(), ws.Lights(), ws.Trajectory(), ws.Keyframes()}, "", [&] {
-              std::vector<std::string> warnings;
-              std::string result = ExportModel(ws, &warnings);
-              Warn(warnings);
-              return result;
-            });
+  stage.Run(
+      "export",
+      {exported / "model.xml", exported / "model.glb", exported / "model.ply",
+       exported / "trajectory.txt"},
+      {ws.RefinedMesh(), ws.Albedo(), ws.Texture(), ws.Lights(), ws.Trajectory(), ws.Keyframes()},
+      "", [&] {
+        std::vector<std::string> warnings;
+        std::string result = ExportModel(ws, &warnings);
+        Warn(warnings);
+        return result;
+      });
 
   // Judge the model: against the ground truth when the input carries one (genscene-synth, the
   // demo), and on the frames fusion held out when it held some out.

@@ -505,4 +505,23 @@ void WriteDepthExr(const fs::path& path, const ImageDepth& depth) {
   WriteWithOpenCv(path, mat, {cv::IMWRITE_EXR_TYPE, cv::IMWRITE_EXR_TYPE_FLOAT});
 }
 
+std::vector<uint8_t> EncodePng(int width, int height, const std::vector<uint8_t>& rgb8) {
+  if (width <= 0 || height <= 0 || rgb8.size() != static_cast<size_t>(width) * height * 3) {
+    throw Error(Format("EncodePng: ", rgb8.size(), " bytes for a ", width, "x", height, " image"));
+  }
+  cv::Mat bgr(height, width, CV_8UC3);
+  for (int y = 0; y < height; ++y) {
+    const uint8_t* in = rgb8.data() + static_cast<size_t>(y) * width * 3;
+    uint8_t* out = bgr.ptr<uint8_t>(y);
+    for (int x = 0; x < width; ++x) {
+      out[3 * x] = in[3 * x + 2], out[3 * x + 1] = in[3 * x + 1], out[3 * x + 2] = in[3 * x];
+    }
+  }
+  std::vector<uint8_t> png;
+  if (!cv::imencode(".png", bgr, png)) {
+    throw Error(Format("cannot encode a ", width, "x", height, " image as PNG"));
+  }
+  return png;
+}
+
 }  // namespace genscene

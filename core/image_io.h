@@ -2,7 +2,9 @@
 // errors; every writer writes atomically (file_util.h).
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
+#include <vector>
 
 #include "core/color.h"
 #include "core/image.h"
@@ -19,6 +21,10 @@ void WriteExr(const std::filesystem::path& path, const ImageRgb& image);
 // Linear RGB as an 8-bit PNG, encoded with `response` (sRGB by default), values clamped to [0, 1].
 void WritePng(const std::filesystem::path& path, const ImageRgb& image,
               const CameraResponse& response = CameraResponse());
+
+// 8-bit RGB bytes (width * height * 3, row-major from the top row, already encoded, e.g. sRGB)
+// as the bytes of a PNG file, for formats that embed images (glTF). Throws Error on failure.
+std::vector<uint8_t> EncodePng(int width, int height, const std::vector<uint8_t>& rgb8);
 
 // How integer depth values map to meters.
 struct DepthEncoding {

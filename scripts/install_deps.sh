@@ -20,8 +20,8 @@ PACKAGES=(
   libopenni2-dev openni2-utils
   # viewer (GLFW window, OpenGL function loading; Mesa's llvmpipe gives OpenGL 3.3+ core under Xvfb)
   libglfw3-dev libepoxy-dev libgl1-mesa-dri
-  # tests
-  libgtest-dev
+  # tests (assimp-utils: `assimp info`, the independent reader of the glTF export test)
+  libgtest-dev assimp-utils
   # viewer tests and headless screenshots: an X server without a screen
   xvfb xauth
 )

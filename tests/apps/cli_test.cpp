@@ -207,8 +207,9 @@ TEST_F(Apps, DemoRunsAndSkipsFreshStages) {
   EXPECT_EQ(report.exit_code, 0) << report.output;
   for (const char* output :
        {"lights.json", "mesh_refined.ply", "export/model.ply", "export/model.xml",
-        "export/trajectory.txt", "evaluation/evaluation.json", "summary.json", "genscene.log",
-        "report/report.md", "report/tracking_time.png", "report/refine_error.png"}) {
+        "export/model.glb", "export/trajectory.txt", "evaluation/evaluation.json", "summary.json",
+        "genscene.log", "report/report.md", "report/tracking_time.png",
+        "report/refine_error.png"}) {
     EXPECT_TRUE(fs::exists(ws / output)) << output;
   }
   EXPECT_NE(ReadTextFile(ws / "report/report.md").find("## Light estimation"), std::string::npos);
