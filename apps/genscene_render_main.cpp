@@ -56,6 +56,7 @@ std::vector<PosedView> ChooseViews(const std::string& views_dir, const std::stri
 void ApplySceneSettings(const RenderSettings& s, const CommandLine& cli, RenderOptions* options) {
   if (s.max_depth && !cli.Given("max_depth")) options->max_depth = *s.max_depth;
   if (s.samples_per_pixel && !cli.Given("spp")) options->spp = *s.samples_per_pixel;
+  if (s.hide_emitters && !cli.Given("hide_emitters")) options->hide_emitters = *s.hide_emitters;
   if (s.pixel_filter && !cli.Given("filter")) {
     options->filter = s.pixel_filter->kind == PixelFilter::Kind::kBox ? "box" : "gaussian";
     if (!cli.Given("filter_stddev")) options->filter_stddev = s.pixel_filter->stddev;

@@ -27,6 +27,7 @@ struct RenderSettings {
   std::optional<PixelFilter> pixel_filter;
   std::optional<double> near_clip;  // metres (scene units) along the camera axis
   std::optional<double> far_clip;
+  std::optional<bool> hide_emitters;  // camera rays that hit an emitter see black (Mitsuba's)
 };
 
 struct LoadedScene {

@@ -34,10 +34,11 @@ using mitsuba_detail::Fail;
 using mitsuba_detail::HorizontalFov;
 using mitsuba_detail::IsObjectTag;
 using mitsuba_detail::Number;
+using mitsuba_detail::PlyColorAttribute;
 using mitsuba_detail::Props;
 using mitsuba_detail::Radians;
 using mitsuba_detail::RequiredAttribute;
-using mitsuba_detail::RigidCameraToWorld;
+using mitsuba_detail::SplitCameraToWorld;
 using mitsuba_detail::Tokens;
 using mitsuba_detail::Type;
 using mitsuba_detail::Where;
@@ -46,6 +47,13 @@ using tinyxml2::XMLElement;
 
 // ------------------------------------------------------------------------------------------------
 // The importer.
+
+// A diffuse BSDF's reflectance: a constant, or a mesh attribute of the shape times `scale`.
+struct Reflectance {
+  Vector3f constant = Vector3f::Constant(0.5f);
+  std::string attribute;  // "vertex_color" or "face_color"; empty for the constant
+  float scale = 1.0f;
+};
 
 class Importer {
  public:
@@ -222,18 +230,68 @@ class Importer {
     }
   }
 
-  Vector3f ParseBsdf(XMLElement* el) {
+  Reflectance ParseBsdf(XMLElement* el) {
     if (auto it = bsdfs_.find(el); it != bsdfs_.end()) return it->second;
     if (Type(el) != "diffuse")
       Fail(el, Format("bsdf type '", Type(el), "' is not in the subset (diffuse)"));
     Props p = PropsOf(el);
-    const Vector3d albedo = p.Color("reflectance").value_or(Vector3d::Constant(0.5));
-    if (!p.children().empty()) Fail(p.children()[0], "textures are not in the subset");
-    p.Finish();
-    if (albedo.minCoeff() < 0.0 || albedo.maxCoeff() > 1.0) {
-      Fail(el, Format("reflectance (", albedo.transpose(), ") is not in [0, 1]"));
+    const std::optional<Vector3d> albedo = p.Color("reflectance");
+    Reflectance r;
+    for (XMLElement* c : p.children()) {
+      if (!r.attribute.empty() || albedo) Fail(c, "the reflectance is given twice");
+      r = ParseMeshAttribute(c);
     }
-    return bsdfs_[el] = albedo.cast<float>();
+    p.Finish();
+    if (albedo && (albedo->minCoeff() < 0.0 || albedo->maxCoeff() > 1.0)) {
+      Fail(el, Format("reflectance (", albedo->transpose(), ") is not in [0, 1]"));
+    }
+    if (albedo) r.constant = albedo->cast<float>();
+    return bsdfs_[el] = r;
+  }
+
+  // A texture in a diffuse BSDF: mesh_attribute vertex_color / face_color as its reflectance.
+  Reflectance ParseMeshAttribute(XMLElement* el) {
+    if (std::string(el->Name()) != "texture" || Type(el) != "mesh_attribute")
+      Fail(el, "not in the subset inside a bsdf (a mesh_attribute texture)");
+    if (!el->Attribute("name") || std::string(el->Attribute("name")) != "reflectance")
+      Fail(el, "the texture must be the reflectance (name=\"reflectance\")");
+    Props p = PropsOf(el);
+    Reflectance r;
+    r.attribute = p.String("name").value_or("");
+    r.scale = static_cast<float>(p.Float("scale").value_or(1.0));
+    if (!p.children().empty()) Fail(p.children()[0], "not allowed inside a mesh_attribute");
+    p.Finish();
+    if (r.attribute != "vertex_color" && r.attribute != "face_color") {
+      Fail(el, Format("mesh attribute '", r.attribute,
+                      "' is not in the subset (vertex_color, face_color)"));
+    }
+    if (!(r.scale >= 0.0f)) Fail(el, Format("scale ", r.scale, " is negative"));
+    return r;
+  }
+
+  // The albedo a mesh_attribute reflectance gives the shape `el` read from the PLY `file`.
+  SurfaceAlbedo AttributeAlbedo(const XMLElement* el, const XMLElement* bsdf, const Reflectance& r,
+                                const fs::path& file, const TriangleMesh& mesh) {
+    if (Type(el) != "ply") Fail(el, "a mesh_attribute reflectance needs a ply shape in the subset");
+    const bool faces = r.attribute == "face_color";
+    SurfaceAlbedo a;
+    a.kind = faces ? SurfaceAlbedo::Kind::kPerFace : SurfaceAlbedo::Kind::kPerVertex;
+    a.values = PlyColorAttribute(file, faces ? "face" : "vertex", el);
+    const size_t expected = faces ? mesh.faces.size() : mesh.vertices.size();
+    if (a.values.size() != expected) {
+      Fail(el, Format(a.values.size(), " ", r.attribute, " values for ", expected,
+                      faces ? " triangles (a polygon face? Mitsuba's PLY loader takes triangles)"
+                            : " vertices"));
+    }
+    for (size_t i = 0; i < a.values.size(); ++i) {
+      a.values[i] *= r.scale;
+      if (!a.values[i].allFinite() || a.values[i].minCoeff() < 0.0f ||
+          a.values[i].maxCoeff() > 1.0f) {
+        Fail(bsdf, Format("reflectance (", a.values[i].transpose(), ") of ", r.attribute, " ", i,
+                          " is not in [0, 1]"));
+      }
+    }
+    return a;
   }
 
   Vector3f ParseAreaEmitter(XMLElement* el) {
@@ -266,30 +324,35 @@ class Importer {
 
   void ParseShape(XMLElement* el) {
     Props p = PropsOf(el);
-    SceneMesh m = ShapeGeometry(el, &p);
+    fs::path file;
+    SceneMesh m = ShapeGeometry(el, &p, &file);
     // At most one BSDF and one emitter, nested or by reference (§3); default BSDF otherwise.
     const XMLElement* bsdf = nullptr;
     const XMLElement* emitter = nullptr;
+    Reflectance reflectance;
     for (XMLElement* c : p.children()) {
       const std::string tag = c->Name();
       if (tag != "bsdf" && tag != "emitter") Fail(c, "not allowed inside a shape in the subset");
       const XMLElement*& slot = tag == "bsdf" ? bsdf : emitter;
       if (slot) Fail(c, Format("a shape takes only one ", tag));
       slot = c;
-      if (tag == "bsdf") m.albedo = SurfaceAlbedo::Constant(ParseBsdf(c));
+      if (tag == "bsdf") reflectance = ParseBsdf(c);
       if (tag == "emitter" && Type(c) != "area")
         Fail(c, "only area emitters can be attached to shapes");
       if (tag == "emitter") m.emission = ParseAreaEmitter(c);
       referenced_.insert(c);
     }
-    if (!bsdf) m.albedo = SurfaceAlbedo::Constant(Vector3f::Constant(emitter ? 0.0f : 0.5f));
+    if (!bsdf) reflectance.constant = Vector3f::Constant(emitter ? 0.0f : 0.5f);
+    m.albedo = reflectance.attribute.empty() ? SurfaceAlbedo::Constant(reflectance.constant)
+                                             : AttributeAlbedo(el, bsdf, reflectance, file, m.mesh);
     p.Finish();
     CheckMesh(el, m.mesh);
     out_.scene.meshes.push_back(std::move(m));
   }
 
   // The shape's triangles in the world frame, with Mitsuba's shading normals (§7).
-  SceneMesh ShapeGeometry(XMLElement* el, Props* p) {
+  // `file` is set to the mesh file of obj and ply shapes.
+  SceneMesh ShapeGeometry(XMLElement* el, Props* p, fs::path* file) {
     const std::string type = Type(el);
     const Matrix4d to_world = p->Transform("to_world").value_or(Matrix4d::Identity());
     SceneMesh m;
@@ -300,10 +363,10 @@ class Importer {
         if (!filename) Fail(el, "missing property 'filename'");
         const bool face_normals = p->Boolean("face_normals").value_or(false);
         if (type == "obj") p->Boolean("flip_tex_coords");  // texture coordinates: no effect here
-        const fs::path file = Resolve(*filename, fs::path());
-        if (!el->Attribute("id")) m.name = file.stem().string();
-        m.mesh = type == "obj" ? ReadObj(file) : ReadPly(file);
-        m.mesh.vertex_colors.clear();  // Mitsuba's diffuse uses its reflectance, not mesh colours
+        *file = Resolve(*filename, fs::path());
+        if (!el->Attribute("id")) m.name = file->stem().string();
+        m.mesh = type == "obj" ? ReadObj(*file) : ReadPly(*file);
+        m.mesh.vertex_colors.clear();  // colours only through a mesh_attribute (AttributeAlbedo)
         m.mesh.face_colors.clear();
         TransformMesh(to_world, &m.mesh);
         if (face_normals) m.mesh.normals.clear();
@@ -375,8 +438,8 @@ class Importer {
     s.near_clip = p.Float("near_clip").value_or(0.01);
     s.far_clip = p.Float("far_clip").value_or(10000.0);
     p.Float("focus_distance");  // read by Mitsuba's projective base; no effect on a pinhole
-    const Matrix4d to_world =
-        RigidCameraToWorld(el, p.Transform("to_world").value_or(Matrix4d::Identity()));
+    const mitsuba_detail::CameraToWorld to_world =
+        SplitCameraToWorld(el, p.Transform("to_world").value_or(Matrix4d::Identity()));
     p.Finish();
     // Mitsuba camera (x left, y up, pixel i covers [i, i+1)) -> OpenCV camera (x right, y down,
     // pixel centres at integers): the formulas in mitsuba_xml.h.
@@ -384,10 +447,11 @@ class Importer {
     const double t = std::tan(0.5 * Radians(x_fov));
     view.intrinsics.width = width;
     view.intrinsics.height = height;
-    view.intrinsics.fx = view.intrinsics.fy = width / (2.0 * t);
+    view.intrinsics.fx = width / (2.0 * t) * to_world.scale.z() / to_world.scale.x();
+    view.intrinsics.fy = width / (2.0 * t) * to_world.scale.z() / to_world.scale.y();
     view.intrinsics.cx = 0.5 * (width - 1) - ppo_x * width;
     view.intrinsics.cy = 0.5 * (height - 1) - ppo_y * height;
-    view.world_from_camera.matrix() = to_world * Eigen::Vector4d(-1, -1, 1, 1).asDiagonal();
+    view.world_from_camera.matrix() = to_world.rigid * Eigen::Vector4d(-1, -1, 1, 1).asDiagonal();
     view.timestamp = static_cast<double>(out_.views.size());
     view.intrinsics.Validate(Where(el));
     out_.views.push_back(view);
@@ -466,9 +530,11 @@ class Importer {
       if (depth < -1) Fail(el, Format("max_depth ", depth, " must be >= -1"));
       out_.settings.max_depth = static_cast<int>(depth);
       p.Integer("rr_depth");  // Russian roulette: noise only
+      out_.settings.hide_emitters = p.Boolean("hide_emitters");
     } else if (type == "direct") {
       out_.settings.max_depth = 2;  // emitters seen directly + one bounce (§9)
       for (const char* n : {"shading_samples", "emitter_samples", "bsdf_samples"}) p.Integer(n);
+      out_.settings.hide_emitters = p.Boolean("hide_emitters");
     } else {
       Fail(el, Format("integrator type '", type, "' is not in the subset (path, direct)"));
     }
@@ -486,7 +552,7 @@ class Importer {
   std::map<std::string, XMLElement*> ids_;
   std::vector<XMLElement*> top_;
   std::set<const XMLElement*> referenced_;
-  std::map<const XMLElement*, Vector3f> bsdfs_;
+  std::map<const XMLElement*, Reflectance> bsdfs_;
   LoadedScene out_;
 };
 

@@ -1,18 +1,25 @@
 // Mitsuba 3 XML import, the element level (declared in mitsuba_xml_internal.h): where an element
 // is, attribute and number checks, transforms (§4), the properties of one object element (Props)
-// and the perspective sensor's field of view and pose. The two passes over the documents are in
-// mitsuba_xml.cpp; the § numbers are the sections of the subset in mitsuba_xml.h.
+// the perspective sensor's field of view and pose, and the colour attributes of PLY files as
+// Mitsuba reads them. The two passes over the documents are in mitsuba_xml.cpp; the § numbers
+// are the sections of the subset in mitsuba_xml.h.
 #include <tinyxml2.h>
 
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
+#include <array>
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <optional>
 #include <set>
+#include <sstream>
 
 #include "core/check.h"
+#include "core/color.h"
+#include "core/file_util.h"
 #include "render/formats/mitsuba_xml_internal.h"
 
 namespace genscene::render::mitsuba_detail {
@@ -346,15 +353,214 @@ double HorizontalFov(const XMLElement* el, Props* p, double aspect) {
   return x_fov;
 }
 
-Matrix4d RigidCameraToWorld(const XMLElement* el, Matrix4d to_world) {
-  const Matrix3d r = to_world.topLeftCorner<3, 3>();
-  if (!(r.transpose() * r).isIdentity(1e-3) || r.determinant() < 0.0) {
-    Fail(el,
-         "the camera's to_world must be a rotation and translation (no scale, shear or mirror)");
+CameraToWorld SplitCameraToWorld(const XMLElement* el, const Matrix4d& to_world) {
+  const Matrix3d m = to_world.topLeftCorner<3, 3>();
+  const double deviation = (m * m.transpose() - Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  if (!(deviation <= kCameraScaleTolerance) || m.determinant() < 0.0) {
+    Fail(el, Format("the camera's to_world must be a rotation and translation, with no scale or "
+                    "shear beyond Mitsuba's tolerance (M M^T - I up to ",
+                    kCameraScaleTolerance, ", here ", deviation, ") and no mirror"));
   }
-  const Eigen::JacobiSVD<Matrix3d> svd(r, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  to_world.topLeftCorner<3, 3>() = svd.matrixU() * svd.matrixV().transpose();
-  return to_world;
+  CameraToWorld out;
+  for (int c = 0; c < 3; ++c) {
+    const double norm = m.col(c).norm();
+    out.scale[c] = std::abs(norm - 1.0) <= 1e-12 ? 1.0 : norm;
+  }
+  const Eigen::JacobiSVD<Matrix3d> svd(m * out.scale.cwiseInverse().asDiagonal(),
+                                       Eigen::ComputeFullU | Eigen::ComputeFullV);
+  out.rigid = to_world;
+  out.rigid.topLeftCorner<3, 3>() = svd.matrixU() * svd.matrixV().transpose();
+  return out;
+}
+
+// ------------------------------------------------------------------------------------------------
+// PLY colour attributes, read as Mitsuba's PLY loader reads them (src/shapes/ply.cpp: integer
+// properties get Struct::Flags::Normalized | Gamma, "red" is renamed "r" when there is no "r").
+
+namespace {
+
+struct PlyType {
+  const char* names[2];
+  int size;   // bytes
+  char kind;  // 'i' signed integer, 'u' unsigned integer, 'f' floating point
+};
+constexpr PlyType kPlyTypes[] = {{{"char", "int8"}, 1, 'i'},     {{"uchar", "uint8"}, 1, 'u'},
+                                 {{"short", "int16"}, 2, 'i'},   {{"ushort", "uint16"}, 2, 'u'},
+                                 {{"int", "int32"}, 4, 'i'},     {{"uint", "uint32"}, 4, 'u'},
+                                 {{"float", "float32"}, 4, 'f'}, {{"double", "float64"}, 8, 'f'}};
+
+const PlyType* FindPlyType(const std::string& name) {
+  for (const PlyType& t : kPlyTypes) {
+    if (name == t.names[0] || name == t.names[1]) return &t;
+  }
+  return nullptr;
+}
+
+struct PlyProperty {
+  std::string name;
+  const PlyType* type = nullptr;
+  const PlyType* count = nullptr;  // a list's length type; null for a scalar
+};
+struct PlyElement {
+  std::string name;
+  uint64_t count = 0;
+  std::vector<PlyProperty> properties;
+};
+
+// The header's elements; *data_begin is the first byte after the end_header line.
+std::vector<PlyElement> PlyHeader(const std::string& data, const std::string& name, bool* ascii,
+                                  size_t* data_begin) {
+  std::vector<PlyElement> elements;
+  std::istringstream header(data.substr(0, std::min<size_t>(data.size(), 1 << 20)));
+  std::string line, format;
+  for (bool first = true; std::getline(header, line); first = false) {
+    std::istringstream words(line);
+    std::string keyword, type, count;
+    words >> keyword;
+    if (first && keyword != "ply") throw Error(Format(name, ": not a PLY file"));
+    if (keyword == "format") words >> format;
+    if (keyword == "element") elements.emplace_back();
+    if (keyword == "element") words >> elements.back().name >> elements.back().count;
+    if (keyword == "property" && !elements.empty()) {
+      PlyProperty p;
+      words >> type;
+      if (type == "list") words >> count >> type;
+      words >> p.name;
+      p.type = FindPlyType(type);
+      p.count = count.empty() ? nullptr : FindPlyType(count);
+      if (!p.type || (!count.empty() && !p.count))
+        throw Error(Format(name, ": unknown PLY type in '", line, "'"));
+      elements.back().properties.push_back(p);
+    }
+    if (keyword == "end_header") {
+      if (format != "ascii" && format != "binary_little_endian")
+        throw Error(Format(name, ": PLY format '", format, "' is not supported"));
+      *ascii = format == "ascii";
+      *data_begin = static_cast<size_t>(header.tellg());
+      return elements;
+    }
+  }
+  throw Error(Format(name, ": PLY header without end_header"));
+}
+
+// The values after the header, one at a time: nullopt at the end of the data or on a token that
+// is not a number.
+class PlyValues {
+ public:
+  PlyValues(const std::string& data, size_t begin, bool ascii)
+      : data_(data), pos_(begin), ascii_(ascii) {}
+
+  std::optional<double> Next(const PlyType& type) {
+    if (ascii_) {
+      const auto space = [this] { return std::isspace(static_cast<unsigned char>(data_[pos_])); };
+      while (pos_ < data_.size() && space()) ++pos_;
+      const size_t begin = pos_;
+      while (pos_ < data_.size() && !space()) ++pos_;
+      double v = 0.0;
+      const auto r = std::from_chars(data_.data() + begin, data_.data() + pos_, v);
+      if (begin == pos_ || r.ptr != data_.data() + pos_) return std::nullopt;
+      return v;
+    }
+    const size_t n = static_cast<size_t>(type.size);
+    if (data_.size() - pos_ < n) return std::nullopt;
+    const char* p = data_.data() + pos_;
+    pos_ += n;
+    if (type.kind == 'f') {
+      float f;
+      double d;
+      return n == 4 ? (std::memcpy(&f, p, 4), f) : (std::memcpy(&d, p, 8), d);
+    }
+    uint64_t u = 0;  // little-endian, as the host
+    std::memcpy(&u, p, n);
+    const uint64_t sign = type.kind == 'i' ? uint64_t{1} << (8 * n - 1) : 0;
+    return static_cast<double>(static_cast<int64_t>(u ^ sign) - static_cast<int64_t>(sign));
+  }
+
+ private:
+  const std::string& data_;
+  size_t pos_;
+  bool ascii_;
+};
+
+// The properties of `e` that Mitsuba makes its colour: r/g/b, else red/green/blue; -1 without.
+std::array<int, 3> ColorChannels(const PlyElement& e) {
+  for (const auto& names : {std::array<std::string, 3>{"r", "g", "b"},
+                            std::array<std::string, 3>{"red", "green", "blue"}}) {
+    std::array<int, 3> out = {-1, -1, -1};
+    for (size_t p = 0; p < e.properties.size(); ++p) {
+      for (size_t c = 0; c < 3; ++c) {
+        if (e.properties[p].name == names[c]) out[c] = static_cast<int>(p);
+      }
+    }
+    if (*std::min_element(out.begin(), out.end()) >= 0) return out;
+  }
+  return {-1, -1, -1};
+}
+
+}  // namespace
+
+std::vector<Eigen::Vector3f> PlyColorAttribute(const fs::path& file, const std::string& element,
+                                               const XMLElement* el) {
+  const std::string name = file.string(), attribute = element + "_color";
+  try {
+    const std::string data = ReadTextFile(file);
+    bool ascii = false;
+    size_t begin = 0;
+    const std::vector<PlyElement> elements = PlyHeader(data, name, &ascii, &begin);
+    size_t target = 0;
+    while (target < elements.size() && elements[target].name != element) ++target;
+    if (target == elements.size()) throw Error(Format(name, ": no '", element, "' element"));
+    const PlyElement& e = elements[target];
+    const std::array<int, 3> channel = ColorChannels(e);
+    if (channel[0] < 0) {
+      throw Error(Format(name, ": the ", element,
+                         " element has no r/g/b or red/green/blue properties, so Mitsuba gives "
+                         "the mesh no ",
+                         attribute, " attribute"));
+    }
+    const PlyType* type = e.properties[static_cast<size_t>(channel[0])].type;
+    for (const PlyProperty& p : e.properties) {
+      if (p.name == "a" || p.name == "alpha")
+        throw Error(Format(name, ": ", attribute, " with alpha is not in the subset"));
+    }
+    for (int c : channel) {
+      const PlyProperty& p = e.properties[static_cast<size_t>(c)];
+      if (p.type != type || p.count || type->kind == 'i') {
+        throw Error(Format(name, ": ", attribute,
+                           " needs three float or three unsigned integer properties of one type"));
+      }
+    }
+    if (e.count > data.size()) throw Error(Format(name, ": truncated PLY data"));
+    const double top = std::ldexp(1.0, 8 * type->size) - 1.0;  // integers: normalised by this
+    std::vector<Eigen::Vector3f> colors;
+    colors.reserve(static_cast<size_t>(e.count));
+    PlyValues values(data, begin, ascii);
+    const auto next = [&](const PlyType& t) {
+      const std::optional<double> v = values.Next(t);
+      if (!v) throw Error(Format(name, ": truncated or malformed PLY data"));
+      return *v;
+    };
+    for (size_t i = 0; i <= target; ++i) {
+      for (uint64_t record = 0; record < elements[i].count; ++record) {
+        Eigen::Vector3f color = Eigen::Vector3f::Zero();
+        for (size_t p = 0; p < elements[i].properties.size(); ++p) {
+          const PlyProperty& prop = elements[i].properties[p];
+          for (double k = 0, n = prop.count ? next(*prop.count) : 0.0; k < n; ++k) next(*prop.type);
+          if (prop.count) continue;
+          const double v = next(*prop.type);
+          for (int c = 0; c < 3; ++c) {
+            if (i != target || channel[static_cast<size_t>(c)] != static_cast<int>(p)) continue;
+            color[c] = type->kind == 'f' ? static_cast<float>(v)
+                                         : SrgbToLinear(static_cast<float>(v / top));
+          }
+        }
+        if (i == target) colors.push_back(color);
+      }
+    }
+    return colors;
+  } catch (const Error& e) {
+    Fail(el, e.what());
+  }
 }
 
 }  // namespace genscene::render::mitsuba_detail

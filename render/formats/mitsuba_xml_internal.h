@@ -2,11 +2,12 @@
 // mitsuba_xml.h); include it only from the mitsuba_xml*.cpp files. It holds the angle and matrix
 // helpers that the import (mitsuba_xml.cpp) and the export (mitsuba_xml_export.cpp) share, and the
 // element-level helpers of the import, defined in mitsuba_xml_elements.cpp: where an element is,
-// attribute and number checks, the properties of one object element (Props) and the perspective
-// sensor's field of view and pose.
+// attribute and number checks, the properties of one object element (Props), the perspective
+// sensor's field of view and pose, and the colour attributes of PLY files.
 #pragma once
 
 #include <Eigen/Core>
+#include <filesystem>
 #include <functional>
 #include <initializer_list>
 #include <map>
@@ -103,8 +104,26 @@ class Props {
 // focal_length (default 50 mm, a diagonal fov of the 36 x 24 mm frame), as Mitsuba does (§5).
 double HorizontalFov(const tinyxml2::XMLElement* el, Props* p, double aspect);
 
-// Mitsuba refuses scale in a camera's to_world; we also refuse shear and mirrors, and snap the
-// rotation to the nearest orthonormal matrix (files print matrices with a few digits).
-Eigen::Matrix4d RigidCameraToWorld(const tinyxml2::XMLElement* el, Eigen::Matrix4d to_world);
+// Mitsuba refuses a camera to_world M with an entry of M M^T - I beyond this (has_scale() in
+// perspective.cpp); the export keeps the scale it writes for fx != fy within it.
+constexpr double kCameraScaleTolerance = 1e-3;
+
+// A perspective sensor's to_world M = R S, taken as Mitsuba takes it: Fail when an entry of
+// M M^T - I is beyond kCameraScaleTolerance (Mitsuba refuses it) or M mirrors. S holds the column
+// norms of M (a norm within 1e-12 of 1 is 1), R is the rotation nearest M S^-1 (files print
+// matrices with a few digits; the shear Mitsuba tolerates is dropped).
+struct CameraToWorld {
+  Eigen::Matrix4d rigid;  // R and M's translation
+  Eigen::Vector3d scale;  // the diagonal of S
+};
+CameraToWorld SplitCameraToWorld(const tinyxml2::XMLElement* el, const Eigen::Matrix4d& to_world);
+
+// The vertex_color (`element` "vertex") or face_color ("face") attribute that Mitsuba 3's PLY
+// loader makes of `file`: the element's r/g/b (else red/green/blue) properties, floating-point
+// values as they are, unsigned integers normalised to [0, 1] and sRGB-decoded. Fails naming `el`
+// when the element has no such properties, has alpha, or has signed integer colours.
+std::vector<Eigen::Vector3f> PlyColorAttribute(const std::filesystem::path& file,
+                                               const std::string& element,
+                                               const tinyxml2::XMLElement* el);
 
 }  // namespace genscene::render::mitsuba_detail
