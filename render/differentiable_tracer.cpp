@@ -249,8 +249,7 @@ void DifferentiablePathTracer::NextEvent(const Hit& at, const DualVec3& origin_o
   const SparseDual cos_s = Dot(at.ns, wi);
   if (cos_s.value() <= 0.0 || at.ng.value().dot(wi.value()) <= 0.0) return;
   ++counts->occluded;
-  if (tracer_->Occluded(origin_offset.value().cast<float>(), wi.value().cast<float>(), 0.0f,
-                        static_cast<float>(distance.value()) * (1.0f - 1e-4f))) {
+  if (tracer_->SegmentOccluded(origin_offset.value().cast<float>(), light_point.cast<float>())) {
     return;
   }
   const bool delta = e.kind != LightSampler::Kind::kTriangle;

@@ -69,6 +69,7 @@ class LightSampler {
       cdf_[i] = running;
     }
     if (!cdf_.empty()) cdf_.back() = 1.0;
+    PrepareLocal(scene, power);
   }
 
   bool empty() const { return entries_.empty() || cdf_.back() <= 0.0; }
@@ -80,6 +81,52 @@ class LightSampler {
     while (pmf_[i] <= 0.0f && i + 1 < entries_.size()) ++i;  // skip zero-power entries at u == cdf
     return i;
   }
+  // A light for the shading point p with normal n (facing the incoming ray), chosen by its
+  // contribution there (RenderOptions::light_selection "contribution"). The point and voxel
+  // lights with at least 1e-3 of the strongest one's power ("near-field" lights) together keep
+  // their share of the power pmf, but among them the choice follows each light's unshadowed
+  // contribution I(w) max(0, n . wi) / d^2 at p; the rest (area lights, the faint
+  // voxels) are chosen by power as Choose does. Every light that can contribute keeps a
+  // non-zero probability, so the estimate stays unbiased. `scratch` holds the weights.
+  struct Choice {
+    size_t entry = 0;
+    float pmf = 0.0f;
+  };
+  Choice ChooseAt(const Scene& scene, const Eigen::Vector3f& p, const Eigen::Vector3f& n, double u,
+                  std::vector<double>* scratch) const {
+    if (local_.empty()) {
+      const size_t i = Choose(u);
+      return {i, pmf_[i]};
+    }
+    if (u >= local_share_) return ChooseInOrder(u);  // the rest, by power
+    std::vector<double>& w = *scratch;
+    w.resize(local_.size());
+    double total = 0.0;
+    for (size_t k = 0; k < local_.size(); ++k) {
+      const Eigen::Vector3f to = local_point_[k] - p;
+      const float d2 = to.squaredNorm();
+      const float cos_n = d2 > 0.0f ? n.dot(to) / std::sqrt(d2) : 0.0f;
+      double c = 0.0;
+      if (cos_n > 0.0f) {
+        const Entry& e = entries_[local_[k]];
+        const float lum = e.kind == Kind::kVoxel
+                              ? Luminance(scene.voxel_lights->Intensity(
+                                    e.index, (-to / std::sqrt(d2)).cast<double>()))
+                              : Luminance(scene.point_lights[e.index].intensity);
+        c = static_cast<double>(lum) * cos_n / d2;
+      }
+      total += c;
+      w[k] = total;
+    }
+    if (!(total > 0.0)) return ChooseInOrder(u);  // nothing lights p: the near field by power
+    const double target = u / local_share_ * total;
+    size_t k = std::upper_bound(w.begin(), w.end(), target) - w.begin();
+    k = std::min(k, local_.size() - 1);
+    while (k > 0 && w[k] == w[k - 1]) --k;  // never a light with zero weight
+    const double weight = w[k] - (k > 0 ? w[k - 1] : 0.0);
+    return {local_[k], static_cast<float>(local_share_ * weight / total)};
+  }
+
   const Entry& entry(size_t i) const { return entries_[i]; }
   float pmf(size_t i) const { return pmf_[i]; }
   // Selection probability of triangle `face` of emitting mesh `mesh`.
@@ -89,10 +136,58 @@ class LightSampler {
   }
 
  private:
+  // The entry at u of the power pmf laid out in order_ (near-field lights first).
+  Choice ChooseInOrder(double u) const {
+    size_t k = std::upper_bound(order_cdf_.begin(), order_cdf_.end(), u) - order_cdf_.begin();
+    k = std::min(k, order_.size() - 1);
+    while (pmf_[order_[k]] <= 0.0f && k + 1 < order_.size()) ++k;
+    return {order_[k], pmf_[order_[k]]};
+  }
+
+  void PrepareLocal(const Scene& scene, const std::vector<double>& power) {
+    double strongest = 0.0;
+    for (size_t i = 0; i < entries_.size(); ++i) {
+      if (entries_[i].kind != Kind::kTriangle) strongest = std::max(strongest, power[i]);
+    }
+    // The power pmf laid out with the near-field lights first: they own u in [0, local_share_).
+    std::vector<size_t> local, rest;
+    for (size_t i = 0; i < entries_.size(); ++i) {
+      const bool near_field =
+          entries_[i].kind != Kind::kTriangle && strongest > 0.0 && power[i] >= 1e-3 * strongest;
+      (near_field ? local : rest).push_back(i);
+    }
+    if (local.empty()) return;
+    order_ = local;
+    order_.insert(order_.end(), rest.begin(), rest.end());
+    double running = 0.0;
+    for (size_t k = 0; k < order_.size(); ++k) {
+      running += pmf_[order_[k]];
+      order_cdf_.push_back(running);
+      if (k + 1 == local.size()) local_share_ = running;
+    }
+    order_cdf_.back() = 1.0;
+    local_ = local;
+    for (size_t i : local_) {
+      const Entry& e = entries_[i];
+      if (e.kind == Kind::kVoxel) {
+        local_point_.push_back(scene.voxel_lights->VoxelCenter(e.index).cast<float>());
+      } else {
+        local_point_.push_back(scene.point_lights[e.index].position.cast<float>());
+      }
+    }
+  }
+
   std::vector<Entry> entries_;
   std::vector<float> pmf_;
   std::vector<double> cdf_;
   std::vector<int> first_triangle_;  // per mesh: its first entry, -1 when it does not emit
+  // ChooseAt: the near-field lights (entries), their points, their share of the power
+  // pmf; the entries with the near-field ones first and that order's cdf.
+  std::vector<size_t> local_;
+  std::vector<Eigen::Vector3f> local_point_;
+  double local_share_ = 0.0;
+  std::vector<size_t> order_;
+  std::vector<double> order_cdf_;
 };
 
 }  // namespace genscene::render

@@ -41,6 +41,8 @@ void RenderOptions::Validate() const {
   RequireRange("rr_depth", rr_depth, 1, 1 << 20);
   RequireOneOf("filter", filter, {"box", "center", "gaussian"});
   RequireRange("filter_stddev", filter_stddev, 0.05, 10.0);
+  RequireOneOf("light_selection", light_selection, {"contribution", "power"});
+  RequireRange("light_samples", light_samples, 1, 1024);
 }
 
 // A surface point as the path tracer uses it.
@@ -58,6 +60,7 @@ struct PathTracer::SurfacePoint {
 struct PathTracer::LightSample {
   Eigen::Vector3f wi;     // unit direction from the surface point to the light
   float distance = 0.0f;  // to the sampled light point
+  Eigen::Vector3f point;  // the sampled light point
   Eigen::Vector3f value;  // area lights: emitted radiance; point/voxel lights: intensity / r^2
   float pdf = 0.0f;       // area lights: solid angle pdf; point/voxel lights: selection probability
   bool is_delta = false;  // point and voxel lights cannot be hit by BSDF sampling
@@ -104,10 +107,21 @@ std::optional<PathTracer::SurfacePoint> PathTracer::Hit(const Eigen::Vector3f& o
 }
 
 std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoint& at,
+                                                               const RenderOptions& options,
                                                                CounterRng& rng) const {
   if (lights_->empty()) return std::nullopt;
-  const size_t i = lights_->Choose(rng.UniformDouble());
-  const float pmf = lights_->pmf(i);
+  size_t i = 0;
+  float pmf = 0.0f;
+  if (options.light_selection == "power") {
+    i = lights_->Choose(rng.UniformDouble());
+    pmf = lights_->pmf(i);
+  } else {
+    thread_local std::vector<double> scratch;
+    const LightSampler::Choice c =
+        lights_->ChooseAt(scene_, at.p, at.ns, rng.UniformDouble(), &scratch);
+    i = c.entry;
+    pmf = c.pmf;
+  }
   const LightSampler::Entry& e = lights_->entry(i);
   const float u1 = rng.Uniform(), u2 = rng.Uniform();
   LightSample s;
@@ -115,6 +129,7 @@ std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoin
     case LightSampler::Kind::kTriangle: {
       const SceneMesh& m = scene_.meshes[e.mesh];
       const Eigen::Vector3f q = UniformPointOnTriangle(m.mesh, e.index, u1, u2);
+      s.point = q;
       const Eigen::Vector3f to_light = q - at.p;
       const float d2 = to_light.squaredNorm();
       if (d2 <= 0.0f) return std::nullopt;
@@ -129,7 +144,8 @@ std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoin
     }
     case LightSampler::Kind::kPoint: {
       const PointLight& light = scene_.point_lights[e.index];
-      const Eigen::Vector3f to_light = light.position.cast<float>() - at.p;
+      s.point = light.position.cast<float>();
+      const Eigen::Vector3f to_light = s.point - at.p;
       const float d2 = to_light.squaredNorm();
       if (d2 <= 0.0f) return std::nullopt;
       s.distance = std::sqrt(d2);
@@ -141,7 +157,8 @@ std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoin
     }
     case LightSampler::Kind::kVoxel: {
       const VoxelLightGrid& grid = *scene_.voxel_lights;
-      const Eigen::Vector3f to_light = grid.VoxelCenter(e.index).cast<float>() - at.p;
+      s.point = grid.VoxelCenter(e.index).cast<float>();
+      const Eigen::Vector3f to_light = s.point - at.p;
       const float d2 = to_light.squaredNorm();
       if (d2 <= 0.0f) return std::nullopt;
       s.distance = std::sqrt(d2);
@@ -185,7 +202,8 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
       if (depth == 1) {
         if (!options.hide_emitters) radiance += mesh.emission;
       } else {
-        const float weight = PowerHeuristic(bsdf_pdf, AreaLightPdf(*previous, *hit));
+        const float weight =
+            PowerHeuristic(bsdf_pdf, options.light_samples * AreaLightPdf(*previous, *hit));
         radiance += beta.cwiseProduct(mesh.emission) * weight;
       }
     }
@@ -198,17 +216,19 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
     if (at.ng.dot(ray_d) > 0.0f) at.ng = -at.ng, at.ns = -at.ns;
     const Eigen::Vector3f origin_offset = at.p + OffsetScale(at.p) * at.ng;
 
-    // Sample direct illumination from the light sources (next-event estimation).
-    const auto light = SampleLight(at, rng);
-    const float cos_s = light ? at.ns.dot(light->wi) : 0.0f;
-    if (light && cos_s > 0.0f && at.ng.dot(light->wi) > 0.0f) {
+    // Sample direct illumination from the light sources (next-event estimation), n samples
+    // each weighted 1 / n; the power heuristic sees n pdf_light against pdf_bsdf.
+    const int n = options.light_samples;
+    for (int k = 0; k < n; ++k) {
+      const auto light = SampleLight(at, options, rng);
+      const float cos_s = light ? at.ns.dot(light->wi) : 0.0f;
+      if (!light || cos_s <= 0.0f || at.ng.dot(light->wi) <= 0.0f) continue;
       ++local.occluded;
-      if (!tracer_->Occluded(origin_offset, light->wi, 0.0f, light->distance * (1.0f - 1e-4f))) {
-        const float pdf_bsdf = cos_s / static_cast<float>(M_PI);
-        const float weight = light->is_delta ? 1.0f : PowerHeuristic(light->pdf, pdf_bsdf);
-        const Eigen::Vector3f f = albedo * (cos_s / static_cast<float>(M_PI));
-        radiance += beta.cwiseProduct(f).cwiseProduct(light->value) * (weight / light->pdf);
-      }
+      if (tracer_->SegmentOccluded(origin_offset, light->point)) continue;
+      const float pdf_bsdf = cos_s / static_cast<float>(M_PI);
+      const float weight = light->is_delta ? 1.0f : PowerHeuristic(n * light->pdf, pdf_bsdf);
+      const Eigen::Vector3f f = albedo * (cos_s / static_cast<float>(M_PI));
+      radiance += beta.cwiseProduct(f).cwiseProduct(light->value) * (weight / (n * light->pdf));
     }
 
     Eigen::Vector3f wi;
@@ -360,7 +380,9 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
       // direct light estimated by other paths
     } else if (depth <= splitting.all_until_depth || splitting.samples <= 0) {
       const float weight = depth == 1 ? first_vertex_weight : 1.0f;
-      for (int j : prepared->connected) rays.Consider(at.p, at.ns, at.ng, centres[j], j, weight);
+      for (int j : prepared->connected) {
+        rays.Consider(at.p, at.ns, at.ng, centres[j], j, weight);
+      }
     } else {
       for (int s = 0; s < splitting.samples; ++s) {
         const int j = splitting.Choose(rng.UniformDouble());

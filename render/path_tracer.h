@@ -35,6 +35,13 @@ struct RenderOptions {
                                // gaussian: Mitsuba's truncated Gaussian (radius 4 stddev)
   double filter_stddev = 0.5;  // gaussian filter standard deviation, pixels
   bool hide_emitters = false;  // camera rays that hit an emitter return black
+  // Next-event estimation's choice among the lights: "contribution" (point and voxel lights by
+  // their unshadowed contribution at the shading point, LightSampler::ChooseAt) or "power" (by
+  // power alone, as the differentiable tracer of vertex refinement always chooses).
+  std::string light_selection = "contribution";
+  // Lights sampled per path vertex (next-event estimation), combined with the BSDF's hits on area
+  // lights by the power heuristic over both counts.
+  int light_samples = 1;
 
   // The stages that trace paths hold their path settings as one RenderOptions and list them under
   // these keys, saying in `spp_help` what one of their samples is.
@@ -59,6 +66,10 @@ struct RenderOptions {
       "pixel filter: box (pixel footprint), center (pixel-centre rays) or gaussian");
     v("filter_stddev", filter_stddev, "px", "standard deviation of the gaussian filter");
     v("hide_emitters", hide_emitters, "", "camera rays that hit an emitter return black");
+    v("light_selection", light_selection, "",
+      "choice of light per shading point: contribution (point and voxel lights by their "
+      "unshadowed contribution there) or power");
+    v("light_samples", light_samples, "", "lights sampled per path vertex");
   }
   void Validate() const;
 };
@@ -160,7 +171,8 @@ class PathTracer {
 
   std::optional<SurfacePoint> Hit(const Eigen::Vector3f& origin,
                                   const Eigen::Vector3f& direction) const;
-  std::optional<LightSample> SampleLight(const SurfacePoint& at, CounterRng& rng) const;
+  std::optional<LightSample> SampleLight(const SurfacePoint& at, const RenderOptions& options,
+                                         CounterRng& rng) const;
   // Solid-angle pdf with which SampleLight picks the point `p` of emitting face (mesh, face).
   float AreaLightPdf(const SurfacePoint& from, const SurfacePoint& on_light) const;
 

@@ -173,6 +173,13 @@ bool RayTracer::Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& d
   return ray.tfar == -INFINITY;
 }
 
+bool RayTracer::SegmentOccluded(const Eigen::Vector3f& from, const Eigen::Vector3f& to) const {
+  const Eigen::Vector3f d = to - from;
+  const float length = d.norm();
+  if (!(length > 0.0f)) return false;
+  return Occluded(from, d / length, 0.0f, length * (1.0f - 1e-4f));
+}
+
 void RayTracer::OccludedFrom(const Eigen::Vector3f& origin, const Eigen::Vector3f* directions,
                              const float* t_max, int n, float t_min, uint8_t* occluded) const {
   GS_CHECK(impl_->committed);

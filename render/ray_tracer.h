@@ -42,6 +42,9 @@ class RayTracer {
   // True when anything blocks the segment t in [t_min, t_max].
   bool Occluded(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction, float t_min,
                 float t_max) const;
+  // True when anything blocks the open segment from `from` to `to`: the last 1e-4 of its length
+  // is left out, so that the surface a shadow ray ends on (an area light) does not block it.
+  bool SegmentOccluded(const Eigen::Vector3f& from, const Eigen::Vector3f& to) const;
   // Occlusion of n segments from one origin, as Occluded(origin, directions[i], t_min, t_max[i])
   // for each i, into occluded[i] (1 when blocked). Traced in packets of 16 (rtcOccluded16): the
   // shadow rays of one path vertex to many voxel lights, 1.3x faster than one by one (Embree's

@@ -115,6 +115,56 @@ TEST(PathTracer, VoxelLightOverPlaneFollowsEmissionModel) {
   }
 }
 
+// Many point lights over a plane, one below it and one far fainter than the rest: next-event
+// estimation that chooses the light by its contribution at the shading point stays unbiased (the
+// exact sum of the lights' direct light) and is far less noisy than choosing by power alone (with
+// nothing casting shadows it is exact up to rounding: the pmf is the integrand).
+TEST(PathTracer, LightsChosenByContributionAreUnbiasedAndLessNoisy) {
+  const Eigen::Vector3f albedo(0.5f, 0.5f, 0.5f);
+  Scene scene;
+  scene.meshes.push_back(Square(40.0, 0.0, true, albedo));
+  CounterRng rng(5, 0);
+  for (int i = 0; i < 24; ++i) {
+    const Eigen::Vector3d at(rng.UniformDouble() * 4 - 2, rng.UniformDouble() * 4 - 2,
+                             0.05 + rng.UniformDouble());
+    scene.point_lights.push_back({at, Eigen::Vector3f::Constant(0.2f + rng.Uniform())});
+  }
+  scene.point_lights.push_back({Eigen::Vector3d(0, 0, -0.5), Eigen::Vector3f::Constant(5.0f)});
+  scene.point_lights.push_back({Eigen::Vector3d(1, 1, 1), Eigen::Vector3f::Constant(1e-5f)});
+  const PathTracer tracer(scene);
+  const PosedView view = LookingDownAt({0.2, -0.3, 3.0}, {0.0, 0.0, 0.0}, 32, 24, 14.0);
+  RenderOptions options;
+  options.filter = "center";
+  options.spp = 16;
+  options.max_depth = 2;
+  double error[2] = {0, 0}, mean[2] = {0, 0}, expected_mean = 0.0;
+  for (int mode = 0; mode < 2; ++mode) {
+    options.light_selection = mode == 0 ? "power" : "contribution";
+    const RenderOutput out = tracer.Render(view, options, 11);
+    for (int v = 0; v < 24; ++v) {
+      for (int u = 0; u < 32; ++u) {
+        const Eigen::Vector3d p = PointAt(view, out, u, v);
+        double expected = 0.0;
+        for (const PointLight& light : scene.point_lights) {
+          const Eigen::Vector3d to = light.position - p;
+          if (to.z() <= 0.0) continue;
+          expected += albedo[0] / M_PI * light.intensity[0] * to.z() / std::pow(to.norm(), 3.0);
+        }
+        const double got = out.radiance(u, v)[0];
+        error[mode] += (got - expected) * (got - expected);
+        mean[mode] += got / (32 * 24);
+        if (mode == 0) expected_mean += expected / (32 * 24);
+      }
+    }
+  }
+  std::printf(
+      "[ closed   ] 26 point lights, 16 spp: RMS error by power %.5f, by contribution %.5f; "
+      "means %.5f %.5f vs %.5f\n",
+      std::sqrt(error[0] / 768), std::sqrt(error[1] / 768), mean[0], mean[1], expected_mean);
+  EXPECT_NEAR(mean[1], expected_mean, 0.01 * expected_mean);
+  EXPECT_LT(error[1], 0.25 * error[0]) << "variance by contribution against by power";
+}
+
 // Form factor from a differential area to a parallel rectangle a x b at distance h, with the
 // normal through one corner: F = 1/(2 pi) [X/sqrt(1+X^2) atan(Y/sqrt(1+X^2)) + (X <-> Y)].
 double CornerFormFactor(double a, double b, double h) {
@@ -162,6 +212,36 @@ TEST(PathTracer, SmallAreaLightMatchesFormFactor) {
   std::printf("[ closed   ] area light: mean %.6f vs form factor %.6f (%.3f%%)\n", mean,
               setup.expected, 100.0 * (mean / setup.expected - 1.0));
   EXPECT_NEAR(mean, setup.expected, 0.01 * setup.expected);
+}
+
+// A light close to a surface: a 1 cm square emitter 1 cm above a floor, seen through the gap.
+// The floor under its centre has L = rho * Le * F with the form factor F of a centred parallel
+// square (side 2a, height h). The shadow rays end on the light itself, so they must be traced to
+// it from the offset origin, not along the direction from the unoffset point.
+TEST(PathTracer, AreaLightCloseToASurfaceIsNotShadowedByItself) {
+  const double h = 0.01, a = 0.005;
+  const Eigen::Vector3f albedo(0.5f, 0.5f, 0.5f), emission(2.0f, 2.0f, 2.0f);
+  Scene scene;
+  scene.meshes.push_back(Square(2 * a, 0.0, true, albedo));
+  scene.meshes.push_back(Square(2 * a, h, false, Eigen::Vector3f::Zero(), emission));
+  const PathTracer tracer(scene);
+  const PosedView view = LookingDownAt({0.0, 0.0, 0.009}, {0.0, 0.0, 0.0}, 8, 8, 400.0);
+  RenderOptions options;
+  options.filter = "center";
+  options.spp = 256;
+  options.max_depth = 2;
+  const RenderOutput out = tracer.Render(view, options, 3);
+  // Form factor from a point to a parallel square centred above it (four rectangles a x a):
+  // F = 4 / (2 pi) [X / sqrt(1 + X^2) atan(Y / sqrt(1 + X^2)) + (X <-> Y)], X = Y = a / h.
+  const double x = a / h, s1 = std::sqrt(1.0 + x * x);
+  const double form_factor = 4.0 / (2.0 * M_PI) * 2.0 * (x / s1) * std::atan(x / s1);
+  const double expected = 0.5 * 2.0 * form_factor;
+  double mean = 0.0;
+  for (int v = 0; v < 8; ++v) {
+    for (int u = 0; u < 8; ++u) mean += out.radiance(u, v).mean() / 64.0;
+  }
+  std::printf("[ closed   ] 1 cm light 1 cm above the floor: mean %.5f vs %.5f\n", mean, expected);
+  EXPECT_NEAR(mean, expected, 0.01 * expected);
 }
 
 TEST(PathTracer, ErrorFallsAsOneOverSqrtSpp) {
