@@ -62,6 +62,12 @@ void RunLogged(const std::string& input, const genscene::SourceOptions& source,
             << ")\n";
 }
 
+void PrintReport(const std::filesystem::path& markdown) {
+  std::cout << "report: " << markdown.string() << "\n";
+  const std::filesystem::path html = markdown.parent_path() / "report.html";
+  if (std::filesystem::exists(html)) std::cout << "report: " << html.string() << "\n";
+}
+
 int Demo(int argc, char** argv) {
   CLI::App app{
       "genscene demo: synthesise a Cornell-box RGB-D sequence with ground truth, run the whole "
@@ -110,17 +116,16 @@ int Demo(int argc, char** argv) {
     genscene::apps::ReportOptions options;
     options.sweep = true;
     std::fprintf(stderr, "report (with the light penalty sweep)\n");
-    std::cout << "report: " << genscene::apps::WriteReport(ws, options, cli.seed()).string()
-              << "\n";
+    PrintReport(genscene::apps::WriteReport(ws, options, cli.seed()));
   }
   return 0;
 }
 
 int Report(int argc, char** argv) {
   CLI::App app{
-      "genscene report: a Markdown report with PNG figures of speed against error for every stage "
-      "a "
-      "workspace holds, written to WORKSPACE/report/report.md"};
+      "genscene report: a report with PNG figures of speed against error for every stage a "
+      "workspace holds, written to WORKSPACE/report/report.md and, with the model in 3D, "
+      "report.html"};
   genscene::CommandLine cli(app);
   std::string workspace;
   genscene::apps::ReportOptions options;
@@ -131,11 +136,14 @@ int Report(int argc, char** argv) {
   app.add_option("--sweep-spp", options.sweep_spp, "samples per pixel of the sweep's renders")
       ->capture_default_str()
       ->check(CLI::Range(2, 65536));
+  app.add_option("--three-dir", options.three_dir,
+                 "three.js for report.html's 3D view (three.min.js, examples/js/)")
+      ->capture_default_str();
   if (auto code = cli.Parse(argc, argv)) return *code;
   if (!std::filesystem::is_directory(workspace))
     throw genscene::Error(workspace + ": no such workspace folder");
   const genscene::Workspace ws(workspace);
-  std::cout << "report: " << genscene::apps::WriteReport(ws, options, cli.seed()).string() << "\n";
+  PrintReport(genscene::apps::WriteReport(ws, options, cli.seed()));
   return 0;
 }
 

@@ -1,5 +1,7 @@
 #include "apps/report.h"
 
+#include <spdlog/spdlog.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -9,6 +11,7 @@
 
 #include "apps/fuse.h"
 #include "apps/plot.h"
+#include "apps/report_html.h"
 #include "apps/scene_inputs.h"
 #include "core/check.h"
 #include "core/file_util.h"
@@ -435,6 +438,10 @@ fs::path WriteReport(const Workspace& ws, const ReportOptions& options, uint64_t
         "scene whose observed colour is its albedo).\n";
   const fs::path path = dir / "report.md";
   WriteTextFileAtomically(path, md.str());
+  for (const std::string& w :
+       WriteReportHtml(dir, {md.str(), ws.ExportDir() / "model.glb", options.three_dir})) {
+    spdlog::warn("{}", w);
+  }
   return path;
 }
 

@@ -8,11 +8,13 @@
 //     with `sweep`, light error, active voxels and time against the penalty weight (Fig. 3);
 //   - refinement: cost and image error per iteration, the renders after each iteration (Fig. 4);
 //   - evaluation: novel views of the ground truth next to the model's, and their error.
+// Beside it, report.html: the same report as a page, with the model in 3D (apps/report_html.h).
 #pragma once
 
 #include <filesystem>
 #include <string>
 
+#include "apps/report_html.h"
 #include "core/workspace.h"
 
 namespace genscene::apps {
@@ -20,10 +22,11 @@ namespace genscene::apps {
 struct ReportOptions {
   bool sweep = false;  // re-estimate the lights over penalty weights (Fig. 3)
   int sweep_spp = 32;  // samples per pixel of the sweep's renders
+  std::filesystem::path three_dir = kDebianThreeDir;  // three.js for report.html's 3D view
 };
 
-// Writes WS/report/report.md (last) and its figures; returns the report's path. Throws Error
-// when the workspace holds none of the stages' outputs.
+// Writes WS/report/report.md, then report.html, and their figures; returns report.md's path. Throws
+// Error when the workspace holds none of the stages' outputs.
 std::filesystem::path WriteReport(const Workspace& ws, const ReportOptions& options, uint64_t seed);
 
 }  // namespace genscene::apps

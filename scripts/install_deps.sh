@@ -20,8 +20,12 @@ PACKAGES=(
   libopenni2-dev openni2-utils
   # viewer (GLFW window, OpenGL function loading; Mesa's llvmpipe gives OpenGL 3.3+ core under Xvfb)
   libglfw3-dev libepoxy-dev libgl1-mesa-dri
+  # the HTML report: Markdown to HTML (GitHub tables), three.js for its 3D view of the model
+  libcmark-gfm-dev libcmark-gfm-extensions-dev libjs-three
   # tests (assimp-utils: `assimp info`, the independent reader of the glTF export test)
   libgtest-dev assimp-utils
+  # the HTML report's test: headless Chromium opens report.html and takes a screenshot
+  chromium
   # viewer tests and headless screenshots: an X server without a screen
   xvfb xauth
 )
