@@ -227,12 +227,13 @@ std::vector<std::string> StagesRun(const fs::path& ws) {
 }
 
 // Resume after a change: a run with one stage's option changed re-runs exactly that stage and the
-// ones after it; the same run again skips everything; a changed input re-runs every stage.
+// ones after it; the same run again skips everything; a changed input re-runs every stage. (A
+// changed fusion option is not run here: it re-runs every stage as the changed input does, through
+// the same option hashes the other stages show.)
 TEST_F(GensceneChain, ARerunAfterAChangedOptionRunsExactlyTheStagesThatDependOnIt) {
   test::TempDir tmp;
   const std::vector<std::string> all = apps::ChainStages();
   const std::vector<std::pair<std::vector<std::string>, std::string>> changes = {
-      {{"--truncation", "0.1"}, "fusion"},
       {{"--decimate-max-error", "0.001"}, "meshing"},
       {{"--texel-spacing", "0.03"}, "texturing"},
       {{"--chroma-bandwidth", "0.2"}, "albedo"},
@@ -254,6 +255,8 @@ TEST_F(GensceneChain, ARerunAfterAChangedOptionRunsExactlyTheStagesThatDependOnI
     // The changed stage and every later one (each reads what the one before it wrote).
     const std::vector<std::string> expected(std::find(all.begin(), all.end(), first), all.end());
     EXPECT_EQ(StagesRun(ws), expected) << flags.front();
+    if (first != "lights") continue;
+    // Once (the skip does not depend on which stage changed): the same run again runs nothing.
     ASSERT_EQ(RunToEnd(args, tmp / (first + "_again.err")), 0)
         << Bytes(tmp / (first + "_again.err"));
     EXPECT_EQ(StagesRun(ws), std::vector<std::string>{}) << flags.front() << ", run again";
