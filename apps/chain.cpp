@@ -292,7 +292,7 @@ render::Scene LoadModel(const Workspace& ws, const fs::path& mesh,
 std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings) {
   const fs::path dir = ws.ExportDir();
   fs::create_directories(dir);
-  const fs::path mesh_path = fs::exists(ws.RefinedMesh()) ? ws.RefinedMesh() : ws.Mesh();
+  const fs::path mesh_path = ws.ModelMesh();
   const TriangleMesh mesh = ReadPly(mesh_path);
   const MeshColors albedo = ReadMeshColors(ws.Albedo(), mesh);
   const TriangleMesh colored = albedo.ToSubdividedMesh(mesh);

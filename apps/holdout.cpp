@@ -149,7 +149,7 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
   const std::vector<PosedImage> frames = ReadPosedImages(ws.HeldOut());
   if (frames.empty())
     throw Error(Format(ws.HeldOut().string(), ": no held-out frames to judge the model on"));
-  const fs::path mesh_path = fs::exists(ws.RefinedMesh()) ? ws.RefinedMesh() : ws.Mesh();
+  const fs::path mesh_path = ws.ModelMesh();
   std::vector<std::string> warnings;
   Scene model = LoadGeometry({{}, mesh_path, ws.Albedo()}, ws, &warnings);
   model.voxel_lights = ReadLightsJson(ws.Lights());

@@ -34,6 +34,10 @@ class Workspace {
   std::filesystem::path AlbedoPly() const { return root_ / "albedo.ply"; }
   std::filesystem::path Lights() const { return root_ / "lights.json"; }
   std::filesystem::path RefinedMesh() const { return root_ / "mesh_refined.ply"; }
+  // The model's mesh: the refined one when refinement has written it, else mesh.ply.
+  std::filesystem::path ModelMesh() const {
+    return std::filesystem::exists(RefinedMesh()) ? RefinedMesh() : Mesh();
+  }
   std::filesystem::path Log() const { return root_ / "genscene.log"; }
   // Each stage's report (options, figures) and its folder of images.
   std::filesystem::path SequenceJson() const { return root_ / "sequence.json"; }

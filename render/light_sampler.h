@@ -3,6 +3,7 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <vector>
 
@@ -92,7 +93,7 @@ class LightSampler {
     size_t entry = 0;
     float pmf = 0.0f;
   };
-  Choice ChooseAt(const Scene& scene, const Eigen::Vector3f& p, const Eigen::Vector3f& n, double u,
+  Choice ChooseAt(const Eigen::Vector3f& p, const Eigen::Vector3f& n, double u,
                   std::vector<double>* scratch) const {
     if (local_.empty()) {
       const size_t i = Choose(u);
@@ -103,17 +104,21 @@ class LightSampler {
     w.resize(local_.size());
     double total = 0.0;
     for (size_t k = 0; k < local_.size(); ++k) {
-      const Eigen::Vector3f to = local_point_[k] - p;
+      const LocalLight& l = local_lights_[k];
+      const Eigen::Vector3f to = l.point - p;
       const float d2 = to.squaredNorm();
-      const float cos_n = d2 > 0.0f ? n.dot(to) / std::sqrt(d2) : 0.0f;
+      const float along = n.dot(to);
       double c = 0.0;
-      if (cos_n > 0.0f) {
-        const Entry& e = entries_[local_[k]];
-        const float lum = e.kind == Kind::kVoxel
-                              ? Luminance(scene.voxel_lights->Intensity(
-                                    e.index, (-to / std::sqrt(d2)).cast<double>()))
-                              : Luminance(scene.point_lights[e.index].intensity);
-        c = static_cast<double>(lum) * cos_n / d2;
+      if (along > 0.0f && d2 > 0.0f) {
+        // Luminance of I(w), w = -to / |to| from the light to p: the faces facing w.
+        const float i = l.isotropic ? l.lum[0]
+                                    : (to.x() < 0 ? -to.x() * l.lum[0] : to.x() * l.lum[1]) +
+                                          (to.y() < 0 ? -to.y() * l.lum[2] : to.y() * l.lum[3]) +
+                                          (to.z() < 0 ? -to.z() * l.lum[4] : to.z() * l.lum[5]);
+        // I(w) cos / d^2 with cos = n . to / d and the face terms' own 1 / d: along / d^4 (or
+        // along / d^3 for an isotropic light).
+        const float inv_d2 = 1.0f / d2;
+        c = static_cast<double>(i * along * inv_d2 * inv_d2) * (l.isotropic ? std::sqrt(d2) : 1.0);
       }
       total += c;
       w[k] = total;
@@ -169,11 +174,18 @@ class LightSampler {
     local_ = local;
     for (size_t i : local_) {
       const Entry& e = entries_[i];
+      LocalLight l;
       if (e.kind == Kind::kVoxel) {
-        local_point_.push_back(scene.voxel_lights->VoxelCenter(e.index).cast<float>());
+        const VoxelLightGrid& grid = *scene.voxel_lights;
+        l.point = grid.VoxelCenter(e.index).cast<float>();
+        const float lum = Luminance(grid.intensity[e.index]);
+        for (int k = 0; k < 6; ++k) l.lum[k] = lum * grid.weights[e.index][k];
       } else {
-        local_point_.push_back(scene.point_lights[e.index].position.cast<float>());
+        l.point = scene.point_lights[e.index].position.cast<float>();
+        l.isotropic = true;
+        l.lum[0] = Luminance(scene.point_lights[e.index].intensity);
       }
+      local_lights_.push_back(l);
     }
   }
 
@@ -183,8 +195,15 @@ class LightSampler {
   std::vector<int> first_triangle_;  // per mesh: its first entry, -1 when it does not emit
   // ChooseAt: the near-field lights (entries), their points, their share of the power
   // pmf; the entries with the near-field ones first and that order's cdf.
+  // A near-field light: its point and the luminance of L lambda_k per face (voxels), or of its
+  // intensity in lum[0] (isotropic point lights).
+  struct LocalLight {
+    Eigen::Vector3f point;
+    std::array<float, 6> lum{};
+    bool isotropic = false;
+  };
   std::vector<size_t> local_;
-  std::vector<Eigen::Vector3f> local_point_;
+  std::vector<LocalLight> local_lights_;
   double local_share_ = 0.0;
   std::vector<size_t> order_;
   std::vector<double> order_cdf_;

@@ -117,8 +117,7 @@ std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoin
     pmf = lights_->pmf(i);
   } else {
     thread_local std::vector<double> scratch;
-    const LightSampler::Choice c =
-        lights_->ChooseAt(scene_, at.p, at.ns, rng.UniformDouble(), &scratch);
+    const LightSampler::Choice c = lights_->ChooseAt(at.p, at.ns, rng.UniformDouble(), &scratch);
     i = c.entry;
     pmf = c.pmf;
   }

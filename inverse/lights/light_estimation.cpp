@@ -156,6 +156,7 @@ class LightEstimator {
   // The coarse rounds over `round_pixels`, from the dark grid, then the moves in a final solve.
   void CoarseRounds(const std::vector<SampledPixel>& round_pixels) {
     out_.lights = MakeVoxelGrid(tracer_.scene(), options_.grid, options_.boundary_inset);
+    out_.lights.active_fraction = options_.active_fraction;
     std::vector<double> previous_power;
     for (int round = 0; round < options_.rounds; ++round) {
       if (!CoarseRound(round, round_pixels, &previous_power)) break;

@@ -21,7 +21,7 @@ bool IsWorkspaceFolder(const fs::path& folder) {
 LoadedScene LoadWorkspaceScene(const fs::path& folder) {
   const Workspace ws(folder);
   if (!fs::is_directory(folder)) throw Error(Format(folder.string(), ": no such workspace folder"));
-  const fs::path mesh_path = fs::exists(ws.RefinedMesh()) ? ws.RefinedMesh() : ws.Mesh();
+  const fs::path mesh_path = ws.ModelMesh();
   if (!fs::exists(mesh_path)) {
     throw Error(Format(folder.string(),
                        ": not a workspace with a model (no mesh.ply; run genscene "

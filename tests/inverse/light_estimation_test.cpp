@@ -391,6 +391,21 @@ TEST(EstimateLights, RecoversAVoxelLight) {
   EXPECT_EQ(StrongestVoxel(e.lights), 22) << "the light is in the wrong voxel";
 }
 
+// The result carries the estimate's active_fraction, so that lights.json, the viewer and the
+// reports count the active voxels as the estimate did (without refinement as well as with it).
+TEST(EstimateLights, TheResultCarriesTheActiveFraction) {
+  SmallScene s;
+  VoxelLightGrid truth = s.grid;
+  truth.intensity[4].setZero();
+  const Scene lit = s.Lit(&truth);
+  LightEstimationOptions o = SmallOptions();
+  o.refine_levels = 0;
+  o.active_fraction = 0.02;
+  const LightEstimate e = EstimateLights(lit, TrainingViews(lit), o, 1);
+  EXPECT_EQ(e.lights.active_fraction, 0.02);
+  EXPECT_EQ(static_cast<size_t>(e.active_voxels), e.lights.ActiveVoxels().size());
+}
+
 // Adaptive refinement: a light in a voxel of a grid twice as fine, off the centre of the coarse
 // voxel that holds it. One refinement level puts the strongest voxel of the 6^3 result on it and
 // fits the training pixels better than the coarse grid alone.
