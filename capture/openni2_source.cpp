@@ -395,6 +395,39 @@ class OpenNI2Source : public FrameSource {
     color_frame_.release();
     openni::VideoStream* streams[2] = {&*depth_, &*color_};
     const int timeout_ms = static_cast<int>(std::lround(capture_.frame_timeout * 1000.0));
+    // A live camera's two streams may drop or delay a frame of one of them: a depth frame is paired
+    // with the colour frame of its time. While the two are more than half a frame period apart,
+    // the older one is replaced by its stream's next frame; after a second's worth of frames
+    // without a match (a camera whose two streams keep unrelated clocks) frames are paired as they
+    // arrive.
+    for (int resyncs = 0;; ++resyncs) {
+      ReadUntilBothValid(streams, timeout_ms);
+      if (is_file_ || !pair_by_time_) break;
+      const int64_t apart = static_cast<int64_t>(depth_frame_.getTimestamp()) -
+                            static_cast<int64_t>(color_frame_.getTimestamp());
+      if (2 * std::abs(apart) * capture_.fps <= 1000000) break;
+      if (resyncs >= capture_.fps) {
+        spdlog::warn(
+            "{}: depth and colour time stamps stay {} ms apart; frames are paired as "
+            "they arrive",
+            spec_, apart / 1000.0);
+        pair_by_time_ = false;
+        break;
+      }
+      (apart < 0 ? depth_frame_ : color_frame_).release();
+    }
+    // In a recording, frame numbers pair depth with colour; a mismatch means a damaged file.
+    if (is_file_ && depth_frame_.getFrameIndex() != color_frame_.getFrameIndex()) {
+      throw Error(Format(spec_, ": depth frame ", depth_frame_.getFrameIndex(),
+                         " arrived with colour frame ", color_frame_.getFrameIndex(),
+                         " (unpaired streams)"));
+    }
+    return true;
+  }
+
+  // Reads frames from the two streams until both frames are valid (a stream's newer frame replaces
+  // an older one that is still unpaired).
+  void ReadUntilBothValid(openni::VideoStream* streams[2], int timeout_ms) {
     while (!depth_frame_.isValid() || !color_frame_.isValid()) {
       int ready = -1;
       const openni::Status rc = openni::OpenNI::waitForAnyStream(streams, 2, &ready, timeout_ms);
@@ -419,13 +452,6 @@ class OpenNI2Source : public FrameSource {
         ++color_read_;
       }
     }
-    // In a recording, frame numbers pair depth with colour; a mismatch means a damaged file.
-    if (is_file_ && depth_frame_.getFrameIndex() != color_frame_.getFrameIndex()) {
-      throw Error(Format(spec_, ": depth frame ", depth_frame_.getFrameIndex(),
-                         " arrived with colour frame ", color_frame_.getFrameIndex(),
-                         " (unpaired streams)"));
-    }
-    return true;
   }
 
   RgbdFrame ToRgbdFrame() const {
@@ -484,6 +510,7 @@ class OpenNI2Source : public FrameSource {
   bool is_file_ = false;
   bool mirrored_depth_ = false, mirrored_color_ = false;  // a recording's xnMirror: flipped back
   bool any_started_ = false;  // a stream was started (the player may hold a frame; see Close)
+  bool pair_by_time_ = true;  // live cameras: pair frames by time stamp (see ReadPair)
   static constexpr int kEndOfFileWaitMs = 2000;
   std::optional<EndOfFileListener> eof_listener_;  // recordings only (see Close)
   bool eof_listener_registered_ = false;
