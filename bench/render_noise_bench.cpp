@@ -41,6 +41,9 @@ int main(int argc, char** argv) {
   std::string against;
   app.add_option("--scene", scene_path, "workspace folder or scene file")->required();
   app.add_option("--against", against, "a second scene: compare the two references' means");
+  std::string against_selection;
+  app.add_option("--against-selection", against_selection,
+                 "light selection of the second scene's renders (default: the same)");
   app.add_option("--views", views, "views rendered (the scene's first ones)");
   app.add_option("--spp", spps, "samples per pixel to measure")->delimiter(',');
   app.add_option("--ref-spp", ref_spp, "samples per pixel of the reference");
@@ -73,6 +76,7 @@ int main(int argc, char** argv) {
       const PathTracer other_tracer(other.scene);
       RenderOptions o = options;
       o.hide_emitters = hide_emitters || other.settings.hide_emitters.value_or(false);
+      if (!against_selection.empty()) o.light_selection = against_selection;
       std::printf("| view | mean %s | mean %s | difference |\n|---:|---:|---:|---:|\n",
                   scene_path.c_str(), against.c_str());
       for (int v = 0; v < n; ++v) {

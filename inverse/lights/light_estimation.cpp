@@ -430,7 +430,7 @@ VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset
   g.dims = Eigen::Vector3i::Constant(dims);
   g.intensity.assign(static_cast<size_t>(g.VoxelCount()), Eigen::Vector3f::Zero());
   g.weights.assign(static_cast<size_t>(g.VoxelCount()), {1, 1, 1, 1, 1, 1});
-  g.cube_size = 0.05 * g.bounds.sizes().minCoeff() / dims;
+  g.cube_size = 0.01 * g.bounds.sizes().minCoeff() / dims;
   return g;
 }
 
