@@ -96,8 +96,7 @@ int main(int argc, char** argv) {
                    "also write the scene and views in genscene's JSON format");
     if (auto code = cli.Parse(argc, argv)) return *code;
 
-    const LoadedScene loaded =
-        IsWorkspaceFolder(scene_path) ? LoadWorkspaceScene(scene_path) : LoadScene(scene_path);
+    const LoadedScene loaded = LoadSceneOrWorkspace(scene_path);
     for (const std::string& w : loaded.warnings)
       std::cerr << "genscene-render: warning: " << w << "\n";
     ApplySceneSettings(loaded.settings, cli, &options);

@@ -11,7 +11,6 @@
 #include <cstdio>
 
 #include "core/check.h"
-#include "render/formats/scene_io.h"
 #include "render/formats/workspace_scene.h"
 #include "render/path_tracer.h"
 
@@ -20,12 +19,12 @@ using namespace genscene::render;
 
 namespace {
 
-double RelativeRmse(const ImageRgb& a, const ImageRgb& ref, double* err, double* norm) {
+// Adds sum |a - ref|^2 to *err and sum |ref|^2 to *norm (the relative RMSE is sqrt(err / norm)).
+void AddSquares(const ImageRgb& a, const ImageRgb& ref, double* err, double* norm) {
   for (size_t i = 0; i < a.size(); ++i) {
     *err += (a.data()[i] - ref.data()[i]).cast<double>().squaredNorm();
     *norm += ref.data()[i].cast<double>().squaredNorm();
   }
-  return *norm > 0.0 ? std::sqrt(*err / *norm) : 0.0;
 }
 
 }  // namespace
@@ -53,8 +52,7 @@ int main(int argc, char** argv) {
   app.add_flag("--hide-emitters", hide_emitters, "camera rays that hit an emitter return black");
   CLI11_PARSE(app, argc, argv);
   try {
-    const LoadedScene loaded =
-        IsWorkspaceFolder(scene_path) ? LoadWorkspaceScene(scene_path) : LoadScene(scene_path);
+    const LoadedScene loaded = LoadSceneOrWorkspace(scene_path);
     GS_CHECK(!loaded.views.empty());
     const PathTracer tracer(loaded.scene);
     RenderOptions options;
@@ -71,8 +69,7 @@ int main(int argc, char** argv) {
                 options.light_selection.c_str(),
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
     if (!against.empty()) {
-      const LoadedScene other =
-          IsWorkspaceFolder(against) ? LoadWorkspaceScene(against) : LoadScene(against);
+      const LoadedScene other = LoadSceneOrWorkspace(against);
       const PathTracer other_tracer(other.scene);
       RenderOptions o = options;
       o.hide_emitters = hide_emitters || other.settings.hide_emitters.value_or(false);
@@ -95,14 +92,15 @@ int main(int argc, char** argv) {
       options.light_selection = selection;
       for (int spp : spps) {
         options.spp = spp;
-        double err = 0.0, norm = 0.0, rmse = 0.0;
+        double err = 0.0, norm = 0.0;
         const auto t0 = std::chrono::steady_clock::now();
         for (int v = 0; v < n; ++v) {
-          rmse = RelativeRmse(tracer.Render(loaded.views[v], options, 7 + v).radiance, reference[v],
-                              &err, &norm);
+          AddSquares(tracer.Render(loaded.views[v], options, 7 + v).radiance, reference[v], &err,
+                     &norm);
         }
         const double s =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const double rmse = norm > 0.0 ? std::sqrt(err / norm) : 0.0;
         std::printf("| %s | %d | %.2f | %.4f |\n", selection.c_str(), spp, s, rmse);
         std::fflush(stdout);
       }

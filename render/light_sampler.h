@@ -77,10 +77,7 @@ class LightSampler {
 
   // Index of the chosen entry for a uniform u in [0, 1).
   size_t Choose(double u) const {
-    const auto it = std::upper_bound(cdf_.begin(), cdf_.end(), u);
-    size_t i = std::min(static_cast<size_t>(it - cdf_.begin()), entries_.size() - 1);
-    while (pmf_[i] <= 0.0f && i + 1 < entries_.size()) ++i;  // skip zero-power entries at u == cdf
-    return i;
+    return Pick(cdf_, u, [](size_t k) { return k; });
   }
   // A light for the shading point p with normal n (facing the incoming ray), chosen by its
   // contribution there (RenderOptions::light_selection "contribution"). The point and voxel
@@ -141,12 +138,20 @@ class LightSampler {
   }
 
  private:
+  // The entry at u of a power cdf whose position k holds entry entry_of(k): the first position
+  // with cdf > u, past zero-power entries (at u == cdf).
+  template <typename EntryOf>
+  size_t Pick(const std::vector<double>& cdf, double u, EntryOf entry_of) const {
+    size_t k = std::upper_bound(cdf.begin(), cdf.end(), u) - cdf.begin();
+    k = std::min(k, cdf.size() - 1);
+    while (pmf_[entry_of(k)] <= 0.0f && k + 1 < cdf.size()) ++k;
+    return entry_of(k);
+  }
+
   // The entry at u of the power pmf laid out in order_ (near-field lights first).
   Choice ChooseInOrder(double u) const {
-    size_t k = std::upper_bound(order_cdf_.begin(), order_cdf_.end(), u) - order_cdf_.begin();
-    k = std::min(k, order_.size() - 1);
-    while (pmf_[order_[k]] <= 0.0f && k + 1 < order_.size()) ++k;
-    return {order_[k], pmf_[order_[k]]};
+    const size_t i = Pick(order_cdf_, u, [this](size_t k) { return order_[k]; });
+    return {i, pmf_[i]};
   }
 
   void PrepareLocal(const Scene& scene, const std::vector<double>& power) {
@@ -193,10 +198,9 @@ class LightSampler {
   std::vector<float> pmf_;
   std::vector<double> cdf_;
   std::vector<int> first_triangle_;  // per mesh: its first entry, -1 when it does not emit
-  // ChooseAt: the near-field lights (entries), their points, their share of the power
-  // pmf; the entries with the near-field ones first and that order's cdf.
-  // A near-field light: its point and the luminance of L lambda_k per face (voxels), or of its
-  // intensity in lum[0] (isotropic point lights).
+  // ChooseAt's near-field lights: each its point and the luminance of L lambda_k per face
+  // (voxels), or of its intensity in lum[0] (isotropic point lights); their entries and share of
+  // the power pmf; every entry with the near-field ones first, and that order's cdf.
   struct LocalLight {
     Eigen::Vector3f point;
     std::array<float, 6> lum{};

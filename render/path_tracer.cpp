@@ -59,7 +59,6 @@ struct PathTracer::SurfacePoint {
 // One light sample as seen from a surface point.
 struct PathTracer::LightSample {
   Eigen::Vector3f wi;     // unit direction from the surface point to the light
-  float distance = 0.0f;  // to the sampled light point
   Eigen::Vector3f point;  // the sampled light point
   Eigen::Vector3f value;  // area lights: emitted radiance; point/voxel lights: intensity / r^2
   float pdf = 0.0f;       // area lights: solid angle pdf; point/voxel lights: selection probability
@@ -107,12 +106,12 @@ std::optional<PathTracer::SurfacePoint> PathTracer::Hit(const Eigen::Vector3f& o
 }
 
 std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoint& at,
-                                                               const RenderOptions& options,
+                                                               bool by_power,
                                                                CounterRng& rng) const {
   if (lights_->empty()) return std::nullopt;
   size_t i = 0;
   float pmf = 0.0f;
-  if (options.light_selection == "power") {
+  if (by_power) {
     i = lights_->Choose(rng.UniformDouble());
     pmf = lights_->pmf(i);
   } else {
@@ -132,8 +131,7 @@ std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoin
       const Eigen::Vector3f to_light = q - at.p;
       const float d2 = to_light.squaredNorm();
       if (d2 <= 0.0f) return std::nullopt;
-      s.distance = std::sqrt(d2);
-      s.wi = to_light / s.distance;
+      s.wi = to_light / std::sqrt(d2);
       // One-sided: the light emits only towards the side its counter-clockwise normal points to.
       const float cos_light = -m.mesh.FaceNormalScaled(e.index).normalized().dot(s.wi);
       if (cos_light <= 0.0f) return std::nullopt;
@@ -147,8 +145,7 @@ std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoin
       const Eigen::Vector3f to_light = s.point - at.p;
       const float d2 = to_light.squaredNorm();
       if (d2 <= 0.0f) return std::nullopt;
-      s.distance = std::sqrt(d2);
-      s.wi = to_light / s.distance;
+      s.wi = to_light / std::sqrt(d2);
       s.value = light.intensity / d2;
       s.pdf = pmf;
       s.is_delta = true;
@@ -160,8 +157,7 @@ std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoin
       const Eigen::Vector3f to_light = s.point - at.p;
       const float d2 = to_light.squaredNorm();
       if (d2 <= 0.0f) return std::nullopt;
-      s.distance = std::sqrt(d2);
-      s.wi = to_light / s.distance;
+      s.wi = to_light / std::sqrt(d2);
       s.value = grid.Intensity(e.index, (-s.wi).cast<double>()) / d2;
       s.pdf = pmf;
       s.is_delta = true;
@@ -189,6 +185,7 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
   Eigen::Vector3f ray_o = origin, ray_d = direction.normalized();
   float bsdf_pdf = 0.0f;  // solid-angle pdf of the last BSDF sample
   std::optional<SurfacePoint> previous;
+  const bool by_power = options.light_selection == "power";
 
   for (int depth = 1;; ++depth) {  // depth = segments of the path so far, ending at `hit`
     ++local.intersect;
@@ -219,7 +216,7 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
     // each weighted 1 / n; the power heuristic sees n pdf_light against pdf_bsdf.
     const int n = options.light_samples;
     for (int k = 0; k < n; ++k) {
-      const auto light = SampleLight(at, options, rng);
+      const auto light = SampleLight(at, by_power, rng);
       const float cos_s = light ? at.ns.dot(light->wi) : 0.0f;
       if (!light || cos_s <= 0.0f || at.ng.dot(light->wi) <= 0.0f) continue;
       ++local.occluded;
@@ -379,9 +376,7 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
       // direct light estimated by other paths
     } else if (depth <= splitting.all_until_depth || splitting.samples <= 0) {
       const float weight = depth == 1 ? first_vertex_weight : 1.0f;
-      for (int j : prepared->connected) {
-        rays.Consider(at.p, at.ns, at.ng, centres[j], j, weight);
-      }
+      for (int j : prepared->connected) rays.Consider(at.p, at.ns, at.ng, centres[j], j, weight);
     } else {
       for (int s = 0; s < splitting.samples; ++s) {
         const int j = splitting.Choose(rng.UniformDouble());

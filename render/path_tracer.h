@@ -171,7 +171,9 @@ class PathTracer {
 
   std::optional<SurfacePoint> Hit(const Eigen::Vector3f& origin,
                                   const Eigen::Vector3f& direction) const;
-  std::optional<LightSample> SampleLight(const SurfacePoint& at, const RenderOptions& options,
+  // One light sample for next-event estimation at `at`, chosen by power alone or by its
+  // contribution there (RenderOptions::light_selection).
+  std::optional<LightSample> SampleLight(const SurfacePoint& at, bool by_power,
                                          CounterRng& rng) const;
   // Solid-angle pdf with which SampleLight picks the point `p` of emitting face (mesh, face).
   float AreaLightPdf(const SurfacePoint& from, const SurfacePoint& on_light) const;

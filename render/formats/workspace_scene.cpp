@@ -8,6 +8,7 @@
 #include "core/ply_io.h"
 #include "core/view_set.h"
 #include "core/workspace.h"
+#include "render/formats/scene_io.h"
 
 namespace genscene::render {
 
@@ -48,6 +49,10 @@ LoadedScene LoadWorkspaceScene(const fs::path& folder) {
   if (fs::exists(ws.Keyframes() / "groundtruth.txt")) out.views = ReadViewSet(ws.Keyframes());
   out.scene.Validate();
   return out;
+}
+
+LoadedScene LoadSceneOrWorkspace(const fs::path& path) {
+  return IsWorkspaceFolder(path) ? LoadWorkspaceScene(path) : LoadScene(path);
 }
 
 }  // namespace genscene::render

@@ -17,4 +17,7 @@ LoadedScene LoadWorkspaceScene(const std::filesystem::path& folder);
 // True when `folder` is a directory holding a genscene workspace's mesh.ply.
 bool IsWorkspaceFolder(const std::filesystem::path& folder);
 
+// A workspace folder's model (LoadWorkspaceScene), else the scene file (LoadScene).
+LoadedScene LoadSceneOrWorkspace(const std::filesystem::path& path);
+
 }  // namespace genscene::render

@@ -170,6 +170,19 @@ class EmulatedCamera : public ::testing::Test {
     return numbers;
   }
 
+  // genscene-capture --record --max-frames `frames` from the camera misbehaving as `fault` says,
+  // read back (no frames, with the failure reported, when the capture fails).
+  static capture::OniRecording RecordLive(const std::string& fault, int frames) {
+    test::TempDir out;
+    const auto r =
+        RunCommand(Env(fault) + AppPath("genscene-capture") + " --record " +
+                       (out / "live.oni").string() + " --max-frames " + std::to_string(frames),
+                   60);
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    if (r.exit_code != 0) return {};
+    return capture::ReadOniFile(out / "live.oni");
+  }
+
   // A command that must fail: one error line, exit code 1, within the hang guard.
   static std::string ExpectOneError(const std::string& command) {
     const auto r = RunCommand(command, 30);
@@ -312,12 +325,7 @@ TEST_F(EmulatedCamera, FuseTracksTheLiveCameraAsWellAsTheFolder) {
 }
 
 TEST_F(EmulatedCamera, DroppedFramesAreSkippedAndTheRestRecorded) {
-  test::TempDir out;
-  const auto r = RunCommand(Env("drop=3") + AppPath("genscene-capture") + " --record " +
-                                (out / "live.oni").string() + " --max-frames 6",
-                            60);
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  const capture::OniRecording rec = capture::ReadOniFile(out / "live.oni");
+  const capture::OniRecording rec = RecordLive("drop=3", 6);
   ASSERT_EQ(rec.frames.size(), 6u);
   for (int n : ExpectFolderFrames(rec)) EXPECT_NE(n % 3, 2) << "frame " << n << " was dropped";
 }
@@ -325,12 +333,7 @@ TEST_F(EmulatedCamera, DroppedFramesAreSkippedAndTheRestRecorded) {
 // A colour frame lost on its own: the depth frame of that time is skipped too, never paired with
 // the next colour frame.
 TEST_F(EmulatedCamera, AColourFrameDroppedAloneLeavesNoMismatchedPair) {
-  test::TempDir out;
-  const auto r = RunCommand(Env("drop_color=3") + AppPath("genscene-capture") + " --record " +
-                                (out / "live.oni").string() + " --max-frames 6",
-                            60);
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  const capture::OniRecording rec = capture::ReadOniFile(out / "live.oni");
+  const capture::OniRecording rec = RecordLive("drop_color=3", 6);
   ASSERT_EQ(rec.frames.size(), 6u);
   for (int n : ExpectFolderFrames(rec)) EXPECT_NE(n % 3, 2) << "frame " << n << " has no colour";
 }
@@ -338,12 +341,7 @@ TEST_F(EmulatedCamera, AColourFrameDroppedAloneLeavesNoMismatchedPair) {
 // The colour stream a frame behind the depth stream (each frame stamped with its own time): every
 // recorded pair is one time's depth and colour, however fast the frames are read.
 TEST_F(EmulatedCamera, ColourAFrameBehindIsStillPairedWithItsDepth) {
-  test::TempDir out;
-  const auto r = RunCommand(Env("out_of_step") + AppPath("genscene-capture") + " --record " +
-                                (out / "live.oni").string() + " --max-frames 6",
-                            60);
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  const capture::OniRecording rec = capture::ReadOniFile(out / "live.oni");
+  const capture::OniRecording rec = RecordLive("out_of_step", 6);
   ASSERT_EQ(rec.frames.size(), 6u);
   ExpectFolderFrames(rec);  // depth and colour of the same folder frame in every recorded pair
 }
