@@ -371,6 +371,7 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
                          " degenerate, ", s.blank, " blank), ", s.blocks, " blocks (", s.megabytes,
                          " MB), ", s.keyframes, " keyframes");
               if (s.held_out > 0) result += Format(", ", s.held_out, " held out");
+              if (s.live) result += Format(", ", s.skipped, " camera frames skipped");
               if (s.ate) result += Format(", ATE ", 100.0 * s.ate->rmse, " cm");
               return result;
             });

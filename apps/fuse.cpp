@@ -11,8 +11,9 @@
 namespace genscene::apps {
 
 FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_options,
-                         const fusion::FusionOptions& options, const Workspace& workspace) {
-  auto source = capture::OpenAnySource(input, source_options);
+                         const fusion::FusionOptions& options, const Workspace& workspace,
+                         const capture::CaptureOptions& camera) {
+  auto source = capture::OpenAnySource(input, source_options, camera);
   FuseSummary summary;
   summary.source = source->Describe();
   fusion::KinectFusion fusion(options, source->Intrinsics());
@@ -76,7 +77,10 @@ FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_o
       spdlog::warn("{}", summary.warnings.back());
     }
   }
-  fusion::SaveFusionOutputs(fusion, workspace, summary.ate);
+  summary.live = !source->FrameCount().has_value();
+  summary.skipped = source->SkippedFrames();
+  fusion::SaveFusionOutputs(fusion, workspace, summary.ate,
+                            summary.live ? std::optional<size_t>(summary.skipped) : std::nullopt);
   summary.blocks = fusion.volume().num_blocks();
   summary.megabytes = fusion.volume().allocated_bytes() / 1e6;
   summary.keyframes = fusion.keyframes().size();
@@ -93,6 +97,10 @@ std::string ToString(const FuseSummary& s) {
       << " s)\n"
       << "volume:     " << s.blocks << " blocks, " << s.megabytes << " MB\n"
       << "keyframes:  " << s.keyframes << "\n";
+  if (s.live) {
+    out << "camera:     " << s.frames + s.skipped << " frames sent while fusing, " << s.skipped
+        << " skipped (they arrived while fusion was busy, or the camera dropped them)\n";
+  }
   if (s.held_out > 0)
     out << "held out:   " << s.held_out << " frames (tracked only, to judge the model on)\n";
   if (s.ate) {

@@ -66,8 +66,9 @@ int main(int argc, char** argv) {
     }
     auto frame_source = genscene::capture::OpenAnySource(input, source, camera);
     std::cerr << "capturing from " << frame_source->Describe() << "\n";
-    // Ctrl-C ends a live recording cleanly: the frames so far are written, complete. (A file or
-    // folder being converted is stopped by Ctrl-C as usual, leaving no output.)
+    // Ctrl-C ends a live recording cleanly: the frames so far are written, complete; so does a
+    // camera that is unplugged or stalls (with a warning). (A file or folder being converted is
+    // stopped by Ctrl-C as usual, leaving no output.)
     if (!frame_source->FrameCount()) std::signal(SIGINT, OnInterrupt);
 
     genscene::capture::RecordSettings settings;
@@ -88,6 +89,10 @@ int main(int argc, char** argv) {
               << " .. " << summary.last_timestamp << " s)" << std::defaultfloat << "\n"
               << "wrote:   " << record << (record.empty() || out.empty() ? "" : ", ") << out
               << "\n";
+    if (!frame_source->FrameCount()) {
+      std::cout << "skipped: " << summary.skipped
+                << " camera frames (dropped by the camera or missed while writing)\n";
+    }
     return 0;
   });
 }

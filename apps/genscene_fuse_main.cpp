@@ -14,7 +14,9 @@ int main(int argc, char** argv) {
     genscene::CommandLine cli(app);
     genscene::SourceOptions source;
     genscene::fusion::FusionOptions fusion;
+    genscene::capture::CaptureOptions camera;
     cli.Add(source, "Input");
+    cli.Add(camera, "Camera");
     cli.Add(fusion, "Fusion");
     std::string input, out;
     app.add_option(
@@ -25,7 +27,7 @@ int main(int argc, char** argv) {
     if (auto code = cli.Parse(argc, argv)) return *code;
 
     const genscene::Workspace workspace(out);
-    const auto summary = genscene::apps::FuseSequence(input, source, fusion, workspace);
+    const auto summary = genscene::apps::FuseSequence(input, source, fusion, workspace, camera);
     std::cout << genscene::apps::ToString(summary)
               << "wrote:      " << workspace.Trajectory().string() << ", "
               << workspace.Tsdf().string() << ", " << workspace.Keyframes().string() << "/\n";

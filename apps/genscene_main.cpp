@@ -7,6 +7,7 @@
 // are up to date are skipped, so a run that was stopped resumes where it stopped.
 #include <unistd.h>
 
+#include <atomic>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -18,6 +19,8 @@
 #include "apps/ingest.h"
 #include "apps/report.h"
 #include "apps/synth.h"
+#include "capture/openni2_source.h"
+#include "capture/record.h"
 #include "core/cli.h"
 #include "core/ply_io.h"
 #include "core/workspace.h"
@@ -25,6 +28,64 @@
 namespace {
 
 using genscene::apps::StageRow;
+
+// While `genscene run` records a live camera, Ctrl-C ends the recording (the chain then runs on
+// it) instead of the run.
+std::atomic<bool> g_recording{false};
+std::atomic<bool> g_stop_recording{false};
+// What the interrupt message says after the stage; a live run names its recording.
+char g_resume_hint[2048] = "; the finished stages are kept: run the same command again to resume\n";
+
+// Records the live camera `input` into WS/capture.oni (until --max-frames, Ctrl-C, or the camera
+// ends its stream) and returns the recording's path; the chain then reads the recording, so that
+// every stage sees the same frames and a stopped run resumes from them.
+std::string RecordLiveCamera(const std::string& input, const genscene::SourceOptions& source,
+                             const genscene::capture::CaptureOptions& camera,
+                             const genscene::Workspace& ws, std::vector<StageRow>& rows) {
+  const auto start = std::chrono::steady_clock::now();
+  const std::filesystem::path oni = ws.LiveRecording();
+  genscene::capture::RecordSummary summary;
+  std::string description;
+  {
+    auto frames = genscene::capture::OpenAnySource(input, source, camera);
+    description = frames->Describe();
+    std::cerr << "[0/" << genscene::apps::ChainStages().size() << "] capture: recording "
+              << description << " into " << oni.string()
+              << " (Ctrl-C ends the recording; the chain then runs on it)\n";
+    genscene::capture::RecordSettings settings;
+    settings.max_frames = static_cast<size_t>(source.max_frames);
+    settings.response = genscene::CameraResponse::Parse(source.camera_response);
+    settings.stop = &g_stop_recording;
+    settings.progress = [](size_t n, std::optional<size_t> total) {
+      std::cerr << "\rrecording: " << n;
+      if (total) std::cerr << "/" << *total;
+      std::cerr << " frames" << std::flush;
+    };
+    g_recording = true;
+    try {
+      summary = genscene::capture::RecordFrames(*frames, {oni, {}}, settings);
+    } catch (...) {
+      g_recording = false;
+      std::cerr << "\n";
+      throw;
+    }
+    g_recording = false;
+    std::cerr << "\n";
+  }
+  rows.push_back({"capture",
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                  genscene::apps::PeakMegabytes(),
+                  false,
+                  genscene::Format(summary.frames, " frames (t = ", summary.first_timestamp, " .. ",
+                                   summary.last_timestamp, " s) from ", description, " into ",
+                                   oni.string(), ", ", summary.skipped, " camera frames skipped"),
+                  {}});
+  std::snprintf(g_resume_hint, sizeof(g_resume_hint),
+                "; the finished stages and the recording are kept: genscene run --input %s "
+                "--out %s resumes\n",
+                oni.c_str(), ws.root().c_str());
+  return oni.string();
+}
 
 // Runs the chain with the workspace's log open (appended), then prints and logs the summary.
 void RunLogged(const std::string& input, const genscene::SourceOptions& source,
@@ -155,12 +216,16 @@ int Run(int argc, char** argv) {
   genscene::CommandLine cli(app);
   genscene::SourceOptions source;
   cli.Add(source, "Input");
+  genscene::capture::CaptureOptions camera;
+  cli.Add(camera, "Camera");
   genscene::apps::ChainOptions chain = genscene::apps::RunChainOptions();
   chain.AddTo(cli);
   std::string input, out;
   bool redo = false;
   app.add_option("--input", input,
-                 "TUM folder, view set, Redwood folder, .oni recording or openni2[:URI]")
+                 "TUM folder, view set, Redwood folder, .oni recording, or openni2[:URI]: a live "
+                 "camera, recorded into WORKSPACE/capture.oni until --max-frames or Ctrl-C, then "
+                 "the chain runs on the recording")
       ->required();
   cli.AddFolder(out, "out", "workspace folder");
   app.add_flag("--redo", redo, "re-run stages whose outputs are up to date");
@@ -173,6 +238,19 @@ int Run(int argc, char** argv) {
   const bool existed = std::filesystem::exists(out);
   const genscene::Workspace ws(out);
   std::vector<StageRow> rows;
+  if (genscene::capture::IsLiveCameraSpec(input)) {
+    try {
+      input = RecordLiveCamera(input, source, camera, ws, rows);
+    } catch (...) {
+      std::error_code ec;
+      if (!existed) std::filesystem::remove(ws.root(), ec);  // only when empty
+      throw;
+    }
+    // The recording holds exactly the selected frames.
+    source.first_frame = 0;
+    source.stride = 1;
+    source.max_frames = 0;
+  }
   RunLogged(input, source, chain, cli.seed(), ws, existed, redo, until, rows);
   return 0;
 }
@@ -215,18 +293,22 @@ void PrintUsage() {
 }
 
 // Ctrl-C: say which stage was interrupted and that the same command resumes (finished stages and
-// every output are written atomically, so what is on disk is whole). Only async-signal-safe calls.
-void OnInterrupt(int) {
+// every output are written atomically, so what is on disk is whole). While a live camera is being
+// recorded, Ctrl-C ends the recording instead. Only async-signal-safe calls.
+void OnInterrupt(int signal) {
+  if (signal == SIGINT && g_recording) {
+    g_stop_recording = true;
+    return;
+  }
   const char* stage = genscene::apps::RunningStage();
   const char head[] = "\ngenscene: interrupted";
   const char mid[] = " in stage ";
-  const char tail[] = "; the finished stages are kept: run the same command again to resume\n";
   ssize_t ignored = write(STDERR_FILENO, head, sizeof(head) - 1);
   if (stage) {
     ignored = write(STDERR_FILENO, mid, sizeof(mid) - 1);
     ignored = write(STDERR_FILENO, stage, std::strlen(stage));
   }
-  ignored = write(STDERR_FILENO, tail, sizeof(tail) - 1);
+  ignored = write(STDERR_FILENO, g_resume_hint, std::strlen(g_resume_hint));
   (void)ignored;
   _exit(130);
 }

@@ -4,6 +4,7 @@
 #include <spdlog/spdlog.h>
 
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -34,8 +35,12 @@ int CaptureOptions::Height() const {
   return mode == "320x240" ? 240 : 480;
 }
 
+bool IsLiveCameraSpec(const std::string& spec) {
+  return spec == "openni2" || spec.rfind("openni2:", 0) == 0;
+}
+
 bool IsOpenNI2Spec(const std::string& spec) {
-  if (spec == "openni2" || spec.rfind("openni2:", 0) == 0) return true;
+  if (IsLiveCameraSpec(spec)) return true;
   std::string ext = fs::path(spec).extension().string();
   for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return ext == ".oni";
@@ -121,6 +126,21 @@ class EndOfFileListener : public openni::OpenNI::DeviceStateChangedListener {
   bool eof_ = false;
 };
 
+// Notes OpenNI2's disconnect event of one live camera (the driver raises it on unplug), so that a
+// capture ends at once with the frames received instead of waiting out the frame timeout.
+class DisconnectListener : public openni::OpenNI::DeviceDisconnectedListener {
+ public:
+  explicit DisconnectListener(std::string uri) : uri_(std::move(uri)) {}
+  void onDeviceDisconnected(const openni::DeviceInfo* info) override {
+    if (info != nullptr && uri_ == info->getUri()) disconnected_ = true;
+  }
+  bool disconnected() const { return disconnected_; }
+
+ private:
+  const std::string uri_;
+  std::atomic<bool> disconnected_{false};
+};
+
 class OpenNI2Source : public FrameSource {
  public:
   OpenNI2Source(const std::string& spec, const SourceOptions& options,
@@ -130,7 +150,7 @@ class OpenNI2Source : public FrameSource {
         capture_(capture),
         to_linear_(LinearTable(CameraResponse::Parse(options.camera_response))) {
     InitializeOpenNI2();
-    is_file_ = !(spec == "openni2" || spec.rfind("openni2:", 0) == 0);
+    is_file_ = !IsLiveCameraSpec(spec);
     try {
       Open();
     } catch (...) {
@@ -155,8 +175,10 @@ class OpenNI2Source : public FrameSource {
   }
   const CameraIntrinsics& Intrinsics() const override { return intrinsics_; }
   const Trajectory& KnownPoses() const override { return no_poses_; }
+  size_t SkippedFrames() const override { return skipped_; }
 
   std::optional<RgbdFrame> Next() override {
+    if (ended_) return std::nullopt;
     if (options_.max_frames > 0 && emitted_ >= static_cast<size_t>(options_.max_frames))
       return std::nullopt;
     // Skip to the next selected frame (first_frame, then every stride-th).
@@ -197,6 +219,13 @@ class OpenNI2Source : public FrameSource {
       if (cameras.empty()) throw Error(kNoDeviceMessage);
       const std::string uri = spec_.size() > 8 ? spec_.substr(8) : cameras.front();
       OpenDevice(uri.c_str());
+      disconnect_listener_.emplace(device_.getDeviceInfo().getUri());
+      if (openni::OpenNI::addDeviceDisconnectedListener(&*disconnect_listener_) !=
+          openni::STATUS_OK) {
+        throw Error(
+            Format(spec_, ": cannot listen to OpenNI2 device events: ", LastOpenNI2Error()));
+      }
+      disconnect_listener_registered_ = true;
     }
     CreateStreams();
     intrinsics_ = ChooseIntrinsics(info);
@@ -278,6 +307,10 @@ class OpenNI2Source : public FrameSource {
     if (eof_listener_registered_) {
       openni::OpenNI::removeDeviceStateChangedListener(&*eof_listener_);
       eof_listener_registered_ = false;
+    }
+    if (disconnect_listener_registered_) {
+      openni::OpenNI::removeDeviceDisconnectedListener(&*disconnect_listener_);
+      disconnect_listener_registered_ = false;
     }
   }
 
@@ -388,8 +421,10 @@ class OpenNI2Source : public FrameSource {
                                      width_, height_);
   }
 
-  // Reads the next depth frame and the next colour frame. False at the end of a recording.
+  // Reads the next depth frame and the next colour frame. False at the end of a recording, and when
+  // a live camera was unplugged or stalled (EndLive).
   bool ReadPair() {
+    if (ended_) return false;
     if (is_file_ && depth_read_ >= total_ && color_read_ >= total_) return false;
     depth_frame_.release();
     color_frame_.release();
@@ -401,7 +436,7 @@ class OpenNI2Source : public FrameSource {
     // without a match (a camera whose two streams keep unrelated clocks) frames are paired as they
     // arrive.
     for (int resyncs = 0;; ++resyncs) {
-      ReadUntilBothValid(streams, timeout_ms);
+      if (!ReadUntilBothValid(streams, timeout_ms)) return false;
       if (is_file_ || !pair_by_time_) break;
       const int64_t apart = static_cast<int64_t>(depth_frame_.getTimestamp()) -
                             static_cast<int64_t>(color_frame_.getTimestamp());
@@ -422,21 +457,57 @@ class OpenNI2Source : public FrameSource {
                          " arrived with colour frame ", color_frame_.getFrameIndex(),
                          " (unpaired streams)"));
     }
+    if (!is_file_) {
+      // Camera frames between the first pair and this one that were never paired: dropped by the
+      // camera, or replaced by newer ones while the reader was busy (OpenNI2 keeps the newest).
+      const int64_t index = depth_frame_.getFrameIndex();
+      if (pairs_read_ == 0) first_camera_index_ = index;
+      ++pairs_read_;
+      skipped_ = static_cast<size_t>(std::max<int64_t>(
+          0, index - first_camera_index_ + 1 - static_cast<int64_t>(pairs_read_)));
+    }
     return true;
   }
 
+  // Ends a live camera's stream: the frames read so far are all there is.
+  void EndLive(const std::string& why) {
+    ended_ = true;
+    spdlog::warn("{}: {} after {} frames; the capture ends with the frames received", spec_, why,
+                 emitted_);
+  }
+
   // Reads frames from the two streams until both frames are valid (a stream's newer frame replaces
-  // an older one that is still unpaired).
-  void ReadUntilBothValid(openni::VideoStream* streams[2], int timeout_ms) {
+  // an older one that is still unpaired). False when a live camera was unplugged or gave no frame
+  // within the timeout: its stream ends there (EndLive). A recording that stops delivering frames
+  // is damaged: an Error.
+  bool ReadUntilBothValid(openni::VideoStream* streams[2], int timeout_ms) {
     while (!depth_frame_.isValid() || !color_frame_.isValid()) {
       int ready = -1;
-      const openni::Status rc = openni::OpenNI::waitForAnyStream(streams, 2, &ready, timeout_ms);
+      openni::Status rc = openni::STATUS_TIME_OUT;
+      if (is_file_) {
+        rc = openni::OpenNI::waitForAnyStream(streams, 2, &ready, timeout_ms);
+      } else {
+        // Waits in slices, so that an unplugged camera ends the capture at once.
+        for (int waited = 0; waited < timeout_ms && rc == openni::STATUS_TIME_OUT;) {
+          if (disconnect_listener_->disconnected()) break;
+          const int slice = std::min(kWaitSliceMs, timeout_ms - waited);
+          rc = openni::OpenNI::waitForAnyStream(streams, 2, &ready, slice);
+          waited += slice;
+        }
+        if (disconnect_listener_->disconnected()) {
+          EndLive("the camera was disconnected");
+          return false;
+        }
+        if (rc == openni::STATUS_TIME_OUT || ready < 0) {
+          EndLive(Format("no ", depth_frame_.isValid() ? "colour" : "depth", " frame within ",
+                         capture_.frame_timeout, " s (camera stalled)"));
+          return false;
+        }
+      }
       if (rc == openni::STATUS_TIME_OUT || ready < 0) {
         throw Error(Format(spec_, ": no ", depth_frame_.isValid() ? "colour" : "depth",
-                           " frame within ", capture_.frame_timeout, " s",
-                           is_file_ ? Format(" after frame ", depth_read_, " of ", total_,
-                                             " (unplayable recording)")
-                                    : std::string(" (camera stalled or unplugged)")));
+                           " frame within ", capture_.frame_timeout, " s after frame ", depth_read_,
+                           " of ", total_, " (unplayable recording)"));
       }
       if (rc != openni::STATUS_OK)
         throw Error(Format(spec_, ": waiting for frames failed: ", LastOpenNI2Error()));
@@ -452,6 +523,7 @@ class OpenNI2Source : public FrameSource {
         ++color_read_;
       }
     }
+    return true;
   }
 
   RgbdFrame ToRgbdFrame() const {
@@ -512,6 +584,12 @@ class OpenNI2Source : public FrameSource {
   bool any_started_ = false;  // a stream was started (the player may hold a frame; see Close)
   bool pair_by_time_ = true;  // live cameras: pair frames by time stamp (see ReadPair)
   static constexpr int kEndOfFileWaitMs = 2000;
+  static constexpr int kWaitSliceMs = 100;  // live cameras: how often a wait looks for an unplug
+  std::optional<DisconnectListener> disconnect_listener_;  // live cameras only
+  bool disconnect_listener_registered_ = false;
+  bool ended_ = false;                   // a live camera's stream has ended (unplugged or stalled)
+  size_t pairs_read_ = 0, skipped_ = 0;  // live cameras: pairs read, camera frames never paired
+  int64_t first_camera_index_ = 0;
   std::optional<EndOfFileListener> eof_listener_;  // recordings only (see Close)
   bool eof_listener_registered_ = false;
   openni::Device device_;

@@ -31,7 +31,8 @@ struct CaptureOptions {
   // Stream mode of a live camera (recordings keep their own): 640x480 or 320x240.
   std::string mode = "640x480";
   int fps = 30;  // frames per second of a live camera
-  // Longest wait for the next frame before giving up with an error, seconds.
+  // Longest wait for the next frame, seconds: a live camera's stream then ends (with the frames
+  // received), a recording is reported as damaged.
   double frame_timeout = 2.0;
   // Register depth to colour and synchronise the two streams when the device supports it.
   bool registration = true;
@@ -40,7 +41,8 @@ struct CaptureOptions {
   void Visit(V&& v) {
     v("mode", mode, "", "live camera stream size: 640x480 or 320x240");
     v("fps", fps, "Hz", "live camera frame rate (30)");
-    v("frame_timeout", frame_timeout, "s", "longest wait for the next frame before giving up");
+    v("frame_timeout", frame_timeout, "s",
+      "longest wait for the next frame: a live stream then ends with the frames received");
     v("registration", registration, "",
       "register depth to colour and sync frames when the device can");
   }
@@ -54,6 +56,8 @@ std::vector<std::string> ListCameraUris();
 
 // True for the specifications OpenOpenNI2Source takes: "openni2", "openni2:URI", "*.oni".
 bool IsOpenNI2Spec(const std::string& spec);
+// True for a live camera: "openni2" or "openni2:URI".
+bool IsLiveCameraSpec(const std::string& spec);
 
 // Opens a live OpenNI2 camera or a .oni recording. Intrinsics: options.intrinsics when given,
 // else the exact ones genscene stored in the recording, else the device's field of view with the

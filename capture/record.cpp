@@ -37,6 +37,7 @@ RecordSummary RecordFrames(FrameSource& source, const RecordTargets& targets,
       if (settings.progress) settings.progress(summary.frames, expected);
     }
     if (summary.frames == 0) throw Error(Format(source.Describe(), ": no frames to record"));
+    summary.skipped = source.SkippedFrames();
   };
 
   if (!targets.oni.empty()) {

@@ -34,6 +34,7 @@ struct RecordSettings {
 struct RecordSummary {
   size_t frames = 0;
   double first_timestamp = 0.0, last_timestamp = 0.0;  // seconds
+  size_t skipped = 0;  // live camera frames the recording missed (FrameSource::SkippedFrames)
 };
 
 // Reads frames from `source` and writes them to the targets. Throws Error when there is no target,

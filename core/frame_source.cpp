@@ -666,6 +666,7 @@ class UndistortingSource : public FrameSource {
 
   std::string Describe() const override { return source_->Describe() + ", undistorted"; }
   std::optional<size_t> FrameCount() const override { return source_->FrameCount(); }
+  size_t SkippedFrames() const override { return source_->SkippedFrames(); }
   const CameraIntrinsics& Intrinsics() const override { return intrinsics_; }
   const Trajectory& KnownPoses() const override { return source_->KnownPoses(); }
 

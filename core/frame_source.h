@@ -26,6 +26,9 @@ class FrameSource {
   virtual std::optional<RgbdFrame> Next() = 0;
   // The known poses of the sequence (ground truth or given), empty when there are none.
   virtual const Trajectory& KnownPoses() const = 0;
+  // Frames of a live camera that Next never returned: dropped by the camera, or replaced by newer
+  // ones while the reader was busy. 0 for recordings and folders, which give every frame.
+  virtual size_t SkippedFrames() const { return 0; }
 };
 
 struct SourceOptions {

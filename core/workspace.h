@@ -22,6 +22,8 @@ class Workspace {
   std::filesystem::path Input() const {
     return root_ / "input";
   }  // synthesised or converted sequence
+  // The frames `genscene run` recorded from a live camera; the chain runs on this recording.
+  std::filesystem::path LiveRecording() const { return root_ / "capture.oni"; }
   std::filesystem::path Trajectory() const { return root_ / "trajectory.txt"; }
   std::filesystem::path Tsdf() const { return root_ / "tsdf.gsv"; }
   std::filesystem::path Keyframes() const { return root_ / "keyframes"; }

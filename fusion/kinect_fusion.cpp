@@ -310,7 +310,8 @@ FrameReport KinectFusion::HoldOut(const RgbdFrame& frame, const ImageDepth& dept
 }
 
 void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
-                       const std::optional<AteResult>& ate) {
+                       const std::optional<AteResult>& ate,
+                       std::optional<size_t> camera_frames_skipped) {
   if (fusion.trajectory().empty()) {
     throw Error("fusion: no frame was fused (all blank or lost); nothing to write");
   }
@@ -354,6 +355,7 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
                   {"megabytes", volume.allocated_bytes() / 1e6},
                   {"keyframes", fusion.keyframes().size()},
                   {"held_out", fusion.held_out().size()}};
+  if (camera_frames_skipped) summary["camera_frames_skipped"] = *camera_frames_skipped;
   if (ate) {
     summary["ate"] = {{"pairs", ate->pairs},
                       {"rmse_m", ate->rmse},

@@ -225,8 +225,10 @@ class KinectFusion {
 
 // Writes the stage's outputs into the workspace, each atomically: trajectory.txt (TUM),
 // tsdf.gsv, keyframes/ (a TUM-layout view set with linear EXR colour) and fusion.json (options,
-// per-frame reports and totals, with the trajectory error when the caller computed one).
+// per-frame reports and totals, with the trajectory error when the caller computed one, and for a
+// live camera the frames it sent that fusion had no time for).
 void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
-                       const std::optional<AteResult>& ate = std::nullopt);
+                       const std::optional<AteResult>& ate = std::nullopt,
+                       std::optional<size_t> camera_frames_skipped = std::nullopt);
 
 }  // namespace genscene::fusion
