@@ -4,7 +4,6 @@
 #include <spdlog/spdlog.h>
 
 #include <array>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
@@ -126,20 +125,17 @@ class EndOfFileListener : public openni::OpenNI::DeviceStateChangedListener {
   bool eof_ = false;
 };
 
-// Notes OpenNI2's disconnect event of one live camera (the driver raises it on unplug), so that a
-// capture ends at once with the frames received instead of waiting out the frame timeout.
-class DisconnectListener : public openni::OpenNI::DeviceDisconnectedListener {
- public:
-  explicit DisconnectListener(std::string uri) : uri_(std::move(uri)) {}
-  void onDeviceDisconnected(const openni::DeviceInfo* info) override {
-    if (info != nullptr && uri_ == info->getUri()) disconnected_ = true;
+// Whether an opened camera is still attached: OpenNI2 drops a device from its list when the driver
+// reports it disconnected (unplugged). Asked only after a wait for frames came back empty, so no
+// listener has to be registered (and outlive OpenNI2's callbacks) for it.
+bool StillAttached(const std::string& uri) {
+  openni::Array<openni::DeviceInfo> devices;
+  openni::OpenNI::enumerateDevices(&devices);
+  for (int i = 0; i < devices.getSize(); ++i) {
+    if (uri == devices[i].getUri()) return true;
   }
-  bool disconnected() const { return disconnected_; }
-
- private:
-  const std::string uri_;
-  std::atomic<bool> disconnected_{false};
-};
+  return false;
+}
 
 class OpenNI2Source : public FrameSource {
  public:
@@ -219,13 +215,7 @@ class OpenNI2Source : public FrameSource {
       if (cameras.empty()) throw Error(kNoDeviceMessage);
       const std::string uri = spec_.size() > 8 ? spec_.substr(8) : cameras.front();
       OpenDevice(uri.c_str());
-      disconnect_listener_.emplace(device_.getDeviceInfo().getUri());
-      if (openni::OpenNI::addDeviceDisconnectedListener(&*disconnect_listener_) !=
-          openni::STATUS_OK) {
-        throw Error(
-            Format(spec_, ": cannot listen to OpenNI2 device events: ", LastOpenNI2Error()));
-      }
-      disconnect_listener_registered_ = true;
+      uri_ = device_.getDeviceInfo().getUri();
     }
     CreateStreams();
     intrinsics_ = ChooseIntrinsics(info);
@@ -307,10 +297,6 @@ class OpenNI2Source : public FrameSource {
     if (eof_listener_registered_) {
       openni::OpenNI::removeDeviceStateChangedListener(&*eof_listener_);
       eof_listener_registered_ = false;
-    }
-    if (disconnect_listener_registered_) {
-      openni::OpenNI::removeDeviceDisconnectedListener(&*disconnect_listener_);
-      disconnect_listener_registered_ = false;
     }
   }
 
@@ -488,13 +474,14 @@ class OpenNI2Source : public FrameSource {
         rc = openni::OpenNI::waitForAnyStream(streams, 2, &ready, timeout_ms);
       } else {
         // Waits in slices, so that an unplugged camera ends the capture at once.
-        for (int waited = 0; waited < timeout_ms && rc == openni::STATUS_TIME_OUT;) {
-          if (disconnect_listener_->disconnected()) break;
+        bool attached = true;
+        for (int waited = 0; waited < timeout_ms && rc == openni::STATUS_TIME_OUT && attached;) {
           const int slice = std::min(kWaitSliceMs, timeout_ms - waited);
           rc = openni::OpenNI::waitForAnyStream(streams, 2, &ready, slice);
           waited += slice;
+          if (rc != openni::STATUS_OK) attached = StillAttached(uri_);
         }
-        if (disconnect_listener_->disconnected()) {
+        if (!attached) {
           EndLive("the camera was disconnected");
           return false;
         }
@@ -585,9 +572,8 @@ class OpenNI2Source : public FrameSource {
   bool pair_by_time_ = true;  // live cameras: pair frames by time stamp (see ReadPair)
   static constexpr int kEndOfFileWaitMs = 2000;
   static constexpr int kWaitSliceMs = 100;  // live cameras: how often a wait looks for an unplug
-  std::optional<DisconnectListener> disconnect_listener_;  // live cameras only
-  bool disconnect_listener_registered_ = false;
-  bool ended_ = false;                   // a live camera's stream has ended (unplugged or stalled)
+  std::string uri_;     // a live camera's URI (to see whether it is still attached)
+  bool ended_ = false;  // a live camera's stream has ended (unplugged or stalled)
   size_t pairs_read_ = 0, skipped_ = 0;  // live cameras: pairs read, camera frames never paired
   int64_t first_camera_index_ = 0;
   std::optional<EndOfFileListener> eof_listener_;  // recordings only (see Close)
