@@ -36,12 +36,20 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
   options.Validate();
   LightsSummary out;
   const Scene scene = LoadGeometry({in.scene, in.mesh, in.albedo}, ws, &out.warnings);
-  const std::vector<PosedImage> train =
+  const std::vector<PosedImage> keyframes =
       ReadPosedImages(in.views.empty() ? ws.Keyframes() : in.views);
   const std::vector<PosedImage> novel =
       in.novel.empty() ? std::vector<PosedImage>() : ReadPosedImages(in.novel);
-  out.estimate = EstimateLights(scene, train, options, seed);
+  out.estimate = EstimateLights(scene, keyframes, options, seed);
   for (const std::string& note : out.estimate.notes) out.warnings.push_back(note);
+  // With estimated exposures, the model is judged against each view divided by its gain (the
+  // ambient baseline too): the gains are part of the camera model.
+  std::vector<PosedImage> divided = keyframes;
+  for (size_t v = 0; v < out.estimate.exposure_gains.size() && v < divided.size(); ++v) {
+    const Eigen::Vector3f inverse = out.estimate.exposure_gains[v].cwiseInverse().cast<float>();
+    for (Eigen::Vector3f& p : divided[v].image.pixels()) p = p.cwiseProduct(inverse);
+  }
+  const std::vector<PosedImage>& train = divided;
 
   Scene lit = WithoutLights(scene);
   lit.voxel_lights = out.estimate.lights;
@@ -104,6 +112,19 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
                       {"power_change", r.power_change}});
   }
   estimate["rounds"] = rounds;
+  if (!out.estimate.exposure_gains.empty()) {
+    nlohmann::ordered_json views = nlohmann::ordered_json::array();
+    for (size_t v = 0; v < out.estimate.exposure_gains.size(); ++v) {
+      const Eigen::Vector3d& g = out.estimate.exposure_gains[v];
+      views.push_back(
+          {{"timestamp", keyframes[v].view.timestamp}, {"gain", {g.x(), g.y(), g.z()}}});
+    }
+    estimate["exposure"] = {
+        {"mode", options.exposure},
+        {"gauge", options.exposure == "gain" ? "geometric mean of the gains over the views = 1"
+                                             : "geometric mean over the views = 1 per channel"},
+        {"views", views}};
+  }
   estimate["ambient_baseline"] = {
       {"radiance", {out.ambient.radiance.x(), out.ambient.radiance.y(), out.ambient.radiance.z()}},
       {"train_relative_rmse", out.ambient.mean_rmse}};
@@ -139,6 +160,15 @@ std::string ToString(const LightsSummary& s) {
     o << line;
   }
   if (!s.train.empty()) o << "; ambient baseline " << Format(s.ambient.mean_rmse);
+  if (!e.exposure_gains.empty()) {
+    Eigen::Vector3d lo = e.exposure_gains.front(), hi = lo;
+    for (const Eigen::Vector3d& g : e.exposure_gains) lo = lo.cwiseMin(g), hi = hi.cwiseMax(g);
+    char line[200];
+    std::snprintf(line, sizeof(line),
+                  "; exposure gains over %zu views: R %.3f-%.3f, G %.3f-%.3f, B %.3f-%.3f",
+                  e.exposure_gains.size(), lo.x(), hi.x(), lo.y(), hi.y(), lo.z(), hi.z());
+    o << line;
+  }
   return o.str();
 }
 

@@ -65,6 +65,7 @@ struct Overrides {
   std::optional<double> refine_penalty_scale, refine_fraction, refine_reach;
   bool voxel_truth = false, dump = false, oracle = false, fine_check = false, solver_check = false;
   std::string cycles;  // ../shared/data: section 3 instead
+  std::optional<std::string> exposure;
 };
 Overrides g_flags;
 
@@ -158,6 +159,7 @@ void ApplyOverrides(LightEstimationOptions* o) {
   set(g_flags.direct_paths, &o->direct_paths);
   set(g_flags.resample_voxels, &o->resample_voxels);
   set(g_flags.split_depth, &o->split_depth);
+  set(g_flags.exposure, &o->exposure);
   o->Validate();
 }
 
@@ -670,6 +672,9 @@ int main(int argc, char** argv) {
                  "pixels per view of the coarse level")
       ->group(overrides);
   app.add_option("--refine-spp", g_flags.refine_spp, "paths per pixel of the refinement levels")
+      ->group(overrides);
+  app.add_option("--exposure", g_flags.exposure,
+                 "per-view exposure step: none, gain or white-balance")
       ->group(overrides);
   app.add_option("--refine-reach", g_flags.refine_reach, "voxels a split reaches")
       ->group(overrides);

@@ -34,6 +34,17 @@ SceneMesh CeilingLight(const std::string& name, const Eigen::Vector3f& center, f
 
 }  // namespace
 
+SceneMesh MakeQuad(const std::string& name, const Eigen::Vector3f& a, const Eigen::Vector3f& b,
+                   const Eigen::Vector3f& c, const Eigen::Vector3f& d,
+                   const Eigen::Vector3f& albedo) {
+  SceneMesh m;
+  m.name = name;
+  m.mesh.vertices = {a, b, c, d};
+  m.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
+  m.albedo = SurfaceAlbedo::Constant(albedo);
+  return m;
+}
+
 Scene MakeCornellBoxScene() {
   Scene scene;
   scene.meshes.push_back(FromSynthetic("cornell", MakeCornellScene()));
@@ -63,12 +74,7 @@ IcosphereBox MakeIcosphereBox(bool smooth_shading) {
   const auto wall = [&](const std::string& name, const Eigen::Vector3f& a, const Eigen::Vector3f& b,
                         const Eigen::Vector3f& c, const Eigen::Vector3f& d,
                         const Eigen::Vector3f& albedo) {
-    SceneMesh m;
-    m.name = name;
-    m.mesh.vertices = {a, b, c, d};
-    m.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
-    m.albedo = SurfaceAlbedo::Constant(albedo);
-    box.scene.meshes.push_back(m);
+    box.scene.meshes.push_back(MakeQuad(name, a, b, c, d, albedo));
   };
   const float h = 0.5f;
   wall("floor", {-h, -h, 0}, {h, -h, 0}, {h, h, 0}, {-h, h, 0}, white);

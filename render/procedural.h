@@ -14,6 +14,12 @@ Scene MakeCornellBoxScene();
 // a ball, lit by a ceiling panel and a warm lamp on the cabinet.
 Scene MakeRoomScene();
 
+// A flat quad of constant albedo, corners a, b, c, d counter-clockwise seen from its front (two
+// triangles a b c, a c d).
+SceneMesh MakeQuad(const std::string& name, const Eigen::Vector3f& a, const Eigen::Vector3f& b,
+                   const Eigen::Vector3f& c, const Eigen::Vector3f& d,
+                   const Eigen::Vector3f& albedo);
+
 // The light-estimation replica of the paper's Fig. 3: five views inside the Cornell box
 // of MakeCornellBoxScene, `width` x `height`, 60 degrees horizontal field of view; the first three
 // are the training views, the last two the novel views.

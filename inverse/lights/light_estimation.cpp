@@ -74,9 +74,11 @@ class LightEstimator {
         pixels_(SamplePixels(tracer_, views, options, seed, &out_.masks)),
         coarse_pixels_(CoarsePixels(pixels_, options)),
         cap_bytes_(options.memory_cap * 1e6),
-        equation_bytes_(NormalEquationsBoundBytes(options.grid)) {
+        equation_bytes_(NormalEquationsBoundBytes(options.grid)),
+        scale_(views.size(), Eigen::Vector3d::Ones()) {
     out_.pixels = pixels_.size();
-    out_.lights = MakeVoxelGrid(tracer_.scene(), options.grid, options.boundary_inset);
+    out_.lights =
+        MakeVoxelGrid(tracer_.scene(), options.grid, options.boundary_inset, options.grid_margin);
     out_.lights.active_fraction = options.active_fraction;
     CheckEquationBytes();
   }
@@ -89,12 +91,17 @@ class LightEstimator {
     for (int level = 1; level <= options_.refine_levels; ++level) {
       if (!Refine(level)) break;
     }
-    // 3. The training error of the result's cache.
+    // 3. The training error of the result's cache (the prediction times the view's gain).
     const std::vector<Eigen::Vector3f> predicted = last_.Predict(out_.lights);
     double err = 0.0, ref = 0.0;
     for (size_t i = 0; i < last_.pixels.size(); ++i) {
-      err += (predicted[i] - last_.pixels[i].observed).cast<double>().squaredNorm();
-      ref += last_.pixels[i].observed.cast<double>().squaredNorm();
+      const Eigen::Vector3d observed = last_.pixels[i].observed.cast<double>();
+      const Eigen::Vector3d gain = scale_[static_cast<size_t>(last_.pixels[i].view)].cwiseInverse();
+      err += (predicted[i].cast<double>().cwiseProduct(gain) - observed).squaredNorm();
+      ref += observed.squaredNorm();
+    }
+    if (Exposure()) {
+      for (const Eigen::Vector3d& h : scale_) out_.exposure_gains.push_back(h.cwiseInverse());
     }
     out_.train_rmse = ref > 0.0 ? std::sqrt(err / ref) : 0.0;
     out_.active_voxels = static_cast<int>(
@@ -155,7 +162,8 @@ class LightEstimator {
 
   // The coarse rounds over `round_pixels`, from the dark grid, then the moves in a final solve.
   void CoarseRounds(const std::vector<SampledPixel>& round_pixels) {
-    out_.lights = MakeVoxelGrid(tracer_.scene(), options_.grid, options_.boundary_inset);
+    out_.lights = MakeVoxelGrid(tracer_.scene(), options_.grid, options_.boundary_inset,
+                                options_.grid_margin);
     out_.lights.active_fraction = options_.active_fraction;
     std::vector<double> previous_power;
     for (int round = 0; round < options_.rounds; ++round) {
@@ -164,7 +172,7 @@ class LightEstimator {
     if (options_.move_passes > 0 && options_.penalty_weight > 0.0) {
       const auto t = std::chrono::steady_clock::now();
       LightRound& r = out_.rounds.back();
-      const SolveReport polish = SolveLights(total_, options_, &out_.lights);
+      const SolveReport polish = Solve(options_, &out_.lights);
       r.solve.iterations += polish.iterations;
       r.solve.moves = polish.moves;
       r.solve.cost = polish.cost;
@@ -195,7 +203,7 @@ class LightEstimator {
     t = std::chrono::steady_clock::now();
     LightEstimationOptions no_moves = options_;  // moves once, at the end
     no_moves.move_passes = 0;
-    r.solve = SolveLights(total_, no_moves, &grid);
+    r.solve = Solve(no_moves, &grid);
     r.solve_seconds = SecondsSince(t);
     r.active_voxels = static_cast<int>(grid.ActiveVoxels(options_.active_fraction).size());
     std::vector<double> power(static_cast<size_t>(grid.VoxelCount()));
@@ -250,7 +258,8 @@ class LightEstimator {
   bool Refine(int level) {
     RefinementLevel state;
     state.level = level;
-    state.fine = MakeVoxelGrid(tracer_.scene(), 2 * out_.lights.dims.x(), options_.boundary_inset);
+    state.fine = MakeVoxelGrid(tracer_.scene(), 2 * out_.lights.dims.x(), options_.boundary_inset,
+                               options_.grid_margin);
     state.fine.active_fraction = options_.active_fraction;
     state.enabled.assign(static_cast<size_t>(state.fine.VoxelCount()), false);
     bool left_out = false;
@@ -346,10 +355,74 @@ class LightEstimator {
       state->fine.intensity[j].setZero();
       state->fine.weights[j] = {1, 1, 1, 1, 1, 1};
     }
-    r.solve = SolveLights(total_, level_options, &state->fine);
+    r.solve = Solve(level_options, &state->fine);
     r.solve_seconds = SecondsSince(t);
     r.active_voxels = static_cast<int>(state->fine.ActiveVoxels(options_.active_fraction).size());
     out_.rounds.push_back(r);
+  }
+
+  bool Exposure() const { return options_.exposure != "none"; }
+
+  // SolveLights on total_, alternating with the exposure step when options_.exposure asks
+  // (light_estimation.h, step 4).
+  SolveReport Solve(const LightEstimationOptions& options, VoxelLightGrid* grid) {
+    if (!Exposure()) return SolveLights(total_, options, grid);
+    constexpr int kSteps = 6;
+    SolveReport report;
+    for (int step = 0;; ++step) {
+      total_.ScaleObserved(scale_);
+      report = SolveLights(total_, options, grid);
+      if (step + 1 == kSteps) break;
+      const std::vector<Eigen::Vector3d> next = ExposureStep(*grid);
+      double change = 0.0;
+      for (size_t v = 0; v < next.size(); ++v)
+        change = std::max(change, (next[v].array() / scale_[v].array()).log().abs().maxCoeff());
+      scale_ = next;
+      if (change < 1e-3) {
+        total_.ScaleObserved(scale_);
+        report = SolveLights(total_, options, grid);
+        break;
+      }
+    }
+    return report;
+  }
+
+  // The scale of each view's observations that fits them best to the prediction of `grid`,
+  // normalised to a geometric mean of 1 over the views with pixels (light_estimation.h, step 4).
+  std::vector<Eigen::Vector3d> ExposureStep(const VoxelLightGrid& grid) const {
+    const NormalEquations& eq = total_;
+    const size_t views = std::min(eq.view_rhs.size(), scale_.size());
+    std::array<Eigen::VectorXd, 3> x;  // the products L_jc lambda_jk of the used parameters
+    for (int c = 0; c < 3; ++c) {
+      x[c].resize(static_cast<Eigen::Index>(eq.used.size()));
+      for (size_t i = 0; i < eq.used.size(); ++i) {
+        const int j = eq.used[i] / 6, k = eq.used[i] % 6;
+        x[c][static_cast<Eigen::Index>(i)] =
+            static_cast<double>(grid.intensity[static_cast<size_t>(j)][c]) *
+            grid.weights[static_cast<size_t>(j)][static_cast<size_t>(k)];
+      }
+    }
+    std::vector<Eigen::Vector3d> next(scale_.size(), Eigen::Vector3d::Ones());
+    Eigen::Vector3d log_sum = Eigen::Vector3d::Zero();
+    int counted = 0;
+    for (size_t v = 0; v < views; ++v) {
+      const Eigen::Vector3d s = eq.view_observed_sq[v];
+      if (!(s.minCoeff() > 0.0)) continue;
+      Eigen::Vector3d t;
+      for (int c = 0; c < 3; ++c) t[c] = x[c].dot(eq.view_rhs[v][c]);
+      Eigen::Vector3d h = t.cwiseQuotient(s);
+      if (options_.exposure == "gain") h.setConstant(t.sum() / s.sum());
+      for (int c = 0; c < 3; ++c) h[c] = std::clamp(h[c], 0.2, 5.0);
+      next[v] = h;
+      log_sum += h.array().log().matrix();
+      ++counted;
+    }
+    if (counted == 0) return scale_;
+    const Eigen::Vector3d mean = (log_sum / counted).array().exp().matrix();
+    for (size_t v = 0; v < views; ++v) {
+      if (eq.view_observed_sq[v].minCoeff() > 0.0) next[v] = next[v].cwiseQuotient(mean);
+    }
+    return next;
   }
 
   // A growing pass traces only the voxels it adds, with the same keys: the paths are the same
@@ -391,6 +464,7 @@ class LightEstimator {
   const double equation_bytes_;
   NormalEquations total_;
   LightCache last_;
+  std::vector<Eigen::Vector3d> scale_;  // per view, the exposure step's h (1: no exposure)
 };
 
 }  // namespace
@@ -405,8 +479,9 @@ Scene WithoutLights(const Scene& scene) {
   return out;
 }
 
-VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset) {
+VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset, double margin) {
   GS_CHECK(boundary_inset >= 0.0 && boundary_inset <= 0.5);
+  GS_CHECK(margin >= 0.0);
   VoxelLightGrid g;
   for (const SceneMesh& m : scene.meshes) {
     if (m.IsEmitter()) continue;
@@ -417,6 +492,10 @@ VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset
     const double size = std::max(1e-3, g.bounds.isEmpty() ? 1.0 : g.bounds.sizes().maxCoeff());
     g.bounds.extend(g.bounds.min() - Eigen::Vector3d::Constant(0.5 * size));
     g.bounds.extend(g.bounds.max() + Eigen::Vector3d::Constant(0.5 * size));
+  }
+  if (margin > 0.0) {  // beyond the scan: light from what was never scanned
+    const Eigen::Vector3d grow = margin * g.bounds.sizes();
+    g.bounds = Eigen::AlignedBox3d(g.bounds.min() - grow, g.bounds.max() + grow);
   }
   if (dims > 1) {
     // The outer layer of voxel centres lies `boundary_inset` voxels inside the bounding box

@@ -24,6 +24,13 @@
 //     penalty). The solve alternates between L and lambda; each block is a bound-constrained
 //     quadratic solved exactly by coordinate descent, with the log term majorised by its tangent
 //     (reweighted L1), so the true cost never increases.
+//     With options.exposure, each solve alternates with a per-view gain step: the observations of
+//     view v are scaled by h_v (NormalEquations::ScaleObserved: G is unchanged), the lights are
+//     solved, and h_v = t_v / s_v with t_v = sum_i P_i I_i, s_v = sum_i I_i^2 over v's pixels
+//     (the least-squares scale of v's observations onto the prediction, per channel for
+//     white-balance), normalised to a geometric mean of 1 (the gauge: the overall scale belongs
+//     to the lights) and clamped to [1/5, 5]; until the gains change less than 1e-3 (at most 6
+//     steps). The camera's gain is g_v = 1 / h_v.
 //  5. EstimateLights (this header) runs rounds: trace, solve, then re-trace with voxel sampling
 //     proportional to the estimated powers (the paper's remedy for starting without the right
 //     sampling distribution), accumulating the normal equations, until the voxel powers stop
@@ -59,9 +66,11 @@ namespace genscene::inverse {
 // The grid over the scene's bounding box (non-emitting meshes), dims^3 voxels, all dark. The
 // outer layer of voxel centres lies `boundary_inset` voxel sizes inside the box (default: the
 // option's; 0.5: the box split into dims^3 cells; smaller: the grid grows so that lights can sit
-// near the walls and the ceiling, where real lights are).
+// near the walls and the ceiling, where real lights are). `margin` > 0 first grows the box by that
+// share of its size on every side, so that voxels can stand for light from outside the scan.
 VoxelLightGrid MakeVoxelGrid(const render::Scene& scene, int dims,
-                             double boundary_inset = LightEstimationOptions().boundary_inset);
+                             double boundary_inset = LightEstimationOptions().boundary_inset,
+                             double margin = 0.0);
 
 struct LightRound {
   int round = 0;
@@ -81,7 +90,10 @@ struct LightEstimate {
   std::vector<PixelMaskCounts> masks;  // per view
   size_t pixels = 0;                   // sampled pixels
   double seconds = 0.0;
-  double train_rmse = 0.0;  // relative RMSE of the final cache's prediction
+  double train_rmse = 0.0;  // relative RMSE of the final cache's prediction (times the gains)
+  // With options.exposure: per training view, the camera's gain g (per channel), observed ~ g x
+  // the model's radiance; geometric mean 1 over the views. Empty without.
+  std::vector<Eigen::Vector3d> exposure_gains;
   int active_voxels = 0;
   std::vector<std::string> notes;  // e.g. why adaptive refinement stopped early
 };

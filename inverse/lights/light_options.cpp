@@ -15,6 +15,7 @@ void LightEstimationOptions::Validate() const {
   RequireRange("split_depth", split_depth, 1, 1 << 20);
   RequireRange("refine_coarse_pixels", refine_coarse_pixels, 0, 1 << 24);
   RequireRange("boundary_inset", boundary_inset, 0.0, 0.5);
+  RequireRange("grid_margin", grid_margin, 0.0, 10.0);
   RequireRange("penalty_weight", penalty_weight, 0.0, 1e6);
   RequireRange("penalty_epsilon", penalty_epsilon, 1e-9, 1e6);
   RequireRange("rounds", rounds, 1, 100);
@@ -36,6 +37,7 @@ void LightEstimationOptions::Validate() const {
   RequireRange("refine_max_voxels", refine_max_voxels, 1, 1 << 20);
   RequireRange("refine_spp", refine_spp, 0, 1 << 16);
   RequireRange("refine_grow", refine_grow, 0, 100);
+  RequireOneOf("exposure", exposure, {"none", "gain", "white-balance"});
   if (refine_spp % 2)
     throw Error(
         Format("option refine_spp = ", refine_spp, " must be even (two independent halves)"));

@@ -9,7 +9,10 @@ namespace genscene::inverse {
 struct LightEstimationOptions {
   static constexpr const char* kSection = "lights";
 
-  int grid = 7;                 // voxels per axis over the scene's bounding box
+  int grid = 7;  // voxels per axis over the scene's bounding box
+  // The grid reaches this share of the scene's size beyond its bounding box on every side (a scan
+  // of part of a room: the light sources are often outside it). 0: the bounding box.
+  double grid_margin = 0.0;
   double boundary_inset = 0.1;  // the outer voxel centres lie this many voxels inside the
                                 // bounding box (0.5: cells that tile it; see MakeVoxelGrid)
   int pixels_per_view = 3000;   // sampled pixels per training view
@@ -62,13 +65,19 @@ struct LightEstimationOptions {
                                   // refine_reach finer voxels) of its lights and solve again
   double active_fraction = 1e-3;  // voxels with at least this share of the largest power are
                                   // "active" in reports
-  double memory_cap = 4000.0;     // MB the path-coefficient caches and the normal equations
-                                  // may take; exceeding it is an error (checked before tracing
-                                  // for the equations, while tracing for the caches)
+  // Per-view camera exposure estimated with the lights (real cameras adapt per frame): "none",
+  // "gain" (one gain per view) or "white-balance" (one per view and channel). The gains' geometric
+  // mean over the views is 1 (per channel for white-balance): the overall scale is the lights'.
+  std::string exposure = "none";
+  double memory_cap = 4000.0;  // MB the path-coefficient caches and the normal equations
+                               // may take; exceeding it is an error (checked before tracing
+                               // for the equations, while tracing for the caches)
 
   template <typename V>
   void Visit(V&& v) {
     v("grid", grid, "voxels", "voxels per axis over the scene's bounding box");
+    v("grid_margin", grid_margin, "",
+      "the grid reaches this share of the scene's size beyond its bounding box on every side");
     v("boundary_inset", boundary_inset, "voxels",
       "outer voxel centres this far inside the bounding box (0.5: cells tile it)");
     v("pixels_per_view", pixels_per_view, "", "random valid pixels sampled per training view");
@@ -110,6 +119,9 @@ struct LightEstimationOptions {
       "candidate voxels per finer level at most (more: refinement stops)");
     v("refine_grow", refine_grow, "",
       "passes per finer level that add its lights' neighbours and solve again");
+    v("exposure", exposure, "",
+      "per-view camera gain estimated with the lights: none, gain or white-balance (per channel); "
+      "geometric mean 1");
     v("refine_spp", refine_spp, "",
       "camera paths per sampled pixel at the finer levels (0: spp; even)");
     v("active_fraction", active_fraction, "",

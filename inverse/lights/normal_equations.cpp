@@ -134,13 +134,19 @@ void FillSparse(const LightCache& first, const LightCache& second, double correc
     eq->rhs[c] = Eigen::VectorXd::Zero(n);
     eq->observed_sq[c] = 0.0;
   }
-  // b_c = sum_i m_ic I_ic and I_c^T I_c, row by row.
+  // b_c = sum_i m_ic I_ic and I_c^T I_c, row by row, in total and per view.
   for (size_t i = 0; i < eq->pixels; ++i) {
     const Eigen::Vector3d observed = first.pixels[i].observed.cast<double>();
-    for (int c = 0; c < 3; ++c) eq->observed_sq[c] += observed[c] * observed[c];
+    const size_t view = static_cast<size_t>(first.pixels[i].view);
+    for (int c = 0; c < 3; ++c) {
+      eq->observed_sq[c] += observed[c] * observed[c];
+      eq->view_observed_sq[view][c] += observed[c] * observed[c];
+    }
     for (size_t e = begin[i]; e < begin[i + 1]; ++e) {
-      for (int c = 0; c < 3; ++c)
+      for (int c = 0; c < 3; ++c) {
         eq->rhs[c][index[e]] += static_cast<double>(mean[e][c]) * observed[c];
+        eq->view_rhs[view][c][index[e]] += static_cast<double>(mean[e][c]) * observed[c];
+      }
     }
   }
   // G_c(p, q) += m_ip m_iq - gamma d_ip d_iq over the upper triangle, one task per tile.
@@ -228,6 +234,19 @@ class DenseGram {
       observed[static_cast<Eigen::Index>(i - begin)] = first_.pixels[i].observed[c];
     eq_.observed_sq[c] += observed.squaredNorm();
     eq_.rhs[c] += mean->cast<double>().transpose() * observed;
+    // Per view: the runs of rows of one view (pixels are sampled view by view).
+    for (size_t run = begin; run < end;) {
+      const int view = first_.pixels[run].view;
+      size_t run_end = run + 1;
+      while (run_end < end && first_.pixels[run_end].view == view) ++run_end;
+      const Eigen::Index at = static_cast<Eigen::Index>(run - begin),
+                         rows = static_cast<Eigen::Index>(run_end - run);
+      eq_.view_observed_sq[static_cast<size_t>(view)][c] +=
+          observed.segment(at, rows).squaredNorm();
+      eq_.view_rhs[static_cast<size_t>(view)][c] +=
+          mean->middleRows(at, rows).cast<double>().transpose() * observed.segment(at, rows);
+      run = run_end;
+    }
     if (incremental_) {
       AccumulateFresh(*mean, 1.0, fresh_columns);
     } else {
@@ -320,7 +339,8 @@ class DenseGram {
 
 // `from`'s equations over the parameters `merged` (a superset of from.used), zero elsewhere.
 void Expand(const NormalEquations& from, const std::vector<int>& merged,
-            std::array<Eigen::MatrixXd, 3>* gram, std::array<Eigen::VectorXd, 3>* rhs) {
+            std::array<Eigen::MatrixXd, 3>* gram, std::array<Eigen::VectorXd, 3>* rhs,
+            std::vector<std::array<Eigen::VectorXd, 3>>* view_rhs) {
   std::vector<int> at(from.used.size());
   for (size_t i = 0; i < from.used.size(); ++i) {
     at[i] = static_cast<int>(std::lower_bound(merged.begin(), merged.end(), from.used[i]) -
@@ -330,8 +350,11 @@ void Expand(const NormalEquations& from, const std::vector<int>& merged,
   for (int c = 0; c < 3; ++c) {
     (*gram)[c] = Eigen::MatrixXd::Zero(n, n);
     (*rhs)[c] = Eigen::VectorXd::Zero(n);
+    for (auto& r : *view_rhs) r[c] = Eigen::VectorXd::Zero(n);
     for (size_t b = 0; b < at.size(); ++b) {
       (*rhs)[c][at[b]] = from.rhs[c][static_cast<Eigen::Index>(b)];
+      for (size_t v = 0; v < from.view_rhs.size(); ++v)
+        (*view_rhs)[v][c][at[b]] = from.view_rhs[v][c][static_cast<Eigen::Index>(b)];
       for (size_t a = 0; a < at.size(); ++a) {
         (*gram)[c](at[a], at[b]) =
             from.gram[c](static_cast<Eigen::Index>(a), static_cast<Eigen::Index>(b));
@@ -360,6 +383,12 @@ NormalEquations NormalEquations::FromCaches(const LightCache& first, const Light
   // 1. The parameters some pixel touches, in compact indices.
   const std::vector<int> compact = CompactIndices(first, second, &eq);
   const int n = static_cast<int>(eq.used.size());
+  int views = 0;
+  for (const SampledPixel& p : first.pixels) views = std::max(views, p.view + 1);
+  eq.view_rhs.resize(static_cast<size_t>(views));
+  for (auto& r : eq.view_rhs)
+    for (Eigen::VectorXd& channel : r) channel = Eigen::VectorXd::Zero(n);
+  eq.view_observed_sq.assign(static_cast<size_t>(views), Eigen::Vector3d::Zero());
   const bool same = &first == &second;
   // 2. Which of them `known` holds.
   std::vector<int> known_at, fresh;
@@ -380,11 +409,20 @@ NormalEquations NormalEquations::FromCaches(const LightCache& first, const Light
 
 void NormalEquations::Add(const NormalEquations& other) {
   GS_CHECK_EQ(parameters, other.parameters);
+  const size_t views = std::max(view_rhs.size(), other.view_rhs.size());
+  view_observed_sq.resize(views, Eigen::Vector3d::Zero());
+  for (size_t v = 0; v < other.view_observed_sq.size(); ++v)
+    view_observed_sq[v] += other.view_observed_sq[v];
   if (used == other.used) {  // the usual case: add in place, no third copy
+    const Eigen::Index n = static_cast<Eigen::Index>(used.size());
+    view_rhs.resize(
+        views, std::array<Eigen::VectorXd, 3>{Eigen::VectorXd::Zero(n), Eigen::VectorXd::Zero(n),
+                                              Eigen::VectorXd::Zero(n)});
     for (int c = 0; c < 3; ++c) {
       gram[c] += other.gram[c];
       rhs[c] += other.rhs[c];
       observed_sq[c] += other.observed_sq[c];
+      for (size_t v = 0; v < other.view_rhs.size(); ++v) view_rhs[v][c] += other.view_rhs[v][c];
     }
     pixels += other.pixels;
     return;
@@ -394,15 +432,30 @@ void NormalEquations::Add(const NormalEquations& other) {
                  std::back_inserter(merged));
   std::array<Eigen::MatrixXd, 3> g1, g2;
   std::array<Eigen::VectorXd, 3> r1, r2;
-  Expand(*this, merged, &g1, &r1);
-  Expand(other, merged, &g2, &r2);
+  std::vector<std::array<Eigen::VectorXd, 3>> v1(views), v2(views);
+  Expand(*this, merged, &g1, &r1, &v1);
+  Expand(other, merged, &g2, &r2, &v2);
   for (int c = 0; c < 3; ++c) {
     gram[c] = g1[c] + g2[c];
     rhs[c] = r1[c] + r2[c];
     observed_sq[c] += other.observed_sq[c];
+    for (size_t v = 0; v < views; ++v) v1[v][c] += v2[v][c];
   }
+  view_rhs = std::move(v1);
   used = std::move(merged);
   pixels += other.pixels;
+}
+
+void NormalEquations::ScaleObserved(const std::vector<Eigen::Vector3d>& scale) {
+  GS_CHECK(scale.size() >= view_rhs.size());
+  for (int c = 0; c < 3; ++c) {
+    rhs[c] = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(used.size()));
+    observed_sq[c] = 0.0;
+    for (size_t v = 0; v < view_rhs.size(); ++v) {
+      rhs[c] += scale[v][c] * view_rhs[v][c];
+      observed_sq[c] += scale[v][c] * scale[v][c] * view_observed_sq[v][c];
+    }
+  }
 }
 
 }  // namespace genscene::inverse

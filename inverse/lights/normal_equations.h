@@ -21,6 +21,10 @@ struct NormalEquations {
   std::array<Eigen::VectorXd, 3> rhs;   // per channel, compact
   std::array<double, 3> observed_sq{};  // per channel, sum of I^2
   size_t pixels = 0;
+  // The same two per view (SampledPixel::view), for the exposure step: rhs and observed_sq are
+  // their sums, with each view's observations scaled as ScaleObserved last said (1 at first).
+  std::vector<std::array<Eigen::VectorXd, 3>> view_rhs;
+  std::vector<Eigen::Vector3d> view_observed_sq;
 
   static NormalEquations FromCache(const LightCache& cache);
   // From two independent traces of the same pixels (rows a_i, b_i): the mean rows m = (a + b) / 2
@@ -36,6 +40,9 @@ struct NormalEquations {
                                     double correction, const NormalEquations* known = nullptr);
   // Adds another cache's equations (same parameters), e.g. from a later tracing round.
   void Add(const NormalEquations& other);
+  // rhs and observed_sq of the observations of view v scaled by scale[v] (per channel), I -> s I;
+  // G does not depend on the observations. scale holds an entry for every view of view_rhs.
+  void ScaleObserved(const std::vector<Eigen::Vector3d>& scale);
 };
 
 // Bytes of the normal equations EstimateLights may hold at once for a grid of `dims`^3 voxels: two

@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <iostream>
 
+#include "core/check.h"
 #include "core/color.h"
 #include "core/parallel.h"
 #include "core/rng.h"
@@ -391,6 +393,113 @@ TEST(EstimateLights, RecoversAVoxelLight) {
   EXPECT_EQ(StrongestVoxel(e.lights), 22) << "the light is in the wrong voxel";
 }
 
+// The per-view equations sum to the total, and scaling a view's observations (the exposure step)
+// gives the equations of the scaled observations, for sparse and dense rows.
+TEST(NormalEquations, PerViewEquationsSumToTheTotalAndScaleWithTheObservations) {
+  SmallScene s;
+  const std::vector<PosedImage> views = Render(s.Lit(), CornellLightViews(16, 12), 4);
+  ASSERT_GE(views.size(), 2u);
+  const PathTracer tracer(s.geometry);
+  LightEstimationOptions o;
+  o.pixels_per_view = 60;
+  o.paths.spp = 2;
+  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+  VoxelSplitting sampled;
+  sampled.all_until_depth = 0;
+  sampled.SetPmf(std::vector<double>(27, 1.0), 1);
+  std::vector<Eigen::Vector3d> scale(views.size());
+  for (size_t v = 0; v < views.size(); ++v)
+    scale[v] = Eigen::Vector3d(0.5 + 0.3 * v, 1.2 - 0.1 * v, 0.8 + 0.05 * v);
+  for (const VoxelSplitting& split : {sampled, VoxelSplitting{}}) {
+    LightCache a = TraceLightCache(tracer, s.grid, split, views, pixels, o, 1);
+    LightCache b = TraceLightCache(tracer, s.grid, split, views, pixels, o, 2);
+    NormalEquations eq = NormalEquations::FromCaches(a, b, 0.5);
+    ASSERT_EQ(eq.view_rhs.size(), views.size());
+    for (int c = 0; c < 3; ++c) {
+      Eigen::VectorXd rhs = Eigen::VectorXd::Zero(eq.rhs[c].size());
+      double observed_sq = 0.0;
+      for (size_t v = 0; v < views.size(); ++v) {
+        rhs += eq.view_rhs[v][c];
+        observed_sq += eq.view_observed_sq[v][c];
+      }
+      EXPECT_LT((rhs - eq.rhs[c]).norm(), 1e-9 * eq.rhs[c].norm()) << "channel " << c;
+      EXPECT_NEAR(observed_sq, eq.observed_sq[c], 1e-9 * eq.observed_sq[c]);
+    }
+    for (LightCache* cache : {&a, &b}) {
+      for (SampledPixel& p : cache->pixels)
+        p.observed = p.observed.cwiseProduct(scale[p.view].cast<float>());
+    }
+    const NormalEquations scaled = NormalEquations::FromCaches(a, b, 0.5);
+    eq.ScaleObserved(scale);
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_LT((eq.rhs[c] - scaled.rhs[c]).norm(), 1e-5 * scaled.rhs[c].norm()) << c;
+      EXPECT_NEAR(eq.observed_sq[c], scaled.observed_sq[c], 1e-5 * scaled.observed_sq[c]) << c;
+    }
+  }
+}
+
+// Per-view camera gains (exposure and white balance): training views of one lighting, each
+// multiplied by its own gain, give back the gains (relative to their geometric mean) and the
+// lights, and fit better than without the exposure step; views of equal exposure give gains of
+// 1; the same with one or two threads.
+TEST(EstimateLights, RecoversPerViewExposureAndWhiteBalance) {
+  SmallScene s;
+  VoxelLightGrid truth = s.grid;
+  truth.intensity[4].setZero();
+  const Scene lit = s.Lit(&truth);
+  const std::vector<PosedImage> plain = TrainingViews(lit);
+  const std::vector<Eigen::Vector3d> gains = {
+      {0.7, 0.75, 0.65}, {1.0, 1.0, 1.0}, {1.45, 1.3, 1.55}};
+  std::vector<PosedImage> exposed = plain;
+  ASSERT_EQ(exposed.size(), gains.size());
+  Eigen::Vector3d mean_log = Eigen::Vector3d::Zero();
+  for (size_t v = 0; v < exposed.size(); ++v) {
+    for (Eigen::Vector3f& p : exposed[v].image.pixels()) p = p.cwiseProduct(gains[v].cast<float>());
+    mean_log += gains[v].array().log().matrix() / static_cast<double>(gains.size());
+  }
+  const Eigen::Vector3d geometric_mean = mean_log.array().exp().matrix();
+  LightEstimationOptions o = SmallOptions();
+  o.rounds = 2;
+  o.exposure = "white-balance";
+  std::vector<LightEstimate> results;
+  for (int threads : {1, 2}) {
+    SetThreadCount(threads);
+    results.push_back(EstimateLights(lit, exposed, o, 1));
+  }
+  SetThreadCount(0);
+  const LightEstimate& e = results[0];
+  ASSERT_EQ(e.exposure_gains.size(), gains.size());
+  for (size_t v = 0; v < gains.size(); ++v) {
+    const Eigen::Vector3d want = gains[v].cwiseQuotient(geometric_mean);
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(e.exposure_gains[v][c] / want[c], 1.0, 0.04)
+          << "view " << v << " channel " << c << ": " << e.exposure_gains[v].transpose();
+    }
+    EXPECT_EQ(e.exposure_gains[v], results[1].exposure_gains[v]) << "thread count changed it";
+    std::cout << "view " << v << ": gain " << e.exposure_gains[v].transpose() << ", truth "
+              << want.transpose() << "\n";
+  }
+  EXPECT_EQ(StrongestVoxel(e.lights), 22);
+  // The lights carry the gains' geometric mean.
+  EXPECT_NEAR(e.lights.TotalPowerLuminance() /
+                  (Luminance(truth.Power(22)) * Luminance(geometric_mean.cast<float>())),
+              1.0, 0.25);
+  o.exposure = "none";
+  const LightEstimate without = EstimateLights(lit, exposed, o, 1);
+  std::cout << "training RMSE of the cache: with the gains " << e.train_rmse << ", without "
+            << without.train_rmse << "\n";
+  EXPECT_LT(e.train_rmse, 0.8 * without.train_rmse);
+  // Equal exposures: gains of 1 (one gain per view).
+  o.exposure = "gain";
+  const LightEstimate equal = EstimateLights(lit, plain, o, 1);
+  ASSERT_EQ(equal.exposure_gains.size(), plain.size());
+  for (const Eigen::Vector3d& g : equal.exposure_gains) {
+    EXPECT_NEAR(g[0], 1.0, 0.03) << g.transpose();
+    EXPECT_EQ(g[0], g[1]);
+    EXPECT_EQ(g[0], g[2]);
+  }
+}
+
 // The result carries the estimate's active_fraction, so that lights.json, the viewer and the
 // reports count the active voxels as the estimate did (without refinement as well as with it).
 TEST(EstimateLights, TheResultCarriesTheActiveFraction) {
@@ -597,6 +706,86 @@ TEST(EstimateLights, UnreachableVoxelStaysDark) {
   const LightEstimate e = EstimateLights(lit, views, o, 2);
   EXPECT_EQ(e.lights.intensity[4], Eigen::Vector3f::Zero());
   for (int j = 0; j < 27; ++j) EXPECT_TRUE(e.lights.intensity[j].allFinite());
+}
+
+// A box lit through an opening in its ceiling by a light above it, outside the mesh's bounding box
+// (as a real room is lit by lights that were never scanned). With grid_margin the grid reaches
+// the light: its voxel holds the power, and novel views are within 5 % (the grid over the box puts
+// the light under the ceiling, which lights the walls' tops the ceiling shades).
+TEST(EstimateLights, TheExtendedGridFindsALightOutsideTheScan) {
+  Scene lit;
+  const auto quad = [&](const std::string& name, const Eigen::Vector3f& a, const Eigen::Vector3f& b,
+                        const Eigen::Vector3f& c, const Eigen::Vector3f& d,
+                        const Eigen::Vector3f& albedo) {
+    lit.meshes.push_back(MakeQuad(name, a, b, c, d, albedo));
+  };
+  // A 1 m box open at the front (y = -0.5); the ceiling (z = 1) has a 0.4 m hole in its middle.
+  const Eigen::Vector3f white(0.7f, 0.7f, 0.7f), red(0.6f, 0.1f, 0.1f), green(0.1f, 0.5f, 0.1f);
+  const float h = 0.5f, o = 0.2f;
+  quad("floor", {-h, -h, 0}, {h, -h, 0}, {h, h, 0}, {-h, h, 0}, white);
+  quad("back", {-h, h, 0}, {h, h, 0}, {h, h, 1}, {-h, h, 1}, white);
+  quad("red", {-h, -h, 0}, {-h, h, 0}, {-h, h, 1}, {-h, -h, 1}, red);
+  quad("green", {h, -h, 0}, {h, -h, 1}, {h, h, 1}, {h, h, 0}, green);
+  quad("ceiling front", {-h, -h, 1}, {-h, -o, 1}, {h, -o, 1}, {h, -h, 1}, white);
+  quad("ceiling back", {-h, o, 1}, {-h, h, 1}, {h, h, 1}, {h, o, 1}, white);
+  quad("ceiling left", {-h, -o, 1}, {-h, o, 1}, {-o, o, 1}, {-o, -o, 1}, white);
+  quad("ceiling right", {o, -o, 1}, {o, o, 1}, {h, o, 1}, {h, -o, 1}, white);
+  // The light: a 4 cm square at z = 1.177 (a voxel centre of the extended grid), facing down.
+  SceneMesh light;
+  light.name = "light";
+  const float l = 0.02f, z = 1.177f;
+  light.mesh.vertices = {{-l, -l, z}, {l, -l, z}, {l, l, z}, {-l, l, z}};
+  light.mesh.faces = {{0, 2, 1}, {0, 3, 2}};
+  light.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Zero());
+  light.emission = Eigen::Vector3f(1500.0f, 1250.0f, 1000.0f);
+  lit.meshes.push_back(light);
+  const CameraIntrinsics k = CameraIntrinsics::FromHorizontalFov(40, 30, 60.0);
+  std::vector<PosedView> cameras;
+  for (const auto& [eye, target] : std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>{
+           {{0.0, -1.1, 0.55}, {0.0, 0.5, 0.5}},     // training
+           {{-0.3, -1.0, 0.8}, {0.2, 0.5, 0.3}},     // training
+           {{0.3, -1.0, 0.3}, {-0.2, 0.5, 0.7}},     // training
+           {{0.35, -0.9, 0.6}, {-0.3, 0.5, 0.5}},    // novel
+           {{-0.4, -0.8, 0.35}, {0.3, 0.5, 0.85}}})  // novel
+    cameras.push_back({k, LookAt(eye, target)});
+  const std::vector<PosedImage> all = Render(lit, cameras, 512);
+  const std::vector<PosedImage> train(all.begin(), all.begin() + 3),
+      novel(all.begin() + 3, all.end());
+  LightEstimationOptions options;
+  options.pixels_per_view = 600;
+  options.refine_levels = 0;
+  const auto novel_error = [&](const VoxelLightGrid& lights) {
+    Scene model = WithoutLights(lit);
+    model.voxel_lights = lights;
+    const PathTracer tracer(model);
+    double sum = 0.0;
+    for (size_t i = 0; i < novel.size(); ++i)
+      sum += CompareRender(tracer, novel[i], options, 256, 7 + i).rmse_bias;
+    return sum / novel.size();
+  };
+  const LightEstimate inside = EstimateLights(lit, train, options, 5);
+  options.grid_margin = 0.2;
+  const LightEstimate extended = EstimateLights(lit, train, options, 5);
+  const double inside_error = novel_error(inside.lights),
+               extended_error = novel_error(extended.lights);
+  const Eigen::Vector3d centroid = extended.lights.PowerCentroid();
+  std::printf("novel views: grid over the box %.4f, extended grid %.4f; centroid %.3f %.3f %.3f\n",
+              inside_error, extended_error, centroid.x(), centroid.y(), centroid.z());
+  {
+    // The best a voxel light can do: one point at the light's place, facing down.
+    VoxelLightGrid oracle = extended.lights;
+    for (Eigen::Vector3f& i : oracle.intensity) i.setZero();
+    const int j = 3 + 7 * 3 + 49 * 6;
+    ASSERT_LT((oracle.VoxelCenter(j) - Eigen::Vector3d(0, 0, 1.177)).norm(), 1e-3);
+    oracle.intensity[j] = Eigen::Vector3f(1500.0f, 1250.0f, 1000.0f) * 0.0016f;
+    oracle.weights[j] = {0, 0, 0, 0, 0, 1};
+    std::printf("a point light at the light's place: novel views %.4f\n", novel_error(oracle));
+  }
+  EXPECT_GT(extended.lights.bounds.max().z(), 1.177) << "the grid does not reach the light";
+  EXPECT_GT(centroid.z(), 1.05) << "the power is not above the ceiling";
+  EXPECT_LT(std::hypot(centroid.x(), centroid.y()), 0.15);
+  EXPECT_LT(extended_error, 0.05);
+  EXPECT_GT(inside_error, 2.0 * extended_error) << "the grid over the box alone did as well";
 }
 
 // A light that the views see only through bounces: it faces up, the cameras look down at the
