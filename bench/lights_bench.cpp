@@ -62,7 +62,7 @@ struct Replica {
 struct Overrides {
   std::optional<int> max_depth, rounds, refine_levels, refine_coarse_pixels, refine_spp,
       refine_grow, direct_paths, resample_voxels, split_depth;
-  std::optional<double> refine_penalty_scale, refine_fraction, refine_reach;
+  std::optional<double> refine_penalty_scale, refine_fraction, refine_reach, grid_margin;
   bool voxel_truth = false, dump = false, oracle = false, fine_check = false, solver_check = false;
   std::string cycles;  // ../shared/data: section 3 instead
   std::optional<std::string> exposure;
@@ -160,6 +160,7 @@ void ApplyOverrides(LightEstimationOptions* o) {
   set(g_flags.resample_voxels, &o->resample_voxels);
   set(g_flags.split_depth, &o->split_depth);
   set(g_flags.exposure, &o->exposure);
+  set(g_flags.grid_margin, &o->grid_margin);
   o->Validate();
 }
 
@@ -672,6 +673,9 @@ int main(int argc, char** argv) {
                  "pixels per view of the coarse level")
       ->group(overrides);
   app.add_option("--refine-spp", g_flags.refine_spp, "paths per pixel of the refinement levels")
+      ->group(overrides);
+  app.add_option("--grid-margin", g_flags.grid_margin,
+                 "share of the scene's size the grid reaches beyond its box")
       ->group(overrides);
   app.add_option("--exposure", g_flags.exposure,
                  "per-view exposure step: none, gain or white-balance")
