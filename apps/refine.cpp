@@ -79,6 +79,33 @@ Eigen::VectorXd ReadTruth(const fs::path& path, int vertices) {
   return truth;
 }
 
+// The fit gate: why the workspace's lights (lights.json, as the light stage judged them) are too
+// poor for refinement, or nothing. They are when they fit the training views worse than a constant
+// ambient light, both without render noise.
+std::optional<std::string> LightsTooPoorToRefine(const fs::path& lights) {
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(ReadTextFile(lights));
+  } catch (const std::exception&) {
+    return std::nullopt;  // ReadLightsJson has read it: only the estimate's figures are missing
+  }
+  if (!j.contains("estimate") || !j["estimate"].is_object()) return std::nullopt;
+  const auto& e = j["estimate"];
+  if (!e.contains("train_views") || !e.contains("ambient_baseline") || e["train_views"].empty())
+    return std::nullopt;
+  double fit = 0.0;
+  for (const auto& v : e["train_views"]) fit += v.value("relative_rmse_bias", 0.0);
+  fit /= static_cast<double>(e["train_views"].size());
+  const double ambient = e["ambient_baseline"].value("train_relative_rmse", 0.0);
+  if (!(ambient > 0.0) || fit <= ambient) return std::nullopt;
+  return Format(
+      "the lights fit the training views worse than a constant ambient light (relative "
+      "RMSE ",
+      fit, " against ", ambient,
+      " without render noise): renders that do not describe the images carry no "
+      "geometric information");
+}
+
 // report.json: the options, the refined meshes, the held-out comparison and the iterations.
 nlohmann::ordered_json Report(const RefineSummary& out, const RefineOptions& options,
                               uint64_t seed) {
@@ -86,6 +113,7 @@ nlohmann::ordered_json Report(const RefineSummary& out, const RefineOptions& opt
   report["options"] = nlohmann::ordered_json::parse(OptionsToJson(options).dump());
   report["seed"] = seed;
   report["refined_meshes"] = out.refined;
+  if (!out.skipped.empty()) report["skipped"] = out.skipped;
   report["vertices"] = out.vertices;
   report["pixels"] = out.result.pixels;
   report["flipped_faces"] = out.flipped_faces;
@@ -173,14 +201,26 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
                PathTracer(ShadingOnly(at.scene())).Render(view, render, 1).radiance);
     }
   };
-  // The tracer's positions in `progress` are the refined meshes' vertices in scene order, as
-  // `refined` and the truth.
-  out.result = RefineVertices(scene, refined, targets, options, seed, progress);
-  // Judged on pixels it did not fit: never a mesh that explains the images worse than its input.
-  out.held_out =
-      CompareOnFreshPixels(scene, refined, targets, options, seed ^ 0x6a09e667f3bcc909ull,
-                           out.result.initial, out.result.positions);
-  if (out.held_out.rmse_b > out.held_out.rmse_a) {
+  if (options.fit_gate && lights == ws.Lights()) {
+    if (std::optional<std::string> why = LightsTooPoorToRefine(lights)) {
+      out.skipped = *why;
+      out.kept_unrefined = true;
+      out.warnings.push_back(Format("refinement skipped: ", *why,
+                                    "; the unrefined mesh is kept as ",
+                                    ws.RefinedMesh().filename().string()));
+    }
+  }
+  if (out.skipped.empty()) {
+    // The tracer's positions in `progress` are the refined meshes' vertices in scene order, as
+    // `refined` and the truth.
+    out.result = RefineVertices(scene, refined, targets, options, seed, progress);
+    // Judged on pixels it did not fit: never a mesh that explains the images worse than its
+    // input.
+    out.held_out =
+        CompareOnFreshPixels(scene, refined, targets, options, seed ^ 0x6a09e667f3bcc909ull,
+                             out.result.initial, out.result.positions);
+  }
+  if (out.skipped.empty() && out.held_out.rmse_b > out.held_out.rmse_a) {
     out.kept_unrefined = true;
     out.warnings.push_back(Format("the refined mesh fits ", out.held_out.pixels,
                                   " held-out pixels worse than the unrefined one "
@@ -206,6 +246,11 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
 
 std::string ToString(const RefineSummary& s) {
   std::ostringstream o;
+  if (!s.skipped.empty()) {
+    o << s.vertices << " vertices of " << s.refined.size()
+      << " mesh(es) kept unrefined: " << s.skipped;
+    return o.str();
+  }
   const auto& h = s.result.history;
   o << s.vertices << " vertices of " << s.refined.size() << " mesh(es), " << s.result.pixels
     << " pixels, " << (h.size() - 1) << " iterations; image RMSE " << Format(h.front().data_rmse)

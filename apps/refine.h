@@ -35,6 +35,9 @@ struct RefineSummary {
   // one fits them worse, the unrefined mesh is what the stage writes (kept_unrefined, a warning).
   inverse::HeldOutComparison held_out;
   bool kept_unrefined = false;
+  // Why refinement did not run (the fit gate: the lights describe the keyframes worse than a
+  // constant ambient light); empty when it ran.
+  std::string skipped;
   std::vector<std::string> warnings;
 };
 

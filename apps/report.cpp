@@ -301,6 +301,11 @@ void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& optio
 void Refinement(const Workspace& ws, const fs::path& dir, std::ostream& md) {
   const auto report = ReadJson(ws.RefineReport());
   if (!report) return;
+  if (report->contains("skipped")) {
+    md << "## Vertex refinement\n\nSkipped, the unrefined mesh kept: "
+       << (*report)["skipped"].get<std::string>() << ".\n\n";
+    return;
+  }
   md << "## Vertex refinement\n\n"
      << (*report)["vertices"].get<int>() << " vertices, " << (*report)["pixels"].get<int>()
      << " pixels, " << (*report)["flipped_faces"].get<int>() << " flipped faces.\n\n";

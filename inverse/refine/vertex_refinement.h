@@ -62,10 +62,16 @@ struct RefineOptions {
   int max_retries = 6;    // rejected steps per iteration before giving up
   double tolerance = 1e-5;         // stop when an accepted step lowers E by less than this fraction
   int direct_max_vertices = 3000;  // larger problems are solved by conjugate gradients
+  // The stage's gate (apps/refine.h): refine a workspace only when its lights fit the keyframes
+  // better than a constant ambient light (else their renders carry no geometric information).
+  bool fit_gate = true;
 
   template <typename V>
   void Visit(V&& v) {
     v("iterations", iterations, "", "Levenberg-Marquardt iterations");
+    v("fit_gate", fit_gate, "",
+      "refine a workspace only when its lights fit the keyframes better than a constant ambient "
+      "light (lights.json); else the unrefined mesh is kept");
     paths.VisitPaths(v, "path samples per pixel and evaluation");
     v("pixels_per_view", pixels_per_view, "", "pixels sampled per view (0 = every pixel)");
     v("refine_unseen", refine_unseen, "",

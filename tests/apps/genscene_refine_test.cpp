@@ -70,6 +70,47 @@ TEST(GensceneRefine, ARefinedMeshWorseOnFreshPixelsIsNotKept) {
   EXPECT_LT(moved, 1e-6);
 }
 
+// The fit gate: a workspace whose lights fit the keyframes worse than a constant ambient light (as
+// the light stage judged them, in lights.json) is not refined: the unrefined mesh is written, the
+// console and report.json say why; --no-fit-gate refines it anyway.
+TEST(GensceneRefine, AWorkspaceWhoseLightsFitWorseThanAmbientIsNotRefined) {
+  test::TempDir dir;
+  const auto synth = RunCommand(AppPath("genscene-synth") +
+                                " --scene cornell --frames 2 --size 40x30 --spp 8 --out " +
+                                (dir / "seq").string());
+  ASSERT_EQ(synth.exit_code, 0) << synth.output;
+  const std::string ws = (dir / "ws").string(), seq = (dir / "seq").string();
+  const auto lights = RunCommand(AppPath("genscene-lights") + " " + ws + " --mesh " + seq +
+                                 "/mesh_gt.ply --views " + seq +
+                                 " --grid 3 --pixels-per-view 200 --refine-levels 0");
+  ASSERT_EQ(lights.exit_code, 0) << lights.output;
+  const std::string refine = AppPath("genscene-refine") + " " + ws + " --mesh " + seq +
+                             "/mesh_gt.ply --views " + seq + kSmall;
+  // The same lights judged worse than an ambient light of error 0.01.
+  auto j = nlohmann::json::parse(ReadTextFile(dir / "ws" / "lights.json"));
+  j["estimate"]["ambient_baseline"]["train_relative_rmse"] = 0.01;
+  WriteTextFileAtomically(dir / "ws" / "lights.json", j.dump());
+  auto r = RunCommand(refine);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_CONTAINS(r.output,
+                  "warning: refinement skipped: the lights fit the training views worse than a "
+                  "constant ambient light");
+  EXPECT_CONTAINS(r.output, "against 0.01 without render noise");
+  EXPECT_EQ(r.output.find("iteration 1:"), std::string::npos) << r.output;
+  const auto report = nlohmann::json::parse(ReadTextFile(dir / "ws" / "refine" / "report.json"));
+  EXPECT_CONTAINS(report["skipped"].get<std::string>(), "worse than a constant ambient light");
+  const TriangleMesh written = ReadPly(dir / "ws" / "mesh_refined.ply");
+  const TriangleMesh start = ReadPly(dir / "seq" / "mesh_gt.ply");
+  ASSERT_EQ(written.vertices.size(), start.vertices.size());
+  for (size_t v = 0; v < start.vertices.size(); ++v)
+    ASSERT_EQ(written.vertices[v], start.vertices[v]) << "vertex " << v;
+  r = RunCommand(refine + " --no-fit-gate");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_CONTAINS(r.output, "iteration 1:");
+  EXPECT_FALSE(nlohmann::json::parse(ReadTextFile(dir / "ws" / "refine" / "report.json"))
+                   .contains("skipped"));
+}
+
 TEST(GensceneRefine, BadInputIsOneLineAndWritesNothing) {
   test::TempDir dir;
   const auto synth = RunCommand(AppPath("genscene-synth") +
