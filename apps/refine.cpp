@@ -219,15 +219,15 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
     out.held_out =
         CompareOnFreshPixels(scene, refined, targets, options, seed ^ 0x6a09e667f3bcc909ull,
                              out.result.initial, out.result.positions);
-  }
-  if (out.skipped.empty() && out.held_out.rmse_b > out.held_out.rmse_a) {
-    out.kept_unrefined = true;
-    out.warnings.push_back(Format("the refined mesh fits ", out.held_out.pixels,
-                                  " held-out pixels worse than the unrefined one "
-                                  "(image RMSE ",
-                                  out.held_out.rmse_b, " against ", out.held_out.rmse_a,
-                                  "): the unrefined mesh is kept as ",
-                                  ws.RefinedMesh().filename().string()));
+    if (out.held_out.rmse_b > out.held_out.rmse_a) {
+      out.kept_unrefined = true;
+      out.warnings.push_back(Format("the refined mesh fits ", out.held_out.pixels,
+                                    " held-out pixels worse than the unrefined one "
+                                    "(image RMSE ",
+                                    out.held_out.rmse_b, " against ", out.held_out.rmse_a,
+                                    "): the unrefined mesh is kept as ",
+                                    ws.RefinedMesh().filename().string()));
+    }
   }
   TriangleMesh final_mesh = out.kept_unrefined ? start : JoinMeshes(out.result.meshes);
   // The refined mesh keeps the colours of the mesh it started from.

@@ -3,6 +3,7 @@
 #include <OpenNI.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -129,12 +130,8 @@ class EndOfFileListener : public openni::OpenNI::DeviceStateChangedListener {
 // reports it disconnected (unplugged). Asked only after a wait for frames came back empty, so no
 // listener has to be registered (and outlive OpenNI2's callbacks) for it.
 bool StillAttached(const std::string& uri) {
-  openni::Array<openni::DeviceInfo> devices;
-  openni::OpenNI::enumerateDevices(&devices);
-  for (int i = 0; i < devices.getSize(); ++i) {
-    if (uri == devices[i].getUri()) return true;
-  }
-  return false;
+  const std::vector<std::string> cameras = ListCameraUris();
+  return std::find(cameras.begin(), cameras.end(), uri) != cameras.end();
 }
 
 class OpenNI2Source : public FrameSource {
@@ -472,6 +469,11 @@ class OpenNI2Source : public FrameSource {
       openni::Status rc = openni::STATUS_TIME_OUT;
       if (is_file_) {
         rc = openni::OpenNI::waitForAnyStream(streams, 2, &ready, timeout_ms);
+        if (rc == openni::STATUS_TIME_OUT || ready < 0) {
+          throw Error(Format(spec_, ": no ", depth_frame_.isValid() ? "colour" : "depth",
+                             " frame within ", capture_.frame_timeout, " s after frame ",
+                             depth_read_, " of ", total_, " (unplayable recording)"));
+        }
       } else {
         // Waits in slices, so that an unplugged camera ends the capture at once.
         bool attached = true;
@@ -490,11 +492,6 @@ class OpenNI2Source : public FrameSource {
                          capture_.frame_timeout, " s (camera stalled)"));
           return false;
         }
-      }
-      if (rc == openni::STATUS_TIME_OUT || ready < 0) {
-        throw Error(Format(spec_, ": no ", depth_frame_.isValid() ? "colour" : "depth",
-                           " frame within ", capture_.frame_timeout, " s after frame ", depth_read_,
-                           " of ", total_, " (unplayable recording)"));
       }
       if (rc != openni::STATUS_OK)
         throw Error(Format(spec_, ": waiting for frames failed: ", LastOpenNI2Error()));

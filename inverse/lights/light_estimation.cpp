@@ -369,20 +369,17 @@ class LightEstimator {
     if (!Exposure()) return SolveLights(total_, options, grid);
     constexpr int kSteps = 6;
     SolveReport report;
+    bool settled = false;  // the last gain step moved the gains by less than 0.1 %
     for (int step = 0;; ++step) {
       total_.ScaleObserved(scale_);
       report = SolveLights(total_, options, grid);
-      if (step + 1 == kSteps) break;
+      if (settled || step + 1 == kSteps) break;
       const std::vector<Eigen::Vector3d> next = ExposureStep(*grid);
       double change = 0.0;
       for (size_t v = 0; v < next.size(); ++v)
         change = std::max(change, (next[v].array() / scale_[v].array()).log().abs().maxCoeff());
       scale_ = next;
-      if (change < 1e-3) {
-        total_.ScaleObserved(scale_);
-        report = SolveLights(total_, options, grid);
-        break;
-      }
+      settled = change < 1e-3;
     }
     return report;
   }

@@ -329,6 +329,15 @@ TEST(VoxelSplitting, NeverDrawsAVoxelOfProbabilityZero) {
   }
 }
 
+// Splittings that take the two code paths of the normal equations: sampled voxels (sparse rows)
+// and every voxel (dense rows), on the 3^3 grid.
+std::vector<VoxelSplitting> SparseAndDenseSplittings() {
+  VoxelSplitting sampled;
+  sampled.all_until_depth = 0;
+  sampled.SetPmf(std::vector<double>(27, 1.0), 1);
+  return {sampled, VoxelSplitting{}};
+}
+
 TEST(NormalEquations, DenseAndSparseRowsAndThreadCountsAgree) {
   SmallScene s;
   const Scene lit = s.Lit();
@@ -338,11 +347,7 @@ TEST(NormalEquations, DenseAndSparseRowsAndThreadCountsAgree) {
   o.pixels_per_view = 120;
   o.paths.spp = 2;
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
-  // Sampled voxels (sparse rows) and every voxel (dense rows) take the two code paths.
-  VoxelSplitting sampled;
-  sampled.all_until_depth = 0;
-  sampled.SetPmf(std::vector<double>(27, 1.0), 1);
-  for (const VoxelSplitting& split : {sampled, VoxelSplitting{}}) {
+  for (const VoxelSplitting& split : SparseAndDenseSplittings()) {
     const LightCache a = TraceLightCache(tracer, s.grid, split, views, pixels, o, 1);
     const LightCache b = TraceLightCache(tracer, s.grid, split, views, pixels, o, 2);
     // Reference: the formula written out densely, in double.
@@ -404,13 +409,10 @@ TEST(NormalEquations, PerViewEquationsSumToTheTotalAndScaleWithTheObservations) 
   o.pixels_per_view = 60;
   o.paths.spp = 2;
   const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
-  VoxelSplitting sampled;
-  sampled.all_until_depth = 0;
-  sampled.SetPmf(std::vector<double>(27, 1.0), 1);
   std::vector<Eigen::Vector3d> scale(views.size());
   for (size_t v = 0; v < views.size(); ++v)
     scale[v] = Eigen::Vector3d(0.5 + 0.3 * v, 1.2 - 0.1 * v, 0.8 + 0.05 * v);
-  for (const VoxelSplitting& split : {sampled, VoxelSplitting{}}) {
+  for (const VoxelSplitting& split : SparseAndDenseSplittings()) {
     LightCache a = TraceLightCache(tracer, s.grid, split, views, pixels, o, 1);
     LightCache b = TraceLightCache(tracer, s.grid, split, views, pixels, o, 2);
     NormalEquations eq = NormalEquations::FromCaches(a, b, 0.5);
