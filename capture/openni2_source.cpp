@@ -459,10 +459,10 @@ class OpenNI2Source : public FrameSource {
                  emitted_);
   }
 
-  // Reads frames from the two streams until both frames are valid (a stream's newer frame replaces
-  // an older one that is still unpaired). False when a live camera was unplugged or gave no frame
-  // within the timeout: its stream ends there (EndLive). A recording that stops delivering frames
-  // is damaged: an Error.
+  // Reads frames from the two streams until both frames are valid (in a recording a stream's newer
+  // frame replaces an older one that is still unpaired; a live camera reads only the missing one).
+  // False when a live camera was unplugged or gave no frame within the timeout: its stream ends
+  // there (EndLive). A recording that stops delivering frames is damaged: an Error.
   bool ReadUntilBothValid(openni::VideoStream* streams[2], int timeout_ms) {
     while (!depth_frame_.isValid() || !color_frame_.isValid()) {
       int ready = -1;
@@ -475,14 +475,20 @@ class OpenNI2Source : public FrameSource {
                              depth_read_, " of ", total_, " (unplayable recording)"));
         }
       } else {
-        // Waits in slices, so that an unplugged camera ends the capture at once.
+        // Only the stream whose frame is missing is read: a newer frame of the other stream must
+        // not replace the one waiting for its partner (when a camera delivers depth before colour
+        // at every tick, colour a frame behind would otherwise never catch up). Waits in slices,
+        // so that an unplugged camera ends the capture at once.
+        const int first = depth_frame_.isValid() ? 1 : 0;
+        const int count = depth_frame_.isValid() || color_frame_.isValid() ? 1 : 2;
         bool attached = true;
         for (int waited = 0; waited < timeout_ms && rc == openni::STATUS_TIME_OUT && attached;) {
           const int slice = std::min(kWaitSliceMs, timeout_ms - waited);
-          rc = openni::OpenNI::waitForAnyStream(streams, 2, &ready, slice);
+          rc = openni::OpenNI::waitForAnyStream(streams + first, count, &ready, slice);
           waited += slice;
           if (rc != openni::STATUS_OK) attached = StillAttached(uri_);
         }
+        if (ready >= 0) ready += first;
         if (!attached) {
           EndLive("the camera was disconnected");
           return false;
