@@ -281,7 +281,7 @@ void Warn(const std::vector<std::string>& warnings) {
 // The workspace's model as a scene: `mesh` with the Mesh Colors albedo and the voxel lights.
 render::Scene LoadModel(const Workspace& ws, const fs::path& mesh,
                         std::vector<std::string>* warnings) {
-  render::Scene scene = LoadGeometry({{}, mesh, ws.Albedo()}, ws, warnings);
+  render::Scene scene = LoadGeometry({{}, mesh, ws.ModelAlbedo()}, ws, warnings);
   scene.meshes.front().name = "model";
   scene.voxel_lights = ReadLightsJson(ws.Lights());
   return scene;
@@ -294,7 +294,7 @@ std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings)
   fs::create_directories(dir);
   const fs::path mesh_path = ws.ModelMesh();
   const TriangleMesh mesh = ReadPly(mesh_path);
-  const MeshColors albedo = ReadMeshColors(ws.Albedo(), mesh);
+  const MeshColors albedo = ReadMeshColors(ws.ModelAlbedo(), mesh);
   const TriangleMesh colored = albedo.ToSubdividedMesh(mesh);
   WritePly(dir / "model.ply", colored);
   WriteTumTrajectory(dir / "trajectory.txt", ReadTumTrajectory(ws.Trajectory()));
@@ -404,7 +404,8 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
               return ToString(s);
             });
 
-  stage.Run("refine", {ws.RefinedMesh()}, {ws.Mesh(), ws.Albedo(), ws.Lights(), ws.Keyframes()},
+  stage.Run("refine", {ws.RefinedMesh()},
+            {ws.Mesh(), ws.ModelAlbedo(), ws.Lights(), ws.Keyframes()},
             Hash(OptionsText(options.refine), seed), [&] {
               RefineInputs in;
               in.render_spp = 16;
@@ -414,17 +415,17 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
             });
 
   const fs::path exported = ws.ExportDir();
-  stage.Run(
-      "export",
-      {exported / "model.xml", exported / "model.glb", exported / "model.ply",
-       exported / "trajectory.txt"},
-      {ws.RefinedMesh(), ws.Albedo(), ws.Texture(), ws.Lights(), ws.Trajectory(), ws.Keyframes()},
-      "", [&] {
-        std::vector<std::string> warnings;
-        std::string result = ExportModel(ws, &warnings);
-        Warn(warnings);
-        return result;
-      });
+  stage.Run("export",
+            {exported / "model.xml", exported / "model.glb", exported / "model.ply",
+             exported / "trajectory.txt"},
+            {ws.RefinedMesh(), ws.ModelAlbedo(), ws.Texture(), ws.Lights(), ws.Trajectory(),
+             ws.Keyframes()},
+            "", [&] {
+              std::vector<std::string> warnings;
+              std::string result = ExportModel(ws, &warnings);
+              Warn(warnings);
+              return result;
+            });
 
   // Judge the model: against the ground truth when the input carries one (genscene-synth, the
   // demo), and on the frames fusion held out when it held some out.
@@ -432,7 +433,7 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
   const bool held_out = fs::exists(ws.HeldOut() / "rgb.txt");
   if (synthetic || held_out) {
     const fs::path judged = ws.EvaluationJson(), holdout = ws.HeldOutJson();
-    std::vector<fs::path> outputs, inputs = {ws.RefinedMesh(), ws.Albedo(), ws.Lights()};
+    std::vector<fs::path> outputs, inputs = {ws.RefinedMesh(), ws.ModelAlbedo(), ws.Lights()};
     if (synthetic) outputs.push_back(judged), inputs.push_back(input);
     if (held_out)
       outputs.push_back(holdout), inputs.push_back(ws.HeldOut()), inputs.push_back(ws.Texture());

@@ -151,7 +151,7 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
     throw Error(Format(ws.HeldOut().string(), ": no held-out frames to judge the model on"));
   const fs::path mesh_path = ws.ModelMesh();
   std::vector<std::string> warnings;
-  Scene model = LoadGeometry({{}, mesh_path, ws.Albedo()}, ws, &warnings);
+  Scene model = LoadGeometry({{}, mesh_path, ws.ModelAlbedo()}, ws, &warnings);
   model.voxel_lights = ReadLightsJson(ws.Lights());
   const MeshColors texture = ReadMeshColors(ws.Texture(), model.meshes.front().mesh);
   const PathTracer tracer(model);

@@ -2,6 +2,7 @@
 
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
 #include "apps/scene_inputs.h"
@@ -35,12 +36,42 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
                               uint64_t seed, const Workspace& ws) {
   options.Validate();
   LightsSummary out;
-  const Scene scene = LoadGeometry({in.scene, in.mesh, in.albedo}, ws, &out.warnings);
+  // The lights start from the clustering's albedo (albedo.mcol), not from an earlier joint one.
+  const fs::path albedo_path =
+      !in.albedo.empty() ? in.albedo : (fs::exists(ws.Albedo()) ? ws.Albedo() : fs::path());
+  const Scene scene = LoadGeometry({in.scene, in.mesh, albedo_path}, ws, &out.warnings);
   const std::vector<PosedImage> keyframes =
       ReadPosedImages(in.views.empty() ? ws.Keyframes() : in.views);
   const std::vector<PosedImage> novel =
       in.novel.empty() ? std::vector<PosedImage>() : ReadPosedImages(in.novel);
-  out.estimate = EstimateLights(scene, keyframes, options, seed);
+  // Joint albedo needs the observed colour per texel (texture.mcol) of the same mesh.
+  std::error_code ec;
+  fs::remove(ws.JointAlbedo(), ec);
+  fs::remove(ws.JointAlbedoPly(), ec);
+  std::optional<MeshColors> clusters, observed;
+  JointAlbedoInputs joint;
+  if (options.albedo_iterations > 0 && in.scene.empty() && albedo_path.extension() == ".mcol") {
+    if (!fs::exists(ws.Texture())) {
+      out.warnings.push_back(Format("joint albedo skipped: ", ws.Texture().string(),
+                                    " (the observed colour per texel) is missing"));
+    } else {
+      try {
+        clusters = ReadMeshColors(albedo_path, scene.meshes[0].mesh);
+        observed = ReadMeshColors(ws.Texture(), scene.meshes[0].mesh);
+        if (observed->SampleCount() != clusters->SampleCount())
+          throw Error(Format(ws.Texture().string(), ": ", observed->SampleCount(), " texels where ",
+                             albedo_path.string(), " has ", clusters->SampleCount()));
+        joint.observed = &*observed;
+        joint.clusters = &*clusters;
+        joint.view_counts = observed->labels();
+      } catch (const Error& e) {
+        out.warnings.push_back(Format("joint albedo skipped: ", e.what()));
+        clusters.reset();
+        observed.reset();
+      }
+    }
+  }
+  out.estimate = EstimateLights(scene, keyframes, options, seed, clusters ? &joint : nullptr);
   for (const std::string& note : out.estimate.notes) out.warnings.push_back(note);
   // With estimated exposures, the model is judged against each view divided by its gain (the
   // ambient baseline too): the gains are part of the camera model.
@@ -53,6 +84,11 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
 
   Scene lit = WithoutLights(scene);
   lit.voxel_lights = out.estimate.lights;
+  if (out.estimate.albedo) {  // the model's albedo from here on
+    lit.meshes[0].albedo = SurfaceAlbedo::FromMeshColors(*out.estimate.albedo);
+    WriteMeshColors(ws.JointAlbedo(), *out.estimate.albedo);
+    WritePly(ws.JointAlbedoPly(), out.estimate.albedo->ToSubdividedMesh(lit.meshes[0].mesh));
+  }
   const PathTracer tracer(lit);
   const fs::path dir = ws.LightsDir();
   fs::create_directories(dir);
@@ -125,6 +161,23 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
                                              : "geometric mean over the views = 1 per channel"},
         {"views", views}};
   }
+  if (!out.estimate.albedo_steps.empty()) {
+    nlohmann::ordered_json steps = nlohmann::ordered_json::array();
+    for (const JointAlbedoStep& st : out.estimate.albedo_steps) {
+      steps.push_back({{"cost", st.cost},
+                       {"data", st.data},
+                       {"texels_updated", st.texels_updated},
+                       {"scale", st.scale},
+                       {"kept", st.kept}});
+    }
+    estimate["joint_albedo"] = {
+        {"initial_cost", out.estimate.rounds.empty() ? 0.0 : out.estimate.rounds.back().solve.cost},
+        {"steps", steps},
+        {"seconds", out.estimate.albedo_seconds},
+        {"gauge",
+         "the clustering's: its global scale and its colour split (the lights start white)"},
+        {"albedo", out.estimate.albedo ? ws.JointAlbedo().filename().string() : ""}};
+  }
   estimate["ambient_baseline"] = {
       {"radiance", {out.ambient.radiance.x(), out.ambient.radiance.y(), out.ambient.radiance.z()}},
       {"train_relative_rmse", out.ambient.mean_rmse}};
@@ -160,6 +213,17 @@ std::string ToString(const LightsSummary& s) {
     o << line;
   }
   if (!s.train.empty()) o << "; ambient baseline " << Format(s.ambient.mean_rmse);
+  if (!e.albedo_steps.empty()) {
+    int kept = 0;
+    for (const JointAlbedoStep& st : e.albedo_steps) kept += st.kept ? 1 : 0;
+    char line[200];
+    std::snprintf(line, sizeof(line),
+                  "; joint albedo: %d of %zu steps kept, light cost %.4g -> %.4g", kept,
+                  e.albedo_steps.size(), e.rounds.empty() ? 0.0 : e.rounds.back().solve.cost,
+                  kept > 0 ? e.albedo_steps[static_cast<size_t>(kept - 1)].cost
+                           : (e.rounds.empty() ? 0.0 : e.rounds.back().solve.cost));
+    o << line;
+  }
   if (!e.exposure_gains.empty()) {
     Eigen::Vector3d lo = e.exposure_gains.front(), hi = lo;
     for (const Eigen::Vector3d& g : e.exposure_gains) lo = lo.cwiseMin(g), hi = hi.cwiseMax(g);

@@ -254,7 +254,7 @@ void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& optio
   if (!options.sweep) return;
   // Fig. 3: light error against the penalty weight, and the time it takes.
   std::vector<std::string> warnings;
-  const render::Scene scene = LoadGeometry({{}, ws.Mesh(), ws.Albedo()}, ws, &warnings);
+  const render::Scene scene = LoadGeometry({{}, ws.Mesh(), ws.ModelAlbedo()}, ws, &warnings);
   const std::vector<PosedImage> views = ReadPosedImages(ws.Keyframes());
   inverse::LightEstimationOptions base;
   // The estimate's own grid and refinement (lights.json's dims are the refined grid's).

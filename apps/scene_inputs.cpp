@@ -25,8 +25,9 @@ Scene LoadGeometry(const GeometryInputs& in, const Workspace& ws,
   SceneMesh m;
   m.name = mesh_path.stem().string();
   m.mesh = ReadPly(mesh_path);
-  const fs::path albedo =
-      !in.albedo.empty() ? in.albedo : (fs::exists(ws.Albedo()) ? ws.Albedo() : fs::path());
+  const fs::path albedo = !in.albedo.empty()
+                              ? in.albedo
+                              : (fs::exists(ws.ModelAlbedo()) ? ws.ModelAlbedo() : fs::path());
   if (!albedo.empty()) {
     m.albedo = SurfaceAlbedo::FromMeshColors(ReadMeshColors(albedo, m.mesh));
   } else {

@@ -35,6 +35,14 @@ class Workspace {
   std::filesystem::path Albedo() const { return root_ / "albedo.mcol"; }
   std::filesystem::path AlbedoPly() const { return root_ / "albedo.ply"; }
   std::filesystem::path Lights() const { return root_ / "lights.json"; }
+  // The albedo the lights stage estimated jointly with the lights (Mesh Colors, and as vertex
+  // colours of the subdivided mesh), written when the joint estimate kept a step.
+  std::filesystem::path JointAlbedo() const { return root_ / "albedo_joint.mcol"; }
+  std::filesystem::path JointAlbedoPly() const { return root_ / "albedo_joint.ply"; }
+  // The model's albedo: the joint albedo when the lights stage has written it, else albedo.mcol.
+  std::filesystem::path ModelAlbedo() const {
+    return std::filesystem::exists(JointAlbedo()) ? JointAlbedo() : Albedo();
+  }
   std::filesystem::path RefinedMesh() const { return root_ / "mesh_refined.ply"; }
   // The model's mesh: the refined one when refinement has written it, else mesh.ply.
   std::filesystem::path ModelMesh() const {

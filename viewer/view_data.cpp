@@ -53,8 +53,8 @@ ViewData LoadWorkspace(const fs::path& root) {
   if (data.mesh) {
     LoadPiece(ws.Texture(), "run genscene-texture", missing,
               [&] { data.observed = ReadMeshColors(ws.Texture(), *data.mesh); });
-    LoadPiece(ws.Albedo(), "run genscene-albedo", missing,
-              [&] { data.albedo = ReadMeshColors(ws.Albedo(), *data.mesh); });
+    LoadPiece(ws.ModelAlbedo(), "run genscene-albedo", missing,
+              [&] { data.albedo = ReadMeshColors(ws.ModelAlbedo(), *data.mesh); });
   } else {
     for (const fs::path& p : {ws.Texture(), ws.Albedo()}) {
       if (fs::exists(p, ec))

@@ -8,6 +8,7 @@
 
 #include "core/check.h"
 #include "core/color.h"
+#include "core/parallel.h"
 #include "core/rng.h"
 #include "inverse/lights/lights_internal.h"
 
@@ -83,7 +84,7 @@ class LightEstimator {
     CheckEquationBytes();
   }
 
-  LightEstimate Run(std::chrono::steady_clock::time_point start) {
+  LightEstimate Run(std::chrono::steady_clock::time_point start, const JointAlbedoInputs* joint) {
     // 1. The coarse rounds.
     CoarseRounds(coarse_pixels_);
     // 2. Adaptive refinement: a grid twice as fine, traced and solved over the voxels near the
@@ -91,6 +92,8 @@ class LightEstimator {
     for (int level = 1; level <= options_.refine_levels; ++level) {
       if (!Refine(level)) break;
     }
+    // 2b. Joint albedo.
+    if (joint && options_.albedo_iterations > 0) JointAlbedo(*joint);
     // 3. The training error of the result's cache (the prediction times the view's gain).
     const std::vector<Eigen::Vector3f> predicted = last_.Predict(out_.lights);
     double err = 0.0, ref = 0.0;
@@ -189,11 +192,10 @@ class LightEstimator {
     VoxelLightGrid& grid = out_.lights;
     LightRound r;
     r.round = static_cast<int>(out_.rounds.size());
-    LightCache second;
     TraceHalves(round_pixels, grid, RoundSplitting(round), options_.paths.spp,
-                Mix64(seed_ + 0x51ED * (round + 1)), equation_bytes_, &second, &r);
+                Mix64(seed_ + 0x51ED * (round + 1)), equation_bytes_, &second_, &r);
     auto t = std::chrono::steady_clock::now();
-    NormalEquations eq = NormalEquations::FromCaches(last_, second, options_.noise_correction);
+    NormalEquations eq = NormalEquations::FromCaches(last_, second_, options_.noise_correction);
     if (round == 0) {
       total_ = std::move(eq);
     } else {
@@ -283,9 +285,13 @@ class LightEstimator {
     // would be the result's (not re-estimated).
     const double coarser_data = out_.rounds.back().solve.data;
     VoxelLightGrid coarser = out_.lights;
-    LightCache coarser_cache;
-    if (!reestimate) coarser_cache = std::move(last_);
-    state.coarser_bytes = static_cast<double>(coarser_cache.Bytes());
+    LightCache coarser_cache, coarser_second;
+    if (!reestimate) {
+      coarser_cache = std::move(last_);
+      coarser_second = std::move(second_);
+    }
+    second_ = LightCache();
+    state.coarser_bytes = static_cast<double>(coarser_cache.Bytes() + coarser_second.Bytes());
     state.traced.assign(state.enabled.size(), false);
     // Growing passes add the neighbours of the finer solution's lights (a coarse voxel standing
     // in for an extended light can sit a layer off it) and solve again.
@@ -314,11 +320,14 @@ class LightEstimator {
       } else {
         out_.lights = std::move(coarser);
         last_ = std::move(coarser_cache);
+        second_ = std::move(coarser_second);
       }
       return false;
     }
     coarser_cache = LightCache();
+    coarser_second = LightCache();
     out_.lights = std::move(state.fine);
+    second_ = std::move(state.second);
     return true;
   }
 
@@ -359,6 +368,97 @@ class LightEstimator {
     r.solve_seconds = SecondsSince(t);
     r.active_voxels = static_cast<int>(state->fine.ActiveVoxels(options_.active_fraction).size());
     out_.rounds.push_back(r);
+  }
+
+  // Scales the rows of pixel i of both caches by ratio[i] (per channel).
+  void ScaleRows(const std::vector<Eigen::Vector3f>& ratio) {
+    for (LightCache* cache : {&last_, &second_}) {
+      if (cache->pixels.size() != ratio.size()) continue;
+      ParallelFor(0, ratio.size(), [&](size_t i) {
+        for (size_t e = cache->row_begin[i]; e < cache->row_begin[i + 1]; ++e)
+          cache->coefficient[e] = cache->coefficient[e].cwiseProduct(ratio[i]);
+      });
+    }
+  }
+
+  // Step 7 (joint_albedo.h): per-texel albedo alternated with the lights.
+  void JointAlbedo(const JointAlbedoInputs& in) {
+    const auto start = std::chrono::steady_clock::now();
+    const SceneMesh& traced = tracer_.scene().meshes[static_cast<size_t>(in.mesh)];
+    const size_t n = last_.pixels.size();
+    const std::vector<PixelSurface> surface = LocatePixels(tracer_, views_, last_.pixels);
+    std::vector<Eigen::Vector3f> albedo(n, Eigen::Vector3f::Ones());  // at each first hit
+    for (size_t i = 0; i < n; ++i) {
+      const PixelSurface& p = surface[i];
+      if (p.hit) {
+        const SceneMesh& m = tracer_.scene().meshes[static_cast<size_t>(p.mesh)];
+        albedo[i] = m.albedo.Eval(m.mesh, p.face, p.b1, p.b2);
+      }
+    }
+    Eigen::AlignedBox3f box;
+    for (const Eigen::Vector3f& v : traced.mesh.vertices) box.extend(v);
+    const double radius = options_.albedo_radius * std::max(1e-6f, box.diagonal().norm());
+    LightEstimationOptions solve = options_;  // the options of the result's last solve
+    solve.move_passes = 0;
+    if (out_.lights.dims.x() > options_.grid)
+      solve.penalty_weight = options_.penalty_weight * options_.refine_penalty_scale;
+    double cost = out_.rounds.back().solve.cost;
+    MeshColors current = *in.clusters;
+    const bool halves = second_.pixels.size() == n;
+    for (int step = 0; step < options_.albedo_iterations; ++step) {
+      // 1. The shading of every pixel on the mesh, carried to the texels.
+      const std::vector<Eigen::Vector3f> a = last_.Predict(out_.lights);
+      const std::vector<Eigen::Vector3f> b =
+          halves ? second_.Predict(out_.lights) : std::vector<Eigen::Vector3f>();
+      std::vector<Eigen::Vector3f> shading(n, Eigen::Vector3f::Zero());
+      for (size_t i = 0; i < n; ++i) {
+        if (!surface[i].hit || surface[i].mesh != in.mesh) continue;
+        const Eigen::Vector3f predicted = halves ? 0.5f * (a[i] + b[i]) : a[i];
+        shading[i] = predicted.cwiseQuotient(albedo[i].cwiseMax(0.02f));
+      }
+      std::vector<uint8_t> covered;
+      const std::vector<Eigen::Vector3f> texel_shading =
+          TexelShading(traced.mesh, current, in.mesh, surface, shading, radius, &covered);
+      // 2. The albedo.
+      JointAlbedoStep record;
+      MeshColors next =
+          UpdateAlbedo(in, texel_shading, covered, options_.albedo_prior, options_.albedo_ceiling,
+                       &record.texels_updated, &record.scale);
+      // 4. The caches follow the albedo at the first hits; the lights are solved again.
+      std::vector<Eigen::Vector3f> next_albedo = albedo, ratio(n, Eigen::Vector3f::Ones());
+      for (size_t i = 0; i < n; ++i) {
+        if (!surface[i].hit || surface[i].mesh != in.mesh) continue;
+        next_albedo[i] = next.Linear(surface[i].face, surface[i].b1, surface[i].b2)
+                             .cwiseMax(0.0f)
+                             .cwiseMin(1.0f);
+        ratio[i] = next_albedo[i].cwiseQuotient(albedo[i].cwiseMax(1e-3f)).cwiseMin(1e3f);
+      }
+      const VoxelLightGrid lights = out_.lights;
+      const std::vector<Eigen::Vector3d> scale = scale_;
+      ScaleRows(ratio);
+      total_ = NormalEquations::FromCaches(last_, second_, options_.noise_correction);
+      const SolveReport report = Solve(solve, &out_.lights);
+      record.cost = report.cost;
+      record.data = report.data;
+      if (!(report.cost < cost)) {  // undone: the caches, the equations and the lights
+        record.kept = false;
+        for (size_t i = 0; i < n; ++i) ratio[i] = ratio[i].cwiseInverse();
+        ScaleRows(ratio);
+        total_ = NormalEquations::FromCaches(last_, second_, options_.noise_correction);
+        out_.lights = lights;
+        scale_ = scale;
+        out_.albedo_steps.push_back(record);
+        break;
+      }
+      out_.albedo_steps.push_back(record);
+      const double fall = (cost - report.cost) / std::max(cost, 1e-300);
+      cost = report.cost;
+      current = std::move(next);
+      albedo = std::move(next_albedo);
+      out_.albedo = current;
+      if (fall < options_.albedo_tolerance) break;
+    }
+    out_.albedo_seconds = SecondsSince(start);
   }
 
   bool Exposure() const { return options_.exposure != "none"; }
@@ -460,7 +560,7 @@ class LightEstimator {
   const double cap_bytes_;
   const double equation_bytes_;
   NormalEquations total_;
-  LightCache last_;
+  LightCache last_, second_;            // the two halves of the result's paths
   std::vector<Eigen::Vector3d> scale_;  // per view, the exposure step's h (1: no exposure)
 };
 
@@ -511,11 +611,25 @@ VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset
 }
 
 LightEstimate EstimateLights(const Scene& scene, const std::vector<PosedImage>& views,
-                             const LightEstimationOptions& options, uint64_t seed) {
+                             const LightEstimationOptions& options, uint64_t seed,
+                             const JointAlbedoInputs* joint) {
   options.Validate();
   const auto start = std::chrono::steady_clock::now();
+  if (joint) {
+    GS_CHECK(joint->observed && joint->clusters);
+    if (joint->mesh < 0 || joint->mesh >= static_cast<int>(scene.meshes.size()) ||
+        scene.meshes[static_cast<size_t>(joint->mesh)].IsEmitter())
+      throw Error(Format("light estimation: joint albedo on mesh ", joint->mesh,
+                         ", which is not a reflecting mesh of the scene"));
+  }
   LightEstimator estimator(scene, views, options, seed);
-  return estimator.Run(start);
+  if (joint) {  // the mesh's index among the traced (non-emitting) meshes
+    JointAlbedoInputs traced = *joint;
+    traced.mesh = 0;
+    for (int m = 0; m < joint->mesh; ++m) traced.mesh += scene.meshes[m].IsEmitter() ? 0 : 1;
+    return estimator.Run(start, &traced);
+  }
+  return estimator.Run(start, nullptr);
 }
 
 }  // namespace genscene::inverse

@@ -46,11 +46,13 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/image.h"
 #include "core/light_set.h"
+#include "inverse/lights/joint_albedo.h"
 #include "inverse/lights/light_cache.h"
 #include "inverse/lights/light_cost.h"
 #include "inverse/lights/light_metrics.h"
@@ -95,12 +97,20 @@ struct LightEstimate {
   // the model's radiance; geometric mean 1 over the views. Empty without.
   std::vector<Eigen::Vector3d> exposure_gains;
   int active_voxels = 0;
+  // Step 7: the joint albedo (layout and labels of JointAlbedoInputs::clusters) when some
+  // alternation was kept, and every alternation's figures.
+  std::optional<MeshColors> albedo;
+  std::vector<JointAlbedoStep> albedo_steps;
+  double albedo_seconds = 0.0;
   std::vector<std::string> notes;  // e.g. why adaptive refinement stopped early
 };
 
-// Steps 1-5. `scene`: geometry and albedo (emitters and lights in it are ignored).
+// Steps 1-7. `scene`: geometry and albedo (emitters and lights in it are ignored). `joint`: the
+// Mesh Colors albedo step 7 updates (null: no step 7); its clusters must be the albedo the scene's
+// mesh carries.
 LightEstimate EstimateLights(const render::Scene& scene, const std::vector<PosedImage>& views,
-                             const LightEstimationOptions& options, uint64_t seed);
+                             const LightEstimationOptions& options, uint64_t seed,
+                             const JointAlbedoInputs* joint = nullptr);
 
 // The scene without its emitters and lights: what light estimation traces.
 render::Scene WithoutLights(const render::Scene& scene);

@@ -45,6 +45,11 @@ void LightEstimationOptions::Validate() const {
     throw Error(Format("option refine_levels = ", refine_levels, " with grid = ", grid, " gives a ",
                        grid << refine_levels, "^3 grid; at most 256 per axis"));
   }
+  RequireRange("albedo_iterations", albedo_iterations, 0, 100);
+  RequireRange("albedo_prior", albedo_prior, 0.0, 1e6);
+  RequireRange("albedo_radius", albedo_radius, 1e-6, 1.0);
+  RequireRange("albedo_ceiling", albedo_ceiling, 1e-3, 1.0);
+  RequireRange("albedo_tolerance", albedo_tolerance, 0.0, 1.0);
   RequireRange("active_fraction", active_fraction, 0.0, 1.0);
   RequireRange("memory_cap", memory_cap, 1.0, 1e7);
 }

@@ -69,9 +69,16 @@ struct LightEstimationOptions {
   // "gain" (one gain per view) or "white-balance" (one per view and channel). The gains' geometric
   // mean over the views is 1 (per channel for white-balance): the overall scale is the lights'.
   std::string exposure = "none";
-  double memory_cap = 4000.0;  // MB the path-coefficient caches and the normal equations
-                               // may take; exceeding it is an error (checked before tracing
-                               // for the equations, while tracing for the caches)
+  // Joint albedo (joint_albedo.h; EstimateLights with JointAlbedoInputs): alternations of
+  // per-texel albedo and lights after the lights' estimate (0: the clustering's albedo stays).
+  int albedo_iterations = 3;
+  double albedo_prior = 0.02;      // weight pulling a texel's albedo toward its cluster's
+  double albedo_radius = 0.02;     // shading kernel radius, share of the scene's diagonal
+  double albedo_ceiling = 0.9;     // the 95th percentile of the largest albedo channel at most
+  double albedo_tolerance = 0.01;  // stop when the light cost falls less than this (relative)
+  double memory_cap = 4000.0;      // MB the path-coefficient caches and the normal equations
+                                   // may take; exceeding it is an error (checked before tracing
+                                   // for the equations, while tracing for the caches)
 
   template <typename V>
   void Visit(V&& v) {
@@ -122,6 +129,15 @@ struct LightEstimationOptions {
     v("exposure", exposure, "",
       "per-view camera gain estimated with the lights: none, gain or white-balance (per channel); "
       "geometric mean 1");
+    v("albedo_iterations", albedo_iterations, "",
+      "alternations of per-texel albedo and lights (0: the clustering's albedo stays)");
+    v("albedo_prior", albedo_prior, "", "weight pulling a texel's albedo toward its cluster's");
+    v("albedo_radius", albedo_radius, "",
+      "shading smoothing radius of the joint albedo, share of the scene's diagonal");
+    v("albedo_ceiling", albedo_ceiling, "",
+      "joint albedo: the 95th percentile of the largest channel at most this (scaled down)");
+    v("albedo_tolerance", albedo_tolerance, "",
+      "joint albedo stops when the light cost falls less than this (relative)");
     v("refine_spp", refine_spp, "",
       "camera paths per sampled pixel at the finer levels (0: spp; even)");
     v("active_fraction", active_fraction, "",

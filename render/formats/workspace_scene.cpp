@@ -32,8 +32,8 @@ LoadedScene LoadWorkspaceScene(const fs::path& folder) {
   SceneMesh m;
   m.name = "model";
   m.mesh = ReadPly(mesh_path);
-  if (fs::exists(ws.Albedo())) {
-    m.albedo = SurfaceAlbedo::FromMeshColors(ReadMeshColors(ws.Albedo(), m.mesh));
+  if (fs::exists(ws.ModelAlbedo())) {
+    m.albedo = SurfaceAlbedo::FromMeshColors(ReadMeshColors(ws.ModelAlbedo(), m.mesh));
   } else {
     m.albedo = SurfaceAlbedo::FromMesh(m.mesh, Eigen::Vector3f::Constant(0.5f));
     out.warnings.push_back(Format(ws.Albedo().string(),

@@ -1,0 +1,194 @@
+#include "inverse/lights/joint_albedo.h"
+
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+#include "core/check.h"
+#include "core/parallel.h"
+
+namespace genscene::inverse {
+
+namespace {
+
+constexpr float kMinNormalCosine = 0.7071f;  // 45 degrees
+
+// A uniform hash grid of the pixels' first hits, cell size = the kernel radius.
+class PointGrid {
+ public:
+  PointGrid(const std::vector<PixelSurface>& pixels, int mesh, double radius)
+      : inverse_cell_(1.0 / radius) {
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      if (pixels[i].hit && pixels[i].mesh == mesh)
+        cells_[Key(Cell(pixels[i].position))].push_back(i);
+    }
+  }
+  template <typename Visit>
+  void ForNear(const Eigen::Vector3f& p, const Visit& visit) const {
+    const Eigen::Vector3i c = Cell(p);
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const auto it = cells_.find(Key(c + Eigen::Vector3i(dx, dy, dz)));
+          if (it == cells_.end()) continue;
+          for (size_t i : it->second) visit(i);
+        }
+  }
+
+ private:
+  Eigen::Vector3i Cell(const Eigen::Vector3f& p) const {
+    return (p.cast<double>() * inverse_cell_).array().floor().cast<int>();
+  }
+  static uint64_t Key(const Eigen::Vector3i& c) {
+    return (static_cast<uint64_t>(static_cast<uint32_t>(c.x()) & 0x1FFFFF) << 42) |
+           (static_cast<uint64_t>(static_cast<uint32_t>(c.y()) & 0x1FFFFF) << 21) |
+           (static_cast<uint64_t>(static_cast<uint32_t>(c.z()) & 0x1FFFFF));
+  }
+  double inverse_cell_;
+  std::unordered_map<uint64_t, std::vector<size_t>> cells_;
+};
+
+bool Observed(const JointAlbedoInputs& in, size_t t) {
+  return in.view_counts.empty() || in.view_counts[t] > 0;
+}
+
+}  // namespace
+
+std::vector<PixelSurface> LocatePixels(const render::PathTracer& tracer,
+                                       const std::vector<PosedImage>& views,
+                                       const std::vector<SampledPixel>& pixels) {
+  std::vector<PixelSurface> out(pixels.size());
+  const render::Scene& scene = tracer.scene();
+  ParallelFor(0, pixels.size(), [&](size_t i) {
+    const SampledPixel& p = pixels[i];
+    const auto hit = tracer.PixelCentreHit(views[static_cast<size_t>(p.view)].view, p.u, p.v);
+    if (!hit) return;
+    const TriangleMesh& mesh = scene.meshes[static_cast<size_t>(hit->mesh)].mesh;
+    const Eigen::Vector3i& f = mesh.faces[static_cast<size_t>(hit->face)];
+    PixelSurface& s = out[i];
+    s.hit = true;
+    s.mesh = hit->mesh;
+    s.face = hit->face;
+    s.b1 = hit->b1;
+    s.b2 = hit->b2;
+    s.position = (1.0f - hit->b1 - hit->b2) * mesh.vertices[f[0]] + hit->b1 * mesh.vertices[f[1]] +
+                 hit->b2 * mesh.vertices[f[2]];
+    s.normal = mesh.FaceNormalScaled(static_cast<size_t>(hit->face)).normalized();
+  });
+  return out;
+}
+
+std::vector<Eigen::Vector3f> TexelShading(const TriangleMesh& mesh, const MeshColors& layout,
+                                          int mesh_index, const std::vector<PixelSurface>& pixels,
+                                          const std::vector<Eigen::Vector3f>& pixel_shading,
+                                          double radius, std::vector<uint8_t>* covered) {
+  GS_CHECK(radius > 0.0);
+  GS_CHECK_EQ(pixels.size(), pixel_shading.size());
+  TriangleMesh normals_mesh;
+  normals_mesh.vertices = mesh.vertices;
+  normals_mesh.faces = mesh.faces;
+  normals_mesh.ComputeVertexNormals();
+  const std::vector<Eigen::Vector3f> position = layout.InterpolateVertexAttribute(mesh.vertices);
+  const std::vector<Eigen::Vector3f> normal =
+      layout.InterpolateVertexAttribute(normals_mesh.normals);
+  const PointGrid grid(pixels, mesh_index, radius);
+  const float r2 = static_cast<float>(radius * radius);
+  std::vector<Eigen::Vector3f> out(layout.SampleCount(), Eigen::Vector3f::Zero());
+  covered->assign(layout.SampleCount(), 0);
+  ParallelFor(0, layout.SampleCount(), [&](size_t t) {
+    const Eigen::Vector3f n = normal[t].normalized();
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    double weight = 0.0;
+    grid.ForNear(position[t], [&](size_t i) {
+      const float d2 = (pixels[i].position - position[t]).squaredNorm();
+      if (d2 >= r2 || pixels[i].normal.dot(n) < kMinNormalCosine) return;
+      const double w = (1.0 - d2 / r2) * (1.0 - d2 / r2);
+      sum += w * pixel_shading[i].cast<double>();
+      weight += w;
+    });
+    if (weight > 0.0) {
+      out[t] = (sum / weight).cast<float>();
+      (*covered)[t] = 1;
+    }
+  });
+  return out;
+}
+
+MeshColors UpdateAlbedo(const JointAlbedoInputs& in,
+                        const std::vector<Eigen::Vector3f>& texel_shading,
+                        const std::vector<uint8_t>& covered, double prior, double ceiling,
+                        size_t* updated, double* applied_scale) {
+  GS_CHECK(in.observed && in.clusters);
+  const MeshColors& clusters = *in.clusters;
+  const size_t n = clusters.SampleCount();
+  GS_CHECK_EQ(in.observed->SampleCount(), n);
+  GS_CHECK_EQ(texel_shading.size(), n);
+  const std::vector<int32_t>& label = clusters.labels();
+  int32_t classes = 0;
+  for (int32_t l : label) classes = std::max(classes, l + 1);
+  const auto ClassOf = [&](size_t t) { return label.empty() ? 0 : std::max(0, label[t]); };
+  classes = std::max(classes, 1);
+  // Which texels vote: observed, reached by the kernel, with shading in every channel.
+  std::vector<uint8_t> uses(n, 0);
+  Eigen::Vector3d shading_sq = Eigen::Vector3d::Zero();
+  size_t used = 0;
+  for (size_t t = 0; t < n; ++t) {
+    if (!covered[t] || !Observed(in, t) || !(texel_shading[t].minCoeff() > 0.0f)) continue;
+    uses[t] = 1;
+    shading_sq += texel_shading[t].cast<double>().cwiseAbs2();
+    ++used;
+  }
+  if (updated) *updated = used;
+  MeshColors out = clusters;
+  if (applied_scale) *applied_scale = 1.0;
+  if (used == 0) {
+    return out;
+  }
+  shading_sq /= static_cast<double>(used);
+  // m_k: the cluster's least-squares albedo sum(o S) / sum(S^2) over its voting texels (the
+  // clustering's albedo where none of it votes).
+  std::vector<Eigen::Vector3d> os(static_cast<size_t>(classes), Eigen::Vector3d::Zero()),
+      ss(static_cast<size_t>(classes), Eigen::Vector3d::Zero()),
+      mean(static_cast<size_t>(classes), Eigen::Vector3d::Zero());
+  std::vector<double> count(static_cast<size_t>(classes), 0.0);
+  for (size_t t = 0; t < n; ++t) {
+    if (!uses[t]) continue;
+    const size_t k = static_cast<size_t>(ClassOf(t));
+    const Eigen::Vector3d s = texel_shading[t].cast<double>();
+    os[k] += in.observed->colors()[t].cast<double>().cwiseProduct(s);
+    ss[k] += s.cwiseAbs2();
+    count[k] += 1.0;
+  }
+  for (size_t k = 0; k < mean.size(); ++k)
+    if (count[k] > 0.0) mean[k] = os[k].cwiseQuotient(ss[k]);
+  std::vector<Eigen::Vector3f>& a = out.colors();
+  for (size_t t = 0; t < n; ++t) {
+    const size_t k = static_cast<size_t>(ClassOf(t));
+    if (count[k] == 0.0) continue;  // keeps the cluster's albedo
+    if (!uses[t]) {
+      a[t] = mean[k].cast<float>();
+      continue;
+    }
+    const Eigen::Vector3d o = in.observed->colors()[t].cast<double>();
+    const Eigen::Vector3d s = texel_shading[t].cast<double>();
+    for (int c = 0; c < 3; ++c) {
+      const double m = prior * shading_sq[c];
+      a[t][c] = static_cast<float>((o[c] * s[c] + m * mean[k][c]) / (s[c] * s[c] + m));
+    }
+  }
+  // The ceiling: when the 95th percentile of the largest channel over the voting texels is above
+  // `ceiling`, the whole albedo is scaled down to it (the lights' solve takes the scale up).
+  std::vector<float> largest;
+  largest.reserve(used);
+  for (size_t t = 0; t < n; ++t)
+    if (uses[t]) largest.push_back(a[t].maxCoeff());
+  const size_t q = std::min(largest.size() - 1, static_cast<size_t>(0.95 * largest.size()));
+  std::nth_element(largest.begin(), largest.begin() + static_cast<std::ptrdiff_t>(q),
+                   largest.end());
+  const float scale = largest[q] > ceiling ? static_cast<float>(ceiling) / largest[q] : 1.0f;
+  for (Eigen::Vector3f& v : a) v = (scale * v).cwiseMax(0.0f).cwiseMin(1.0f);
+  if (applied_scale) *applied_scale = scale;
+  return out;
+}
+
+}  // namespace genscene::inverse

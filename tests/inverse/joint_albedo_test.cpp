@@ -1,0 +1,260 @@
+// Joint albedo and lights: the albedo update and the shading kernel on known fields, and the
+// whole alternation on the Cornell box with a texture the clustering does not know.
+#include "inverse/lights/joint_albedo.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <iostream>
+
+#include "core/check.h"
+#include "core/parallel.h"
+#include "core/rng.h"
+#include "inverse/lights/light_estimation.h"
+#include "render/procedural.h"
+
+namespace genscene::inverse {
+using namespace genscene::render;
+namespace {
+
+// Two triangles of a unit square in z = 0 (normal +z) and one upright (normal -y).
+TriangleMesh SquareAndWall() {
+  TriangleMesh m;
+  m.vertices = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}};
+  m.faces = {{0, 1, 2}, {0, 2, 3}, {0, 4, 5}, {0, 5, 1}};
+  return m;
+}
+
+TEST(JointAlbedo, TheUpdateDividesTheObservedColourByTheShading) {
+  const TriangleMesh mesh = SquareAndWall();
+  MeshColors clusters(mesh, std::vector<int>(mesh.faces.size(), 4));
+  const size_t n = clusters.SampleCount();
+  clusters.labels().assign(n, 0);
+  for (auto& c : clusters.colors()) c = Eigen::Vector3f::Constant(0.5f);
+  MeshColors observed = clusters;
+  std::vector<Eigen::Vector3f> truth(n), shading(n);
+  for (size_t t = 0; t < n; ++t) {
+    truth[t] = Eigen::Vector3f(0.2f + 0.6f * ((t % 3) == 0), 0.4f, 0.1f + 0.05f * (t % 5));
+    shading[t] = Eigen::Vector3f(1.0f + 0.1f * (t % 7), 2.0f, 0.5f);
+    observed.colors()[t] = truth[t].cwiseProduct(shading[t]);
+  }
+  JointAlbedoInputs in;
+  in.observed = &observed;
+  in.clusters = &clusters;
+  const std::vector<uint8_t> covered(n, 1);
+  size_t updated = 0;
+  double scale = 0.0;
+  const MeshColors exact = UpdateAlbedo(in, shading, covered, 0.0, 1.0, &updated, &scale);
+  EXPECT_EQ(scale, 1.0);
+  EXPECT_EQ(updated, n);
+  for (size_t t = 0; t < n; ++t) EXPECT_LT((exact.colors()[t] - truth[t]).norm(), 1e-5f) << t;
+  // The prior pulls each texel toward its cluster's least-squares albedo; a texel that is not
+  // observed takes that albedo.
+  in.view_counts.assign(n, 1);
+  in.view_counts[3] = 0;
+  const MeshColors pulled = UpdateAlbedo(in, shading, covered, 10.0, 1.0);
+  Eigen::Vector3d os = Eigen::Vector3d::Zero(), ss = Eigen::Vector3d::Zero();
+  for (size_t t = 0; t < n; ++t) {
+    if (t == 3) continue;
+    os += observed.colors()[t].cast<double>().cwiseProduct(shading[t].cast<double>());
+    ss += shading[t].cast<double>().cwiseAbs2();
+  }
+  const Eigen::Vector3f mean = os.cwiseQuotient(ss).cast<float>();
+  EXPECT_LT((pulled.colors()[3] - mean).norm(), 1e-5f);
+  double spread_exact = 0.0, spread_pulled = 0.0;
+  for (size_t t = 0; t < n; ++t) {
+    spread_exact += (exact.colors()[t] - mean).squaredNorm();
+    spread_pulled += (pulled.colors()[t] - mean).squaredNorm();
+  }
+  EXPECT_LT(spread_pulled, 0.2 * spread_exact);
+  // A ceiling below the data scales the whole albedo down: the 95th percentile of the largest
+  // channel lands on it, ratios between texels stay.
+  const MeshColors lowered = UpdateAlbedo(in, shading, covered, 0.0, 0.4, nullptr, &scale);
+  EXPECT_LT(scale, 1.0);
+  size_t above = 0;
+  for (size_t t = 0; t < n; ++t) {
+    above += lowered.colors()[t].maxCoeff() > 0.4f + 1e-6f ? 1 : 0;
+    if (t != 3) {
+      EXPECT_LT((lowered.colors()[t] - scale * truth[t]).norm(), 1e-5f);
+    }
+  }
+  EXPECT_LE(above, n / 20 + 1);
+  // Kept within [0, 1].
+  observed.colors()[0] *= 10.0f;
+  const MeshColors clamped = UpdateAlbedo(in, shading, covered, 0.0, 1.0);
+  EXPECT_LE(clamped.colors()[0].maxCoeff(), 1.0f);
+  EXPECT_GE(clamped.colors()[0].minCoeff(), 0.0f);
+}
+
+TEST(JointAlbedo, TheShadingKernelAveragesNearbyPixelsOfTheSameOrientation) {
+  const TriangleMesh mesh = SquareAndWall();
+  const MeshColors layout(mesh, std::vector<int>(mesh.faces.size(), 8));
+  // Pixels on the square with shading 1 + x; pixels on the wall with shading 100.
+  std::vector<PixelSurface> pixels;
+  std::vector<Eigen::Vector3f> shading;
+  CounterRng rng(7, 0);
+  for (int i = 0; i < 4000; ++i) {
+    PixelSurface p;
+    p.hit = true;
+    p.mesh = 0;
+    const bool wall = i % 4 == 0;
+    const float u = static_cast<float>(rng.Uniform()), v = static_cast<float>(rng.Uniform());
+    p.position = wall ? Eigen::Vector3f(u, 0.0f, v) : Eigen::Vector3f(u, v, 0.0f);
+    p.normal = wall ? Eigen::Vector3f(0, 1, 0) : Eigen::Vector3f(0, 0, 1);
+    pixels.push_back(p);
+    shading.push_back(Eigen::Vector3f::Constant(wall ? 100.0f : 1.0f + u));
+  }
+  std::vector<uint8_t> covered;
+  const std::vector<Eigen::Vector3f> texel =
+      TexelShading(mesh, layout, 0, pixels, shading, 0.1, &covered);
+  const std::vector<Eigen::Vector3f> position = layout.InterpolateVertexAttribute(mesh.vertices);
+  int checked = 0;
+  for (size_t t = 0; t < layout.SampleCount(); ++t) {
+    const Eigen::Vector3f& p = position[t];
+    // Inside the square, away from the wall and the borders: the linear field, unbiased.
+    if (p.z() == 0.0f && p.x() > 0.15f && p.x() < 0.85f && p.y() > 0.15f && p.y() < 0.85f) {
+      ASSERT_TRUE(covered[t]);
+      EXPECT_NEAR(texel[t].x(), 1.0f + p.x(), 0.03f) << p.transpose();
+      ++checked;
+    }
+    if (p.z() > 0.15f && p.x() > 0.15f && p.x() < 0.85f) {  // on the wall: the wall's pixels
+      ASSERT_TRUE(covered[t]);
+      EXPECT_NEAR(texel[t].x(), 100.0f, 1e-3f);
+    }
+  }
+  EXPECT_GT(checked, 20);
+  // No pixel within the radius: not covered.
+  std::vector<PixelSurface> far = pixels;
+  for (PixelSurface& p : far) p.position += Eigen::Vector3f(5, 5, 5);
+  TexelShading(mesh, layout, 0, far, shading, 0.1, &covered);
+  for (uint8_t c : covered) EXPECT_EQ(c, 0);
+}
+
+// The Cornell box's mesh with a Mesh Colors albedo: each face's colour, and on the back wall
+// (y = 1) stripes 0.25 m wide at half the colour.
+struct TexturedBox {
+  Scene scene = WithoutLights(MakeCornellBoxScene());
+  MeshColors truth, flat;
+  int dark_texels = 0;
+  TexturedBox() {
+    const SceneMesh& m = scene.meshes[0];
+    std::vector<int> resolution;  // 16 on the walls and the box, 2 on the sphere
+    for (size_t f = 0; f < m.mesh.faces.size(); ++f)
+      resolution.push_back(m.mesh.FaceNormalScaled(f).norm() > 0.1f ? 16 : 2);
+    truth = MeshColors(m.mesh, resolution);
+    const std::vector<Eigen::Vector3f> position = truth.InterpolateVertexAttribute(m.mesh.vertices);
+    flat = truth;
+    flat.labels().assign(truth.SampleCount(), 0);
+
+    for (size_t t = 0; t < truth.SampleCount(); ++t) {
+      int face = 0;
+      double b1 = 0.0, b2 = 0.0;
+      truth.SampleFacePoint(t, &face, &b1, &b2);
+      const Eigen::Vector3f base = m.albedo.Eval(m.mesh, face, 0.3f, 0.3f);
+      flat.colors()[t] = base;
+      const bool dark = position[t].y() > 0.99f &&
+                        static_cast<int>(std::floor(position[t].x() / 0.25f + 8.0f)) % 2 == 0;
+      truth.colors()[t] = dark ? 0.5f * base : base;
+      if (dark) ++dark_texels;
+      flat.labels()[t] = base.x() > 2.0f * base.y() ? 1 : (base.y() > 2.0f * base.x() ? 2 : 0);
+    }
+  }
+  // Scene with `albedo` on the box and the light grid of `lights`.
+  Scene With(const MeshColors& albedo, const VoxelLightGrid* lights = nullptr) const {
+    Scene s = scene;
+    s.meshes[0].albedo = SurfaceAlbedo::FromMeshColors(albedo);
+    if (lights) s.voxel_lights = *lights;
+    return s;
+  }
+};
+
+// Relative RMS error of the back wall's texels against the truth, after one global scale.
+double BackWallError(const TexturedBox& box, const MeshColors& albedo) {
+  const std::vector<Eigen::Vector3f> position =
+      box.truth.InterpolateVertexAttribute(box.scene.meshes[0].mesh.vertices);
+  double at = 0.0, aa = 0.0, tt = 0.0;
+  for (size_t t = 0; t < position.size(); ++t) {
+    if (!(position[t].y() > 0.99f && std::abs(position[t].x()) < 0.9f && position[t].z() > 0.1f &&
+          position[t].z() < 1.9f))
+      continue;
+    at += albedo.colors()[t].cast<double>().dot(box.truth.colors()[t].cast<double>());
+    aa += albedo.colors()[t].cast<double>().squaredNorm();
+    tt += box.truth.colors()[t].cast<double>().squaredNorm();
+  }
+  GS_CHECK(tt > 0.0);
+  const double s = at / aa;  // the global scale that fits best
+  return std::sqrt(std::max(0.0, (s * s * aa - 2.0 * s * at + tt) / tt));
+}
+
+TEST(JointAlbedo, TheAlternationReturnsTextureDetailToTheAlbedo) {
+  const TexturedBox box;
+  ASSERT_GT(box.dark_texels, 100);
+  VoxelLightGrid lights = MakeVoxelGrid(box.scene, 3, 0.5);
+  lights.intensity[22] = Eigen::Vector3f(2.0f, 1.5f, 1.0f);  // top layer, centre
+  lights.weights[22] = {0.2f, 0.2f, 0.2f, 0.2f, 0.0f, 1.0f};
+  const Scene lit = box.With(box.truth, &lights);
+  const PathTracer tracer(lit);
+  // Training views of the textured box.
+  RenderOptions ro;
+  ro.spp = 64;
+  std::vector<PosedImage> views;
+  const std::vector<PosedView> all = CornellLightViews(32, 24);
+  for (size_t i = 0; i < 3; ++i)
+    views.push_back({all[i], tracer.Render(all[i], ro, 100 + i).radiance});
+  // The observed colour of every texel: its outgoing radiance along the normal (Lambertian).
+  MeshColors observed = box.flat;
+  const SceneMesh& m = lit.meshes[0];
+  TriangleMesh normals = m.mesh;
+  normals.ComputeVertexNormals();
+  const std::vector<Eigen::Vector3f> position =
+      observed.InterpolateVertexAttribute(m.mesh.vertices);
+  const std::vector<Eigen::Vector3f> normal = observed.InterpolateVertexAttribute(normals.normals);
+  RenderOptions one;
+  one.spp = 1;
+  for (size_t t = 0; t < observed.SampleCount(); ++t) {
+    const Eigen::Vector3f n = normal[t].normalized();
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    for (int k = 0; k < 128; ++k) {
+      CounterRng rng(5, t, static_cast<uint64_t>(k));
+      sum += tracer.Radiance(position[t] + 0.01f * n, -n, one, rng);
+    }
+    observed.colors()[t] = sum / 128.0f;
+  }
+  LightEstimationOptions o;
+  o.grid = 3;
+  o.boundary_inset = 0.5;
+  o.pixels_per_view = 600;
+  o.refine_levels = 0;
+  o.albedo_radius = 0.05;
+  JointAlbedoInputs joint;
+  joint.observed = &observed;
+  joint.clusters = &box.flat;
+  const LightEstimate e = EstimateLights(box.With(box.flat), views, o, 9, &joint);
+  ASSERT_TRUE(e.albedo.has_value());
+  ASSERT_FALSE(e.albedo_steps.empty());
+  EXPECT_TRUE(e.albedo_steps.front().kept);
+  double previous = e.rounds.back().solve.cost;
+  for (const JointAlbedoStep& s : e.albedo_steps) {
+    if (!s.kept) break;
+    EXPECT_LT(s.cost, previous);
+    previous = s.cost;
+  }
+  const double before = BackWallError(box, box.flat), after = BackWallError(box, *e.albedo);
+  std::cout << "back wall albedo error: clusters " << before << ", joint " << after << "\n";
+  EXPECT_LT(after, 0.65 * before);  // measured: 0.31 -> 0.17
+  // Same seed, same albedo with one thread.
+  const int threads = ThreadCount();
+  SetThreadCount(1);
+  const LightEstimate single = EstimateLights(box.With(box.flat), views, o, 9, &joint);
+  SetThreadCount(threads);
+  ASSERT_TRUE(single.albedo.has_value());
+  EXPECT_EQ(single.albedo->colors(), e.albedo->colors());
+  EXPECT_EQ(single.albedo_steps.size(), e.albedo_steps.size());
+  // Without joint inputs nothing changes.
+  const LightEstimate plain = EstimateLights(box.With(box.flat), views, o, 9);
+  EXPECT_FALSE(plain.albedo.has_value());
+  EXPECT_TRUE(plain.albedo_steps.empty());
+}
+
+}  // namespace
+}  // namespace genscene::inverse
