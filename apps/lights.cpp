@@ -168,6 +168,8 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
                        {"data", st.data},
                        {"texels_updated", st.texels_updated},
                        {"scale", st.scale},
+                       {"check_before", st.check_before},
+                       {"check", st.check},
                        {"kept", st.kept}});
     }
     estimate["joint_albedo"] = {

@@ -23,12 +23,13 @@ class PointGrid {
         cells_[Key(Cell(pixels[i].position))].push_back(i);
     }
   }
+  // Visits the pixels in the cells within `reach` cells of p's.
   template <typename Visit>
-  void ForNear(const Eigen::Vector3f& p, const Visit& visit) const {
+  void ForNear(const Eigen::Vector3f& p, int reach, const Visit& visit) const {
     const Eigen::Vector3i c = Cell(p);
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
+    for (int dz = -reach; dz <= reach; ++dz)
+      for (int dy = -reach; dy <= reach; ++dy)
+        for (int dx = -reach; dx <= reach; ++dx) {
           const auto it = cells_.find(Key(c + Eigen::Vector3i(dx, dy, dz)));
           if (it == cells_.end()) continue;
           for (size_t i : it->second) visit(i);
@@ -81,7 +82,8 @@ std::vector<PixelSurface> LocatePixels(const render::PathTracer& tracer,
 std::vector<Eigen::Vector3f> TexelShading(const TriangleMesh& mesh, const MeshColors& layout,
                                           int mesh_index, const std::vector<PixelSurface>& pixels,
                                           const std::vector<Eigen::Vector3f>& pixel_shading,
-                                          double radius, std::vector<uint8_t>* covered) {
+                                          double radius, int min_pixels,
+                                          std::vector<uint8_t>* covered) {
   GS_CHECK(radius > 0.0);
   GS_CHECK_EQ(pixels.size(), pixel_shading.size());
   TriangleMesh normals_mesh;
@@ -92,20 +94,27 @@ std::vector<Eigen::Vector3f> TexelShading(const TriangleMesh& mesh, const MeshCo
   const std::vector<Eigen::Vector3f> normal =
       layout.InterpolateVertexAttribute(normals_mesh.normals);
   const PointGrid grid(pixels, mesh_index, radius);
-  const float r2 = static_cast<float>(radius * radius);
   std::vector<Eigen::Vector3f> out(layout.SampleCount(), Eigen::Vector3f::Zero());
   covered->assign(layout.SampleCount(), 0);
   ParallelFor(0, layout.SampleCount(), [&](size_t t) {
     const Eigen::Vector3f n = normal[t].normalized();
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     double weight = 0.0;
-    grid.ForNear(position[t], [&](size_t i) {
-      const float d2 = (pixels[i].position - position[t]).squaredNorm();
-      if (d2 >= r2 || pixels[i].normal.dot(n) < kMinNormalCosine) return;
-      const double w = (1.0 - d2 / r2) * (1.0 - d2 / r2);
-      sum += w * pixel_shading[i].cast<double>();
-      weight += w;
-    });
+    for (int reach = 1; reach <= 4; reach *= 2) {
+      const float r2 = static_cast<float>(reach * reach * radius * radius);
+      sum.setZero();
+      weight = 0.0;
+      int count = 0;
+      grid.ForNear(position[t], reach, [&](size_t i) {
+        const float d2 = (pixels[i].position - position[t]).squaredNorm();
+        if (d2 >= r2 || pixels[i].normal.dot(n) < kMinNormalCosine) return;
+        const double w = (1.0 - d2 / r2) * (1.0 - d2 / r2);
+        sum += w * pixel_shading[i].cast<double>();
+        weight += w;
+        ++count;
+      });
+      if (count >= min_pixels) break;
+    }
     if (weight > 0.0) {
       out[t] = (sum / weight).cast<float>();
       (*covered)[t] = 1;

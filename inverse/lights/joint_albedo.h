@@ -5,8 +5,10 @@
 //     prediction, a_i: the albedo its camera ray meets at the pixel centre), is carried to every
 //     texel t of the Mesh Colors by a cross-bilateral kernel: the sampled pixels within
 //     albedo_radius of the texel whose surface normal is within 45 degrees of the texel's,
-//     weighted (1 - d^2 / r^2)^2. Shading is smooth and the pixels are a few thousand per view:
-//     texture detail stays in the albedo, the kernel keeps the shading smooth.
+//     weighted (1 - d^2 / r^2)^2, widened to 2r, then 4r where fewer than albedo_min_pixels
+//     pixels fall inside. Shading is smooth and the pixels are a few thousand per view: texture
+//     detail stays in the albedo, the kernel keeps the shading smooth. The shading comes from the
+//     first half of the paths only.
 //  2. each observed texel with shading gets, per channel, the albedo that minimises
 //         (a S_t - o_t)^2 + mu s^2 (a - m_k)^2
 //     (o_t: its observed colour, texture.mcol; m_k: the mean of its cluster's unregularised
@@ -27,7 +29,10 @@
 //     interreflections (demo novel views 0.10 against 0.043 without it).
 //  4. the cache's rows of each pixel are scaled by a_new / a_old at its first hit (exact for the
 //     first bounce; the interreflections keep the previous albedo until a fresh trace) and the
-//     lights are solved again. A step that raises the cost is undone and ends the alternation.
+//     lights are solved again. A step that raises the cost, or the second half of the paths'
+//     residual sum |P_i - I_i|^2 / sum |I_i|^2 (an independent sample of the prediction's noise:
+//     an albedo that took up the first half's noise fits it worse), is undone and ends the
+//     alternation.
 #pragma once
 
 #include <Eigen/Core>
@@ -53,6 +58,8 @@ struct JointAlbedoStep {
   double cost = 0.0, data = 0.0;  // the light cost after the lights' solve
   size_t texels_updated = 0;      // observed texels with shading
   double scale = 1.0;             // the ceiling's global scale of this step (1: none)
+  // The second half of the paths' relative squared residual before and after the step.
+  double check_before = 0.0, check = 0.0;
   bool kept = true;
 };
 
@@ -68,11 +75,14 @@ std::vector<PixelSurface> LocatePixels(const render::PathTracer& tracer,
                                        const std::vector<SampledPixel>& pixels);
 
 // Step 1: the kernel-weighted mean of `pixel_shading` (one per pixel, mesh `mesh` only) at every
-// texel of `layout` on `mesh`; `covered` (per texel) tells which texels some pixel reached.
+// texel of `layout` on `mesh`; `covered` (per texel) tells which texels some pixel reached. A
+// texel with fewer than `min_pixels` pixels within `radius` takes the kernel twice, then four
+// times as wide (sparse pixels: the shading stays an average, not one pixel's noise).
 std::vector<Eigen::Vector3f> TexelShading(const TriangleMesh& mesh, const MeshColors& layout,
                                           int mesh_index, const std::vector<PixelSurface>& pixels,
                                           const std::vector<Eigen::Vector3f>& pixel_shading,
-                                          double radius, std::vector<uint8_t>* covered);
+                                          double radius, int min_pixels,
+                                          std::vector<uint8_t>* covered);
 
 // Step 2: the updated albedo (layout and labels of inputs.clusters); `updated` receives the
 // number of texels with shading that voted, `applied_scale` the ceiling's scale (1: none).

@@ -381,6 +381,20 @@ class LightEstimator {
     }
   }
 
+  // The relative squared residual of the second half's prediction for the current lights,
+  // sum |P_i - h_v I_i|^2 / sum |h_v I_i|^2 (h_v: the view's exposure scale).
+  double CheckResidual() const {
+    const std::vector<Eigen::Vector3f> predicted = second_.Predict(out_.lights);
+    double err = 0.0, ref = 0.0;
+    for (size_t i = 0; i < predicted.size(); ++i) {
+      const Eigen::Vector3d observed = second_.pixels[i].observed.cast<double>().cwiseProduct(
+          scale_[static_cast<size_t>(second_.pixels[i].view)]);
+      err += (predicted[i].cast<double>() - observed).squaredNorm();
+      ref += observed.squaredNorm();
+    }
+    return ref > 0.0 ? err / ref : 0.0;
+  }
+
   // Step 7 (joint_albedo.h): per-texel albedo alternated with the lights.
   void JointAlbedo(const JointAlbedoInputs& in) {
     const auto start = std::chrono::steady_clock::now();
@@ -405,20 +419,20 @@ class LightEstimator {
     double cost = out_.rounds.back().solve.cost;
     MeshColors current = *in.clusters;
     const bool halves = second_.pixels.size() == n;
+    double check = halves ? CheckResidual() : 0.0;
     for (int step = 0; step < options_.albedo_iterations; ++step) {
-      // 1. The shading of every pixel on the mesh, carried to the texels.
+      // 1. The shading of every pixel on the mesh from the first half of the paths, carried to
+      // the texels (the second half judges the step).
       const std::vector<Eigen::Vector3f> a = last_.Predict(out_.lights);
-      const std::vector<Eigen::Vector3f> b =
-          halves ? second_.Predict(out_.lights) : std::vector<Eigen::Vector3f>();
       std::vector<Eigen::Vector3f> shading(n, Eigen::Vector3f::Zero());
       for (size_t i = 0; i < n; ++i) {
         if (!surface[i].hit || surface[i].mesh != in.mesh) continue;
-        const Eigen::Vector3f predicted = halves ? 0.5f * (a[i] + b[i]) : a[i];
-        shading[i] = predicted.cwiseQuotient(albedo[i].cwiseMax(0.02f));
+        shading[i] = a[i].cwiseQuotient(albedo[i].cwiseMax(0.02f));
       }
       std::vector<uint8_t> covered;
       const std::vector<Eigen::Vector3f> texel_shading =
-          TexelShading(traced.mesh, current, in.mesh, surface, shading, radius, &covered);
+          TexelShading(traced.mesh, current, in.mesh, surface, shading, radius,
+                       options_.albedo_min_pixels, &covered);
       // 2. The albedo.
       JointAlbedoStep record;
       MeshColors next =
@@ -440,7 +454,11 @@ class LightEstimator {
       const SolveReport report = Solve(solve, &out_.lights);
       record.cost = report.cost;
       record.data = report.data;
-      if (!(report.cost < cost)) {  // undone: the caches, the equations and the lights
+      record.check_before = check;
+      record.check = halves ? CheckResidual() : 0.0;
+      // Kept when the cost falls and the second half's paths agree: albedo that took up the
+      // first half's noise fits the second half worse.
+      if (!(report.cost < cost) || (halves && !(record.check < check))) {  // undone
         record.kept = false;
         for (size_t i = 0; i < n; ++i) ratio[i] = ratio[i].cwiseInverse();
         ScaleRows(ratio);
@@ -453,6 +471,7 @@ class LightEstimator {
       out_.albedo_steps.push_back(record);
       const double fall = (cost - report.cost) / std::max(cost, 1e-300);
       cost = report.cost;
+      check = record.check;
       current = std::move(next);
       albedo = std::move(next_albedo);
       out_.albedo = current;

@@ -119,9 +119,10 @@ void ExpectOutputsReadable(const Workspace& ws, const std::string& when) {
     EXPECT_GT(mesh.faces.size(), 0u) << when;
     readable(ws.Texture(), [&] { ReadMeshColors(ws.Texture(), mesh); });
     readable(ws.Albedo(), [&] { ReadMeshColors(ws.Albedo(), mesh); });
+    readable(ws.JointAlbedo(), [&] { ReadMeshColors(ws.JointAlbedo(), mesh); });
   }
-  for (const fs::path& ply :
-       {ws.RefinedMesh(), ws.TexturePly(), ws.AlbedoPly(), ws.ExportDir() / "model.ply"}) {
+  for (const fs::path& ply : {ws.RefinedMesh(), ws.TexturePly(), ws.AlbedoPly(),
+                              ws.JointAlbedoPly(), ws.ExportDir() / "model.ply"}) {
     readable(ply, [&] { ReadPly(ply); });
   }
   readable(ws.Lights(), [&] { ReadLightsJson(ws.Lights()); });
@@ -204,8 +205,8 @@ TEST_F(GensceneChain, KilledInEveryStageAndRestartedGivesTheUninterruptedModel) 
 
   // The same model as the uninterrupted run, file for file.
   for (const char* file :
-       {"trajectory.txt", "mesh.ply", "texture.mcol", "albedo.mcol", "mesh_refined.ply",
-        "export/model.ply", "export/model.xml", "export/trajectory.txt"}) {
+       {"trajectory.txt", "mesh.ply", "texture.mcol", "albedo.mcol", "albedo_joint.mcol",
+        "mesh_refined.ply", "export/model.ply", "export/model.xml", "export/trajectory.txt"}) {
     EXPECT_TRUE(fs::exists(ws.root() / file)) << file;
     EXPECT_TRUE(Bytes(ws.root() / file) == Bytes(reference.root() / file)) << file << " differs";
   }
@@ -357,8 +358,9 @@ TEST_F(GensceneChain, OneThreadGivesTheSameModelAsAllCores) {
   ASSERT_EQ(RunToEnd(args, tmp / "run.err"), 0) << Bytes(tmp / "run.err");
   for (const char* file :
        {"input/rgb.txt", "input/depth.txt", "input/groundtruth.txt", "trajectory.txt", "tsdf.gsv",
-        "mesh.ply", "texture.mcol", "albedo.mcol", "mesh_refined.ply", "export/model.ply",
-        "export/model.xml", "lights/train_00.exr", "evaluation/novel_00_model.png"}) {
+        "mesh.ply", "texture.mcol", "albedo.mcol", "albedo_joint.mcol", "mesh_refined.ply",
+        "export/model.ply", "export/model.xml", "lights/train_00.exr",
+        "evaluation/novel_00_model.png"}) {
     EXPECT_TRUE(fs::exists(ws.root() / file)) << file;
     EXPECT_TRUE(Bytes(ws.root() / file) == Bytes(reference.root() / file)) << file << " differs";
   }
@@ -376,7 +378,7 @@ TEST_F(GensceneChain, ExportedMitsubaXmlRendersTheSameImage) {
   ASSERT_FALSE(loaded.views.empty()) << "the keyframe cameras are exported as sensors";
 
   std::vector<std::string> warnings;
-  render::Scene model = apps::LoadGeometry({{}, ws.RefinedMesh(), ws.Albedo()}, ws, &warnings);
+  render::Scene model = apps::LoadGeometry({{}, ws.RefinedMesh(), ws.ModelAlbedo()}, ws, &warnings);
   for (render::SceneMesh& cube : render::VoxelCubeFaces(ReadLightsJson(ws.Lights())))
     model.meshes.push_back(std::move(cube));
 

@@ -20,6 +20,7 @@ using test::RunCommand;
 
 constexpr const char* kReduced =
     " --lights-pixels-per-view 300 --lights-rounds 1 --lights-refine-levels 0"
+    " --lights-albedo-iterations 1"
     " --refine-iterations 1 --refine-pixels-per-view 200 --refine-spp 4";
 
 struct ChainRun {
@@ -95,11 +96,11 @@ TEST(RealChain, SlambookSparseViewsTrackedFromFeatures) {
   test::TempDir dir;
   const fs::path slambook = data / "real/slambook-joinmap-5f";
   test::WriteFile(dir / "k.txt", "518.0 519.0 325.5 253.5 640 480\n");  // ch5/joinMap/joinMap.cpp
-  // Frames 0.3-0.7 m apart: ICP starts from ORB features for every frame after the first. A mesh
-  // simplified to 1 cm (reduced settings) keeps the sanitizer run short.
-  const ChainRun run =
-      RunOn(slambook, dir / "ws",
-            "--intrinsics " + (dir / "k.txt").string() + " --decimate-max-error 0.01");
+  // Frames 0.3-0.7 m apart: ICP starts from ORB features for every frame after the first. A
+  // 2 cm volume and a mesh simplified to 1 cm (reduced settings) keep the sanitizer run short.
+  const ChainRun run = RunOn(slambook, dir / "ws",
+                             "--intrinsics " + (dir / "k.txt").string() +
+                                 " --voxel-size 0.02 --truncation 0.06 --decimate-max-error 0.01");
   ExpectCompleteModel(run, dir / "ws");
   EXPECT_CONTAINS(StageResult(run.summary, "fusion"), "ATE");
   const auto fusion = nlohmann::json::parse(ReadTextFile(dir / "ws" / "fusion.json"));

@@ -106,7 +106,7 @@ TEST(JointAlbedo, TheShadingKernelAveragesNearbyPixelsOfTheSameOrientation) {
   }
   std::vector<uint8_t> covered;
   const std::vector<Eigen::Vector3f> texel =
-      TexelShading(mesh, layout, 0, pixels, shading, 0.1, &covered);
+      TexelShading(mesh, layout, 0, pixels, shading, 0.1, 1, &covered);
   const std::vector<Eigen::Vector3f> position = layout.InterpolateVertexAttribute(mesh.vertices);
   int checked = 0;
   for (size_t t = 0; t < layout.SampleCount(); ++t) {
@@ -126,7 +126,7 @@ TEST(JointAlbedo, TheShadingKernelAveragesNearbyPixelsOfTheSameOrientation) {
   // No pixel within the radius: not covered.
   std::vector<PixelSurface> far = pixels;
   for (PixelSurface& p : far) p.position += Eigen::Vector3f(5, 5, 5);
-  TexelShading(mesh, layout, 0, far, shading, 0.1, &covered);
+  TexelShading(mesh, layout, 0, far, shading, 0.1, 1, &covered);
   for (uint8_t c : covered) EXPECT_EQ(c, 0);
 }
 
