@@ -228,6 +228,24 @@ void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& optio
        << r["active_voxels"].get<int>() << " |\n";
   }
   md << "\n";
+  if (e.contains("joint_albedo")) {
+    const Json& j = e["joint_albedo"];
+    md << "Joint albedo (per-texel albedo alternated with the lights, "
+       << j["albedo"].get<std::string>()
+       << "; light cost before: " << j["initial_cost"].get<double>() << ", "
+       << Fixed(j["seconds"].get<double>(), 2)
+       << " s; a step is kept when the cost and the second half of the paths' residual fall):\n\n"
+          "| step | cost | check residual before | after | albedo scale | kept |\n"
+          "|---:|---:|---:|---:|---:|---|\n";
+    int step = 0;
+    for (const Json& st : j["steps"]) {
+      md << "| " << step++ << " | " << st["cost"].get<double>() << " | "
+         << Fixed(st["check_before"].get<double>(), 4) << " | "
+         << Fixed(st["check"].get<double>(), 4) << " | " << Fixed(st["scale"].get<double>())
+         << " | " << (st["kept"].get<bool>() ? "yes" : "no") << " |\n";
+    }
+    md << "\n";
+  }
   std::vector<std::pair<std::string, std::string>> row;
   const auto keyframes = ReadDataLines(ws.Keyframes() / "rgb.txt");
   for (size_t i = 0; i < e["train_views"].size() && i < 4; ++i) {

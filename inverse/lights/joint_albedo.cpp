@@ -23,13 +23,13 @@ class PointGrid {
         cells_[Key(Cell(pixels[i].position))].push_back(i);
     }
   }
-  // Visits the pixels in the cells within `reach` cells of p's.
+  // Visits the pixels in p's cell and its 26 neighbours (all within the cell size of p).
   template <typename Visit>
-  void ForNear(const Eigen::Vector3f& p, int reach, const Visit& visit) const {
+  void ForNear(const Eigen::Vector3f& p, const Visit& visit) const {
     const Eigen::Vector3i c = Cell(p);
-    for (int dz = -reach; dz <= reach; ++dz)
-      for (int dy = -reach; dy <= reach; ++dy)
-        for (int dx = -reach; dx <= reach; ++dx) {
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
           const auto it = cells_.find(Key(c + Eigen::Vector3i(dx, dy, dz)));
           if (it == cells_.end()) continue;
           for (size_t i : it->second) visit(i);
@@ -93,19 +93,23 @@ std::vector<Eigen::Vector3f> TexelShading(const TriangleMesh& mesh, const MeshCo
   const std::vector<Eigen::Vector3f> position = layout.InterpolateVertexAttribute(mesh.vertices);
   const std::vector<Eigen::Vector3f> normal =
       layout.InterpolateVertexAttribute(normals_mesh.normals);
-  const PointGrid grid(pixels, mesh_index, radius);
+  // One grid per kernel width (cells as wide as the kernel): 27 cells per query.
+  const PointGrid grids[3] = {PointGrid(pixels, mesh_index, radius),
+                              PointGrid(pixels, mesh_index, 2.0 * radius),
+                              PointGrid(pixels, mesh_index, 4.0 * radius)};
   std::vector<Eigen::Vector3f> out(layout.SampleCount(), Eigen::Vector3f::Zero());
   covered->assign(layout.SampleCount(), 0);
   ParallelFor(0, layout.SampleCount(), [&](size_t t) {
     const Eigen::Vector3f n = normal[t].normalized();
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     double weight = 0.0;
-    for (int reach = 1; reach <= 4; reach *= 2) {
+    for (int level = 0; level < 3; ++level) {
+      const int reach = 1 << level;
       const float r2 = static_cast<float>(reach * reach * radius * radius);
       sum.setZero();
       weight = 0.0;
       int count = 0;
-      grid.ForNear(position[t], reach, [&](size_t i) {
+      grids[level].ForNear(position[t], [&](size_t i) {
         const float d2 = (pixels[i].position - position[t]).squaredNorm();
         if (d2 >= r2 || pixels[i].normal.dot(n) < kMinNormalCosine) return;
         const double w = (1.0 - d2 / r2) * (1.0 - d2 / r2);

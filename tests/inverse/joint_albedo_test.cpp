@@ -123,6 +123,31 @@ TEST(JointAlbedo, TheShadingKernelAveragesNearbyPixelsOfTheSameOrientation) {
     }
   }
   EXPECT_GT(checked, 20);
+  // Sparse noisy pixels: a kernel that must hold 16 pixels widens and averages the noise out.
+  std::vector<PixelSurface> sparse;
+  std::vector<Eigen::Vector3f> noisy;
+  for (size_t i = 1; i < pixels.size() && sparse.size() < 200; i += 4) {
+    sparse.push_back(pixels[i]);  // on the square
+    noisy.push_back(Eigen::Vector3f::Constant(2.0f * static_cast<float>(rng.Uniform())));
+  }
+  const auto Spread = [&](int min_pixels) {
+    std::vector<uint8_t> reached;
+    const std::vector<Eigen::Vector3f> s =
+        TexelShading(mesh, layout, 0, sparse, noisy, 0.05, min_pixels, &reached);
+    double sum = 0.0, sq = 0.0;
+    int m = 0;
+    for (size_t t = 0; t < s.size(); ++t) {
+      if (!reached[t] || position[t].z() != 0.0f) continue;
+      sum += s[t].x();
+      sq += s[t].x() * s[t].x();
+      ++m;
+    }
+    EXPECT_GT(m, 20);
+    return std::sqrt(std::max(0.0, sq / m - (sum / m) * (sum / m)));
+  };
+  const double narrow = Spread(1), wide = Spread(16);
+  std::cout << "texel shading spread: 1 pixel " << narrow << ", 16 pixels " << wide << "\n";
+  EXPECT_LT(wide, 0.5 * narrow);
   // No pixel within the radius: not covered.
   std::vector<PixelSurface> far = pixels;
   for (PixelSurface& p : far) p.position += Eigen::Vector3f(5, 5, 5);
