@@ -254,9 +254,14 @@ TEST_F(GensceneChain, ARerunAfterAChangedOptionRunsExactlyTheStagesThatDependOnI
     } else {
       args.insert(args.end(), flags.begin(), flags.end());
     }
+    const std::string refined_before = Bytes(ws / "mesh_refined.ply");
     ASSERT_EQ(RunToEnd(args, tmp / (first + ".err")), 0) << Bytes(tmp / (first + ".err"));
     // The changed stage and every later one (each reads what the one before it wrote).
-    const std::vector<std::string> expected(std::find(all.begin(), all.end(), first), all.end());
+    std::vector<std::string> expected(std::find(all.begin(), all.end(), first), all.end());
+    // A refinement whose gates keep the unrefined mesh (here and in the reference) writes the
+    // same file: what reads it is up to date.
+    if (first == "refine" && Bytes(ws / "mesh_refined.ply") == refined_before)
+      expected = {"refine"};
     EXPECT_EQ(StagesRun(ws), expected) << flags.front();
     if (first != "lights") continue;
     // Once (the skip does not depend on which stage changed): the same run again runs nothing.
