@@ -79,38 +79,55 @@ std::vector<PixelSurface> LocatePixels(const render::PathTracer& tracer,
   return out;
 }
 
-std::vector<Eigen::Vector3f> TexelShading(const TriangleMesh& mesh, const MeshColors& layout,
-                                          int mesh_index, const std::vector<PixelSurface>& pixels,
-                                          const std::vector<Eigen::Vector3f>& pixel_shading,
-                                          double radius, int min_pixels,
-                                          std::vector<uint8_t>* covered) {
+struct ShadingKernel::Impl {
+  Impl(const std::vector<PixelSurface>& pixels, int mesh_index, double radius)
+      : pixels(pixels),
+        radius(radius),
+        grids{PointGrid(pixels, mesh_index, radius), PointGrid(pixels, mesh_index, 2.0 * radius),
+              PointGrid(pixels, mesh_index, 4.0 * radius)} {}
+  const std::vector<PixelSurface>& pixels;
+  const double radius;
+  // One grid per kernel width (cells as wide as the kernel): 27 cells per query.
+  const PointGrid grids[3];
+  std::vector<Eigen::Vector3f> position, normal;  // per texel
+};
+
+ShadingKernel::ShadingKernel(const TriangleMesh& mesh, const MeshColors& layout, int mesh_index,
+                             const std::vector<PixelSurface>& pixels, double radius) {
   GS_CHECK(radius > 0.0);
-  GS_CHECK_EQ(pixels.size(), pixel_shading.size());
+  impl_ = std::make_unique<Impl>(pixels, mesh_index, radius);
   TriangleMesh normals_mesh;
   normals_mesh.vertices = mesh.vertices;
   normals_mesh.faces = mesh.faces;
   normals_mesh.ComputeVertexNormals();
-  const std::vector<Eigen::Vector3f> position = layout.InterpolateVertexAttribute(mesh.vertices);
-  const std::vector<Eigen::Vector3f> normal =
-      layout.InterpolateVertexAttribute(normals_mesh.normals);
-  // One grid per kernel width (cells as wide as the kernel): 27 cells per query.
-  const PointGrid grids[3] = {PointGrid(pixels, mesh_index, radius),
-                              PointGrid(pixels, mesh_index, 2.0 * radius),
-                              PointGrid(pixels, mesh_index, 4.0 * radius)};
-  std::vector<Eigen::Vector3f> out(layout.SampleCount(), Eigen::Vector3f::Zero());
-  covered->assign(layout.SampleCount(), 0);
-  ParallelFor(0, layout.SampleCount(), [&](size_t t) {
-    const Eigen::Vector3f n = normal[t].normalized();
+  impl_->position = layout.InterpolateVertexAttribute(mesh.vertices);
+  impl_->normal = layout.InterpolateVertexAttribute(normals_mesh.normals);
+}
+
+ShadingKernel::~ShadingKernel() = default;
+
+std::vector<Eigen::Vector3f> ShadingKernel::Shade(const std::vector<Eigen::Vector3f>& pixel_shading,
+                                                  int min_pixels,
+                                                  std::vector<uint8_t>* covered) const {
+  const Impl& k = *impl_;
+  const std::vector<PixelSurface>& pixels = k.pixels;
+  GS_CHECK_EQ(pixels.size(), pixel_shading.size());
+  const size_t texels = k.position.size();
+  std::vector<Eigen::Vector3f> out(texels, Eigen::Vector3f::Zero());
+  covered->assign(texels, 0);
+  ParallelFor(0, texels, [&](size_t t) {
+    const Eigen::Vector3f n = k.normal[t].normalized();
+    const Eigen::Vector3f& p = k.position[t];
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     double weight = 0.0;
     for (int level = 0; level < 3; ++level) {
       const int reach = 1 << level;
-      const float r2 = static_cast<float>(reach * reach * radius * radius);
+      const float r2 = static_cast<float>(reach * reach * k.radius * k.radius);
       sum.setZero();
       weight = 0.0;
       int count = 0;
-      grids[level].ForNear(position[t], [&](size_t i) {
-        const float d2 = (pixels[i].position - position[t]).squaredNorm();
+      k.grids[level].ForNear(p, [&](size_t i) {
+        const float d2 = (pixels[i].position - p).squaredNorm();
         if (d2 >= r2 || pixels[i].normal.dot(n) < kMinNormalCosine) return;
         const double w = (1.0 - d2 / r2) * (1.0 - d2 / r2);
         sum += w * pixel_shading[i].cast<double>();
@@ -125,6 +142,15 @@ std::vector<Eigen::Vector3f> TexelShading(const TriangleMesh& mesh, const MeshCo
     }
   });
   return out;
+}
+
+std::vector<Eigen::Vector3f> TexelShading(const TriangleMesh& mesh, const MeshColors& layout,
+                                          int mesh_index, const std::vector<PixelSurface>& pixels,
+                                          const std::vector<Eigen::Vector3f>& pixel_shading,
+                                          double radius, int min_pixels,
+                                          std::vector<uint8_t>* covered) {
+  return ShadingKernel(mesh, layout, mesh_index, pixels, radius)
+      .Shade(pixel_shading, min_pixels, covered);
 }
 
 MeshColors UpdateAlbedo(const JointAlbedoInputs& in,

@@ -37,6 +37,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "core/mesh_colors.h"
@@ -78,6 +79,20 @@ std::vector<PixelSurface> LocatePixels(const render::PathTracer& tracer,
 // texel of `layout` on `mesh`; `covered` (per texel) tells which texels some pixel reached. A
 // texel with fewer than `min_pixels` pixels within `radius` takes the kernel twice, then four
 // times as wide (sparse pixels: the shading stays an average, not one pixel's noise).
+// ShadingKernel holds what does not change between the alternation's steps (the texels' positions
+// and normals, the pixels' point grids); TexelShading is one use of it. `pixels` must outlive it.
+class ShadingKernel {
+ public:
+  ShadingKernel(const TriangleMesh& mesh, const MeshColors& layout, int mesh_index,
+                const std::vector<PixelSurface>& pixels, double radius);
+  ~ShadingKernel();
+  std::vector<Eigen::Vector3f> Shade(const std::vector<Eigen::Vector3f>& pixel_shading,
+                                     int min_pixels, std::vector<uint8_t>* covered) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 std::vector<Eigen::Vector3f> TexelShading(const TriangleMesh& mesh, const MeshColors& layout,
                                           int mesh_index, const std::vector<PixelSurface>& pixels,
                                           const std::vector<Eigen::Vector3f>& pixel_shading,

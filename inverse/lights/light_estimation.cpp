@@ -373,7 +373,7 @@ class LightEstimator {
   // Scales the rows of pixel i of both caches by ratio[i] (per channel).
   void ScaleRows(const std::vector<Eigen::Vector3f>& ratio) {
     for (LightCache* cache : {&last_, &second_}) {
-      if (cache->pixels.size() != ratio.size()) continue;
+      GS_CHECK_EQ(cache->pixels.size(), ratio.size());
       ParallelFor(0, ratio.size(), [&](size_t i) {
         for (size_t e = cache->row_begin[i]; e < cache->row_begin[i + 1]; ++e)
           cache->coefficient[e] = cache->coefficient[e].cwiseProduct(ratio[i]);
@@ -418,8 +418,9 @@ class LightEstimator {
       solve.penalty_weight = options_.penalty_weight * options_.refine_penalty_scale;
     double cost = out_.rounds.back().solve.cost;
     MeshColors current = *in.clusters;
-    const bool halves = second_.pixels.size() == n;
-    double check = halves ? CheckResidual() : 0.0;
+    GS_CHECK_EQ(second_.pixels.size(), n);  // the two halves of the same pixels' paths
+    const ShadingKernel kernel(traced.mesh, current, in.mesh, surface, radius);
+    double check = CheckResidual();
     for (int step = 0; step < options_.albedo_iterations; ++step) {
       // 1. The shading of every pixel on the mesh from the first half of the paths, carried to
       // the texels (the second half judges the step).
@@ -431,8 +432,7 @@ class LightEstimator {
       }
       std::vector<uint8_t> covered;
       const std::vector<Eigen::Vector3f> texel_shading =
-          TexelShading(traced.mesh, current, in.mesh, surface, shading, radius,
-                       options_.albedo_min_pixels, &covered);
+          kernel.Shade(shading, options_.albedo_min_pixels, &covered);
       // 2. The albedo.
       JointAlbedoStep record;
       MeshColors next =
@@ -455,10 +455,10 @@ class LightEstimator {
       record.cost = report.cost;
       record.data = report.data;
       record.check_before = check;
-      record.check = halves ? CheckResidual() : 0.0;
+      record.check = CheckResidual();
       // Kept when the cost falls and the second half's paths agree: albedo that took up the
       // first half's noise fits the second half worse.
-      if (!(report.cost < cost) || (halves && !(record.check < check))) {  // undone
+      if (!(report.cost < cost) || !(record.check < check)) {  // undone
         record.kept = false;
         for (size_t i = 0; i < n; ++i) ratio[i] = ratio[i].cwiseInverse();
         ScaleRows(ratio);
