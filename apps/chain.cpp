@@ -205,8 +205,9 @@ class StageRunner {
       rows_.push_back(row);
       return;
     }
-    std::fprintf(stderr, "[%zu/%zu] %s\n", index, stages.size(), stage.c_str());
+    // The stage is the running one before its line is printed: a Ctrl-C the line prompted names it.
     current_stage.store(stages[index - 1].c_str());
+    std::fprintf(stderr, "[%zu/%zu] %s\n", index, stages.size(), stage.c_str());
     log_ << Now() << " " << stage << ": start\n" << std::flush;
     const auto start = std::chrono::steady_clock::now();
     warnings_.Take();

@@ -120,6 +120,7 @@ nlohmann::ordered_json Report(const RefineSummary& out, const RefineOptions& opt
   report["held_out"] = {{"pixels", out.held_out.pixels},
                         {"image_rmse_unrefined", out.held_out.rmse_a},
                         {"image_rmse_refined", out.held_out.rmse_b},
+                        {"improvement_z", out.held_out.improvement_z},
                         {"kept_unrefined", out.kept_unrefined}};
   nlohmann::ordered_json iterations = nlohmann::ordered_json::array();
   for (size_t i = 0; i < out.result.history.size(); ++i) {
@@ -227,6 +228,14 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
                                     out.held_out.rmse_b, " against ", out.held_out.rmse_a,
                                     "): the unrefined mesh is kept as ",
                                     ws.RefinedMesh().filename().string()));
+    } else if (out.held_out.improvement_z < options.held_out_z) {
+      out.kept_unrefined = true;
+      out.warnings.push_back(Format(
+          "the refined mesh fits ", out.held_out.pixels,
+          " held-out pixels better than the unrefined one only within the noise (image RMSE ",
+          out.held_out.rmse_b, " against ", out.held_out.rmse_a, ", ", out.held_out.improvement_z,
+          " standard errors, held_out_z ", options.held_out_z, "): the unrefined mesh is kept as ",
+          ws.RefinedMesh().filename().string()));
     }
   }
   TriangleMesh final_mesh = out.kept_unrefined ? start : JoinMeshes(out.result.meshes);
@@ -260,7 +269,8 @@ std::string ToString(const RefineSummary& s) {
       << Format(s.vertex_rms.back()) << " m";
   }
   o << "; " << s.flipped_faces << " flipped faces; held-out pixels: image RMSE "
-    << Format(s.held_out.rmse_a) << " unrefined, " << Format(s.held_out.rmse_b) << " refined"
+    << Format(s.held_out.rmse_a) << " unrefined, " << Format(s.held_out.rmse_b) << " refined ("
+    << Format(s.held_out.improvement_z) << " standard errors)"
     << (s.kept_unrefined ? " (unrefined mesh kept)" : "");
   return o.str();
 }

@@ -11,6 +11,7 @@
 #include <cstdio>
 
 #include "core/check.h"
+#include "core/image_io.h"
 #include "render/formats/workspace_scene.h"
 #include "render/path_tracer.h"
 
@@ -37,7 +38,10 @@ int main(int argc, char** argv) {
   std::vector<std::string> selections = {"power", "contribution"};
   bool hide_emitters = false;
   int max_depth = -1, light_samples = 1;
-  std::string against;
+  std::string against, filter = "box", write_prefix;
+  app.add_option("--filter", filter, "pixel filter: box, center or gaussian");
+  app.add_option("--write", write_prefix,
+                 "write PREFIX_ref_V.png and PREFIX_SELECTION_SPP_V.png (linear, clamped at 1)");
   app.add_option("--scene", scene_path, "workspace folder or scene file")->required();
   app.add_option("--against", against, "a second scene: compare the two references' means");
   std::string against_selection;
@@ -48,6 +52,9 @@ int main(int argc, char** argv) {
   app.add_option("--ref-spp", ref_spp, "samples per pixel of the reference");
   app.add_option("--selections", selections, "light selections")->delimiter(',');
   app.add_option("--light-samples", light_samples, "lights sampled per path vertex");
+  int exact_lights = RenderOptions().exact_lights;
+  app.add_option("--exact-lights", exact_lights,
+                 "lights of the largest contributions taken exactly at the first vertex");
   app.add_option("--max-depth", max_depth, "longest path (segments; -1 = unlimited)");
   app.add_flag("--hide-emitters", hide_emitters, "camera rays that hit an emitter return black");
   CLI11_PARSE(app, argc, argv);
@@ -58,6 +65,8 @@ int main(int argc, char** argv) {
     RenderOptions options;
     options.max_depth = max_depth;
     options.light_samples = light_samples;
+    options.filter = filter;
+    options.exact_lights = exact_lights;
     options.hide_emitters = hide_emitters || loaded.settings.hide_emitters.value_or(false);
     const int n = std::min<int>(views, static_cast<int>(loaded.views.size()));
     std::vector<ImageRgb> reference;
@@ -65,6 +74,22 @@ int main(int argc, char** argv) {
     options.spp = ref_spp;
     for (int v = 0; v < n; ++v)
       reference.push_back(tracer.Render(loaded.views[v], options, 99).radiance);
+    // Written images are scaled so that every reference's mean is 0.25.
+    std::vector<float> scale(n, 1.0f);
+    for (int v = 0; v < n; ++v) {
+      double mean = 0.0;
+      for (size_t i = 0; i < reference[v].size(); ++i)
+        mean += reference[v].data()[i].cast<double>().mean() / reference[v].size();
+      if (mean > 0.0) scale[v] = static_cast<float>(0.25 / mean);
+    }
+    auto write = [&](const std::string& path, ImageRgb image, int v) {
+      for (size_t i = 0; i < image.size(); ++i) image.data()[i] *= scale[v];
+      WritePng(path, image);
+    };
+    if (!write_prefix.empty()) {
+      for (int v = 0; v < n; ++v)
+        write(write_prefix + "_ref_" + std::to_string(v) + ".png", reference[v], v);
+    }
     std::printf("reference: %d views at %d spp (%s), %.1f s\n\n", n, ref_spp,
                 options.light_selection.c_str(),
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
@@ -95,8 +120,13 @@ int main(int argc, char** argv) {
         double err = 0.0, norm = 0.0;
         const auto t0 = std::chrono::steady_clock::now();
         for (int v = 0; v < n; ++v) {
-          AddSquares(tracer.Render(loaded.views[v], options, 7 + v).radiance, reference[v], &err,
-                     &norm);
+          const ImageRgb image = tracer.Render(loaded.views[v], options, 7 + v).radiance;
+          AddSquares(image, reference[v], &err, &norm);
+          if (!write_prefix.empty()) {
+            write(write_prefix + "_" + selection + "_" + std::to_string(spp) + "_" +
+                      std::to_string(v) + ".png",
+                  image, v);
+          }
         }
         const double s =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -69,6 +69,8 @@ void VoxelLightGrid::Validate() const {
   }
   if (!(cube_size > 0.0))
     throw Error(Format("voxel lights: cube_size ", cube_size, " must be > 0"));
+  if (!(softening >= 0.0 && std::isfinite(softening)))
+    throw Error(Format("voxel lights: softening ", softening, " must be finite and >= 0"));
   if (!(active_fraction >= 0.0 && active_fraction <= 1.0)) {
     throw Error(Format("voxel lights: active_fraction ", active_fraction, " is not in [0, 1]"));
   }
@@ -113,10 +115,10 @@ std::vector<int> VoxelLightGrid::ActiveVoxels(double fraction) const {
 }
 
 VoxelLightGrid VoxelLightGridFromJson(const json& j, const std::string& where) {
-  CheckKeys(
-      j,
-      {"bounds_min", "bounds_max", "dims", "cube_size", "active_fraction", "intensity", "weights"},
-      where);
+  CheckKeys(j,
+            {"bounds_min", "bounds_max", "dims", "cube_size", "softening", "active_fraction",
+             "intensity", "weights"},
+            where);
   for (const char* key : {"bounds_min", "bounds_max", "dims", "intensity", "weights"}) {
     if (!j.contains(key)) throw Error(Format(where, ": missing \"", key, "\""));
   }
@@ -131,6 +133,7 @@ VoxelLightGrid VoxelLightGridFromJson(const json& j, const std::string& where) {
   }
   g.dims = dims.cast<int>();
   if (j.contains("cube_size")) g.cube_size = JsonNumber(j["cube_size"], where + ".cube_size");
+  if (j.contains("softening")) g.softening = JsonNumber(j["softening"], where + ".softening");
   if (j.contains("active_fraction"))
     g.active_fraction = JsonNumber(j["active_fraction"], where + ".active_fraction");
   for (const json& v : JsonArray(j["intensity"], where + ".intensity")) {
@@ -157,6 +160,7 @@ json VoxelLightGridToJson(const VoxelLightGrid& g) {
           {"bounds_max", ToJson(g.bounds.max())},
           {"dims", {g.dims.x(), g.dims.y(), g.dims.z()}},
           {"cube_size", g.cube_size},
+          {"softening", g.softening},
           {"active_fraction", g.active_fraction},
           {"intensity", intensity},
           {"weights", weights}};

@@ -8,6 +8,7 @@
 //       "bounds_min": [x, y, z], "bounds_max": [x, y, z],   meters, world frame
 //       "dims": [nx, ny, nz],                              voxels per axis
 //       "cube_size": s,                                     side of the exported emitting cube, m
+//       "softening": e,                                     optional, m (default 0): see below
 //       "intensity": [[r, g, b], ...],                      L per voxel (W/sr), x fastest, then y,
 //       z "weights": [[l+x, l-x, l+y, l-y, l+z, l-z], ...]    six lambdas per voxel, in [0, 1]
 //     },
@@ -33,17 +34,21 @@ namespace genscene {
 // receiver), face k shows its projected area A * max(0, w . d_k), so the voxel's radiant
 // intensity is
 //     I(w) = L * sum_k lambda_k * max(0, w . d_k)        [W/sr]
-// i.e. L * lambda_k is the intensity along d_k. The cube is treated as a point for shading (it
-// is tiny next to the distances to the surfaces it lights), which makes the predicted pixel a
-// linear function of the products L * lambda_k (what light estimation caches). The model is
-// physically exact and exports to any renderer as six emissive quads of side `cube_size` with
-// radiance L * lambda_k / cube_size^2 (render::VoxelCubeFaces).
+// i.e. L * lambda_k is the intensity along d_k. The cube is treated as a point for shading,
+// which makes the predicted pixel a linear function of the products L * lambda_k (what light
+// estimation caches). A receiver at distance d gets I(w) cos / (d^2 + e^2), e = `softening`:
+// the light is spread over about a ball of radius e (a Plummer-softened point), so that a wall a
+// few centimetres from a voxel centre is not lit without bound (e = 0: an exact point). Every
+// tracer (estimate, renders, refinement) uses this falloff. The model exports to any renderer
+// as six emissive quads of side `cube_size` with radiance L * lambda_k / cube_size^2
+// (render::VoxelCubeFaces), which matches it beyond a few e.
 struct VoxelLightGrid {
   Eigen::AlignedBox3d bounds;
   Eigen::Vector3i dims = Eigen::Vector3i::Constant(7);
   std::vector<Eigen::Vector3f> intensity;     // L per voxel, x fastest, then y, then z
   std::vector<std::array<float, 6>> weights;  // lambda per voxel
   double cube_size = 0.01;                    // side of the exported emitting cube, meters
+  double softening = 0.0;                     // e of the falloff 1 / (d^2 + e^2), meters
   // Share of the largest voxel power from which a voxel counts as an active light (the estimate's
   // own threshold, kept with the lights so that every stage and the viewer count alike).
   double active_fraction = 1e-3;
@@ -51,6 +56,8 @@ struct VoxelLightGrid {
   static const std::array<Eigen::Vector3d, 6>& Directions();
   int VoxelCount() const { return dims.x() * dims.y() * dims.z(); }
   Eigen::Vector3d VoxelCenter(int voxel) const;
+  // 1 / (d2 + e^2): the falloff with the squared distance d2 from a voxel centre.
+  float Falloff(float d2) const { return 1.0f / (d2 + static_cast<float>(softening * softening)); }
   // Radiant intensity of `voxel` towards unit direction w (from the voxel to the receiver).
   Eigen::Vector3f Intensity(int voxel, const Eigen::Vector3d& w) const;
   // Upper bound of the intensity over directions (for light selection): L * max over the

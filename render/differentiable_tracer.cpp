@@ -196,10 +196,12 @@ SparseDual DifferentiablePathTracer::EmitterWeight(const Hit& hit, const Hit& pr
 
 void DifferentiablePathTracer::NextEvent(const Hit& at, const DualVec3& origin_offset,
                                          const Eigen::Vector3d& beta_albedo, CounterRng& rng,
-                                         DualRgb* radiance, RayCounts* counts) const {
+                                         DualRgb* radiance, RayCounts* counts,
+                                         double choice_u) const {
   if (lights_->empty()) return;
   // The random numbers are drawn as PathTracer::SampleLight draws them.
-  const size_t i = lights_->Choose(rng.UniformDouble());
+  const double drawn = rng.UniformDouble();
+  const size_t i = lights_->Choose(choice_u >= 0.0 ? choice_u : drawn);
   const float pmf = lights_->pmf(i);
   const LightSampler::Entry& e = lights_->entry(i);
   const float u1 = rng.Uniform(), u2 = rng.Uniform();
@@ -244,7 +246,7 @@ void DifferentiablePathTracer::NextEvent(const Hit& at, const DualVec3& origin_o
       if (w.value() > 0.0) sum += lambda[2 * axis] * w;
       if (w.value() < 0.0) sum -= lambda[2 * axis + 1] * w;
     }
-    factor = sum / d2;
+    factor = sum / (d2 + scene_.voxel_lights->softening * scene_.voxel_lights->softening);
   }
   const SparseDual cos_s = Dot(at.ns, wi);
   if (cos_s.value() <= 0.0 || at.ng.value().dot(wi.value()) <= 0.0) return;
@@ -260,7 +262,8 @@ void DifferentiablePathTracer::NextEvent(const Hit& at, const DualVec3& origin_o
 DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
                                            const Eigen::Vector3d& direction,
                                            const RenderOptions& options, CounterRng& rng,
-                                           bool derivatives, RayCounts* counts) const {
+                                           bool derivatives, RayCounts* counts,
+                                           double first_light_u) const {
   if (derivatives && !normal_derivatives_) {
     throw Error("DifferentiablePathTracer: derivatives asked after SetPositions without them");
   }
@@ -297,7 +300,8 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
     Hit at = std::move(*hit);
     if (at.ng.value().dot(ray_d.value()) > 0.0) at.ng = -at.ng, at.ns = -at.ns;
     const DualVec3 origin_offset = at.p + OffsetScale(at.p.value()) * at.ng;
-    NextEvent(at, origin_offset, beta.cwiseProduct(albedo), rng, &radiance, &local);
+    NextEvent(at, origin_offset, beta.cwiseProduct(albedo), rng, &radiance, &local,
+              depth == 1 ? first_light_u : -1.0);
 
     DualVec3 wi;
     if (!path::ContinuePath(at.ns, at.ng, albedo, depth, options, rng, &wi, &beta)) break;
@@ -324,13 +328,15 @@ DualRgb DifferentiablePathTracer::Pixel(const PosedView& view, int u, int v,
   if (options.filter == "gaussian")
     throw Error("vertex refinement: the gaussian pixel filter is not supported (box or center)");
   DualRgb sum;
+  const path::PixelLattice lattice(seed, pixel);
   for (int s = 0; s < options.spp; ++s) {
     CounterRng rng(seed, pixel, static_cast<uint64_t>(s));
-    const double x = box ? u - 0.5 + rng.UniformDouble() : u;
-    const double y = box ? v - 0.5 + rng.UniformDouble() : v;
+    if (box) rng.UniformDouble(), rng.UniformDouble();  // as PathTracer::Render
+    const double x = box ? u - 0.5 + lattice(s, 0) : u;
+    const double y = box ? v - 0.5 + lattice(s, 1) : v;
     // As PathTracer::Render: the direction is normalised in float there, here in double.
     const Eigen::Vector3d dir = rotation * k.RayDirection(x, y).normalized();
-    const DualRgb l = Radiance(eye, dir, options, rng, derivatives, counts);
+    const DualRgb l = Radiance(eye, dir, options, rng, derivatives, counts, lattice(s, 2));
     for (int c = 0; c < 3; ++c) sum[c] += l[c];
   }
   for (SparseDual& c : sum) c *= 1.0 / options.spp;

@@ -45,11 +45,11 @@ class DifferentiablePathTracer {
   // area-weighted normals).
   const Scene& scene() const { return scene_; }
 
-  // One path sample along a camera ray, as PathTracer::Radiance. Without `derivatives` only the
-  // values are computed (same path, same value).
+  // One path sample along a camera ray, as PathTracer::Radiance (`first_light_u` as there).
+  // Without `derivatives` only the values are computed (same path, same value).
   DualRgb Radiance(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                    const RenderOptions& options, CounterRng& rng, bool derivatives,
-                   RayCounts* counts = nullptr) const;
+                   RayCounts* counts = nullptr, double first_light_u = -1.0) const;
   // Pixel (u, v) of `view`: the mean of options.spp samples drawn as PathTracer::Render draws
   // them (box filter, centre or gaussian), keyed by (seed, pixel, sample).
   DualRgb Pixel(const PosedView& view, int u, int v, const RenderOptions& options, uint64_t seed,
@@ -63,10 +63,12 @@ class DifferentiablePathTracer {
   void UpdateNormals(bool derivatives);
   // The MIS weight of emission met at `hit` by a BSDF sample from `previous` with pdf bsdf_pdf.
   SparseDual EmitterWeight(const Hit& hit, const Hit& previous, const SparseDual& bsdf_pdf) const;
-  // Next-event estimation at `at`: one light drawn as PathTracer::SampleLight draws it, its
-  // contribution (beta (*) albedo = `beta_albedo`) added to `radiance` when unblocked.
+  // Next-event estimation at `at`: one light drawn as PathTracer::SampleLight draws it (chosen by
+  // `choice_u` when given), its contribution (beta (*) albedo = `beta_albedo`) added to
+  // `radiance` when unblocked.
   void NextEvent(const Hit& at, const DualVec3& origin_offset, const Eigen::Vector3d& beta_albedo,
-                 CounterRng& rng, DualRgb* radiance, RayCounts* counts) const;
+                 CounterRng& rng, DualRgb* radiance, RayCounts* counts,
+                 double choice_u = -1.0) const;
 
   Scene scene_;
   std::unique_ptr<RayTracer> tracer_;

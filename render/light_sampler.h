@@ -83,7 +83,7 @@ class LightSampler {
   // contribution there (RenderOptions::light_selection "contribution"). The point and voxel
   // lights with at least 1e-3 of the strongest one's power ("near-field" lights) together keep
   // their share of the power pmf, but among them the choice follows each light's unshadowed
-  // contribution I(w) max(0, n . wi) / d^2 at p; the rest (area lights, the faint
+  // contribution I(w) max(0, n . wi) falloff(d) at p; the rest (area lights, the faint
   // voxels) are chosen by power as Choose does. Every light that can contribute keeps a
   // non-zero probability, so the estimate stays unbiased. `scratch` holds the weights.
   struct Choice {
@@ -101,23 +101,7 @@ class LightSampler {
     w.resize(local_.size());
     double total = 0.0;
     for (size_t k = 0; k < local_.size(); ++k) {
-      const LocalLight& l = local_lights_[k];
-      const Eigen::Vector3f to = l.point - p;
-      const float d2 = to.squaredNorm();
-      const float along = n.dot(to);
-      double c = 0.0;
-      if (along > 0.0f && d2 > 0.0f) {
-        // Luminance of I(w), w = -to / |to| from the light to p: the faces facing w.
-        const float i = l.isotropic ? l.lum[0]
-                                    : (to.x() < 0 ? -to.x() * l.lum[0] : to.x() * l.lum[1]) +
-                                          (to.y() < 0 ? -to.y() * l.lum[2] : to.y() * l.lum[3]) +
-                                          (to.z() < 0 ? -to.z() * l.lum[4] : to.z() * l.lum[5]);
-        // I(w) cos / d^2 with cos = n . to / d and the face terms' own 1 / d: along / d^4 (or
-        // along / d^3 for an isotropic light).
-        const float inv_d2 = 1.0f / d2;
-        c = static_cast<double>(i * along * inv_d2 * inv_d2) * (l.isotropic ? std::sqrt(d2) : 1.0);
-      }
-      total += c;
+      total += LocalWeight(k, p, n);
       w[k] = total;
     }
     if (!(total > 0.0)) return ChooseInOrder(u);  // nothing lights p: the near field by power
@@ -129,6 +113,76 @@ class LightSampler {
     return {local_[k], static_cast<float>(local_share_ * weight / total)};
   }
 
+  // The lights of the shading point p split in two (SampleLights's first vertex): `exact` the
+  // near-field lights with the `count` largest unshadowed contributions there (each to be taken
+  // with probability 1), and `rest` one of all the other lights, chosen from u as ChooseAt would
+  // choose among them, its probability renormalised over them (rest.pmf = 0: none is left).
+  // The sum of the exact lights plus the rest's sample over its pmf is unbiased. `scratch` holds
+  // the weights.
+  void SplitAt(const Eigen::Vector3f& p, const Eigen::Vector3f& n, int count, double u,
+               std::vector<double>* scratch, std::vector<size_t>* exact, Choice* rest) const {
+    exact->clear();
+    *rest = Choice{};
+    if (local_.empty()) {
+      const size_t i = Choose(u);
+      *rest = {i, pmf_[i]};
+      return;
+    }
+    std::vector<double>& w = *scratch;
+    w.resize(local_.size());
+    double total = 0.0;
+    for (size_t k = 0; k < local_.size(); ++k) total += (w[k] = LocalWeight(k, p, n));
+    if (!(total > 0.0)) {
+      *rest = ChooseInOrder(u);
+      return;
+    }
+    // The `count` largest weights (ties by index), marked by negating them.
+    double removed = 0.0;
+    for (int c = 0; c < count; ++c) {
+      size_t best = local_.size();
+      for (size_t k = 0; k < local_.size(); ++k) {
+        if (w[k] > 0.0 && (best == local_.size() || w[k] > w[best])) best = k;
+      }
+      if (best == local_.size()) break;
+      exact->push_back(local_[best]);
+      removed += w[best];
+      w[best] = -w[best];
+    }
+    // What is left: the other near-field lights by contribution (share local_share_ w / total),
+    // then every other light by power.
+    const double remaining = 1.0 - local_share_ * removed / total;
+    if (remaining <= 1e-9) return;
+    double target = u * remaining, acc = 0.0;
+    for (size_t k = 0; k < local_.size(); ++k) {
+      if (w[k] <= 0.0) continue;
+      const double mass = local_share_ * w[k] / total;
+      if (target < acc + mass) {
+        *rest = {local_[k], static_cast<float>(mass / remaining)};
+        return;
+      }
+      acc += mass;
+    }
+    if (local_share_ >= 1.0) {
+      // Round-off past the last near-field light: the last one with weight.
+      for (size_t k = local_.size(); k-- > 0;) {
+        if (w[k] > 0.0) {
+          *rest = {local_[k], static_cast<float>(local_share_ * w[k] / total / remaining)};
+          return;
+        }
+      }
+      return;
+    }
+    const double v = std::min(local_share_ + (target - acc), std::nextafter(1.0, 0.0));
+    const Choice c = ChooseInOrder(std::max(v, local_share_));
+    *rest = {c.entry, static_cast<float>(c.pmf / remaining)};
+  }
+  bool HasTriangles() const {
+    for (int first : first_triangle_) {
+      if (first >= 0) return true;
+    }
+    return false;
+  }
+
   const Entry& entry(size_t i) const { return entries_[i]; }
   float pmf(size_t i) const { return pmf_[i]; }
   // Selection probability of triangle `face` of emitting mesh `mesh`.
@@ -138,6 +192,26 @@ class LightSampler {
   }
 
  private:
+  // ChooseAt's weight of near-field light k at p with normal n: its unshadowed contribution's
+  // luminance I(w) cos falloff.
+  double LocalWeight(size_t k, const Eigen::Vector3f& p, const Eigen::Vector3f& n) const {
+    const LocalLight& l = local_lights_[k];
+    const Eigen::Vector3f to = l.point - p;
+    const float d2 = to.squaredNorm();
+    const float along = n.dot(to);
+    if (!(along > 0.0f && d2 > 0.0f)) return 0.0;
+    // Luminance of I(w), w = -to / |to| from the light to p: the faces facing w.
+    const float i = l.isotropic ? l.lum[0]
+                                : (to.x() < 0 ? -to.x() * l.lum[0] : to.x() * l.lum[1]) +
+                                      (to.y() < 0 ? -to.y() * l.lum[2] : to.y() * l.lum[3]) +
+                                      (to.z() < 0 ? -to.z() * l.lum[4] : to.z() * l.lum[5]);
+    // I(w) cos falloff with cos = n . to / d, the falloff 1 / (d^2 + e^2) and the face terms'
+    // own 1 / d: along / (d^2 (d^2 + e^2)) (or along / d^3 for an isotropic light).
+    const float inv_d2 = 1.0f / d2;
+    return static_cast<double>(i * along * inv_d2 / (d2 + l.softening2)) *
+           (l.isotropic ? std::sqrt(d2) : 1.0);
+  }
+
   // The entry at u of a power cdf whose position k holds entry entry_of(k): the first position
   // with cdf > u, past zero-power entries (at u == cdf).
   template <typename EntryOf>
@@ -183,6 +257,7 @@ class LightSampler {
       if (e.kind == Kind::kVoxel) {
         const VoxelLightGrid& grid = *scene.voxel_lights;
         l.point = grid.VoxelCenter(e.index).cast<float>();
+        l.softening2 = static_cast<float>(grid.softening * grid.softening);
         const float lum = Luminance(grid.intensity[e.index]);
         for (int k = 0; k < 6; ++k) l.lum[k] = lum * grid.weights[e.index][k];
       } else {
@@ -204,6 +279,7 @@ class LightSampler {
   struct LocalLight {
     Eigen::Vector3f point;
     std::array<float, 6> lum{};
+    float softening2 = 0.0f;  // voxels: e^2 of the grid's falloff
     bool isotropic = false;
   };
   std::vector<size_t> local_;

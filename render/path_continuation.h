@@ -96,4 +96,28 @@ bool ContinuePath(const Vec3& ns, const Vec3& ng, const Rgb& albedo, int depth,
   return true;
 }
 
+// The numbers of a pixel's samples that are stratified over them: the position in the pixel
+// (dimensions 0, 1) and the first vertex's light choice (dimension 2), on Roberts' R3 lattice
+// (the additive recurrence s / phi3^d, phi3 the positive root of x^4 = x + 1) shifted per pixel
+// by a random offset keyed by (seed, pixel) (a Cranley-Patterson rotation): every number is
+// uniform, so the estimate stays unbiased, while a pixel's samples cover [0, 1)^3 evenly for any
+// sample count. Both tracers draw their samples through it.
+class PixelLattice {
+ public:
+  PixelLattice(uint64_t seed, uint64_t pixel) {
+    CounterRng rng(seed, pixel, ~0ull);
+    for (double& s : shift_) s = rng.UniformDouble();
+  }
+  double operator()(int sample, int dimension) const {
+    static constexpr double kPhi3 = 1.2207440845105186;
+    static constexpr double kAlpha[3] = {1.0 / kPhi3, 1.0 / (kPhi3 * kPhi3),
+                                         1.0 / (kPhi3 * kPhi3 * kPhi3)};
+    const double x = shift_[dimension] + kAlpha[dimension] * sample;
+    return x - std::floor(x);
+  }
+
+ private:
+  double shift_[3];
+};
+
 }  // namespace genscene::render::path

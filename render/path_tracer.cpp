@@ -43,6 +43,7 @@ void RenderOptions::Validate() const {
   RequireRange("filter_stddev", filter_stddev, 0.05, 10.0);
   RequireOneOf("light_selection", light_selection, {"contribution", "power"});
   RequireRange("light_samples", light_samples, 1, 1024);
+  RequireRange("exact_lights", exact_lights, 0, 1 << 20);
 }
 
 // A surface point as the path tracer uses it.
@@ -70,6 +71,7 @@ PathTracer::PathTracer(const Scene& scene) : scene_(scene), tracer_(std::make_un
   for (const SceneMesh& m : scene_.meshes) tracer_->AddMesh(m.mesh);
   tracer_->Commit();
   lights_ = std::make_unique<LightSampler>(scene_);
+  has_area_lights_ = lights_->HasTriangles();
 }
 
 PathTracer::~PathTracer() = default;
@@ -106,20 +108,27 @@ std::optional<PathTracer::SurfacePoint> PathTracer::Hit(const Eigen::Vector3f& o
 }
 
 std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoint& at,
-                                                               bool by_power,
-                                                               CounterRng& rng) const {
+                                                               bool by_power, CounterRng& rng,
+                                                               double choice_u) const {
   if (lights_->empty()) return std::nullopt;
   size_t i = 0;
   float pmf = 0.0f;
+  const double drawn = rng.UniformDouble();
+  const double u = choice_u >= 0.0 ? choice_u : drawn;
   if (by_power) {
-    i = lights_->Choose(rng.UniformDouble());
+    i = lights_->Choose(u);
     pmf = lights_->pmf(i);
   } else {
     thread_local std::vector<double> scratch;
-    const LightSampler::Choice c = lights_->ChooseAt(at.p, at.ns, rng.UniformDouble(), &scratch);
+    const LightSampler::Choice c = lights_->ChooseAt(at.p, at.ns, u, &scratch);
     i = c.entry;
     pmf = c.pmf;
   }
+  return EvaluateLight(at, i, pmf, rng);
+}
+
+std::optional<PathTracer::LightSample> PathTracer::EvaluateLight(const SurfacePoint& at, size_t i,
+                                                                 float pmf, CounterRng& rng) const {
   const LightSampler::Entry& e = lights_->entry(i);
   const float u1 = rng.Uniform(), u2 = rng.Uniform();
   LightSample s;
@@ -158,7 +167,7 @@ std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoin
       const float d2 = to_light.squaredNorm();
       if (d2 <= 0.0f) return std::nullopt;
       s.wi = to_light / std::sqrt(d2);
-      s.value = grid.Intensity(e.index, (-s.wi).cast<double>()) / d2;
+      s.value = grid.Intensity(e.index, (-s.wi).cast<double>()) * grid.Falloff(d2);
       s.pdf = pmf;
       s.is_delta = true;
       return s;
@@ -178,7 +187,8 @@ float PathTracer::AreaLightPdf(const SurfacePoint& from, const SurfacePoint& on_
 
 Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
                                      const Eigen::Vector3f& direction, const RenderOptions& options,
-                                     CounterRng& rng, RayCounts* counts) const {
+                                     CounterRng& rng, RayCounts* counts,
+                                     double first_light_u) const {
   RayCounts local;
   Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
   Eigen::Vector3f beta = Eigen::Vector3f::Ones();  // path throughput
@@ -213,18 +223,48 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
     const Eigen::Vector3f origin_offset = at.p + OffsetScale(at.p) * at.ng;
 
     // Sample direct illumination from the light sources (next-event estimation), n samples
-    // each weighted 1 / n; the power heuristic sees n pdf_light against pdf_bsdf.
+    // each weighted 1 / n; the power heuristic sees n pdf_light against pdf_bsdf. At the first
+    // vertex a given first_light_u places the n choices in the n strata of [0, 1).
     const int n = options.light_samples;
-    for (int k = 0; k < n; ++k) {
-      const auto light = SampleLight(at, by_power, rng);
+    const auto add = [&](const std::optional<LightSample>& light) {
       const float cos_s = light ? at.ns.dot(light->wi) : 0.0f;
-      if (!light || cos_s <= 0.0f || at.ng.dot(light->wi) <= 0.0f) continue;
+      if (!light || cos_s <= 0.0f || at.ng.dot(light->wi) <= 0.0f) return;
       ++local.occluded;
-      if (tracer_->SegmentOccluded(origin_offset, light->point)) continue;
+      if (tracer_->SegmentOccluded(origin_offset, light->point)) return;
       const float pdf_bsdf = cos_s / static_cast<float>(M_PI);
       const float weight = light->is_delta ? 1.0f : PowerHeuristic(n * light->pdf, pdf_bsdf);
       const Eigen::Vector3f f = albedo * (cos_s / static_cast<float>(M_PI));
       radiance += beta.cwiseProduct(f).cwiseProduct(light->value) * (weight / (n * light->pdf));
+    };
+    if (depth == 1 && options.exact_lights > 0 && !by_power && !has_area_lights_ &&
+        !lights_->empty()) {
+      // The first vertex (direct light, most of a pixel's noise): the exact_lights strongest
+      // near-field lights taken each with probability 1, the rest sampled n times (delta lights
+      // only, so no MIS weight depends on the split).
+      thread_local std::vector<double> scratch;
+      thread_local std::vector<size_t> exact;
+      for (int k = 0; k < n; ++k) {
+        const double drawn = rng.UniformDouble();
+        const double u = first_light_u >= 0.0 ? (k + first_light_u) / n : drawn;
+        LightSampler::Choice rest;
+        lights_->SplitAt(at.p, at.ns, options.exact_lights, u, &scratch, &exact, &rest);
+        if (k == 0) {
+          for (size_t e : exact) {
+            // Taken once, but `add` divides by n: n times over the n rounds' first.
+            std::optional<LightSample> light = EvaluateLight(at, e, 1.0f / n, rng);
+            add(light);
+          }
+        }
+        if (rest.pmf > 0.0f) add(EvaluateLight(at, rest.entry, rest.pmf, rng));
+      }
+    } else {
+      for (int k = 0; k < n; ++k) {
+        double u = -1.0;
+        if (depth == 1 && first_light_u >= 0.0) {
+          u = (k + first_light_u) / n;
+        }
+        add(SampleLight(at, by_power, rng, u));
+      }
     }
 
     Eigen::Vector3f wi;
@@ -282,12 +322,13 @@ int VoxelSplitting::Choose(double u) const {
 
 namespace {
 
-// The shadow rays of one path vertex to voxels: voxel, weight and cos / d^2 per ray beside the
+// The shadow rays of one path vertex to voxels: voxel, weight and cos x falloff per ray beside the
 // arrays that OccludedFrom reads (directions to the voxels, segment lengths), then the unblocked
 // ones as the sink reads them. One per thread, so that a path allocates nothing.
 struct VoxelShadowRays {
   std::vector<int> voxel, out_voxel;
-  std::vector<float> weight, cos_over_d2, t_max;
+  std::vector<float> weight, cos_falloff, t_max;
+  float softening2 = 0.0f;  // e^2 of the grid's falloff 1 / (d^2 + e^2)
   std::vector<Eigen::Vector3f> directions, out_w, out_base;
   std::vector<uint8_t> blocked;
   int n = 0;
@@ -295,7 +336,7 @@ struct VoxelShadowRays {
   void Reserve(size_t most) {
     if (voxel.size() >= most) return;
     for (auto* v : {&voxel, &out_voxel}) v->resize(most);
-    for (auto* v : {&weight, &cos_over_d2, &t_max}) v->resize(most);
+    for (auto* v : {&weight, &cos_falloff, &t_max}) v->resize(most);
     for (auto* v : {&directions, &out_w, &out_base}) v->resize(most);
     blocked.resize(most);
   }
@@ -312,13 +353,13 @@ struct VoxelShadowRays {
     if (cos_s <= 0.0f || ng.dot(wi) <= 0.0f) return;
     voxel[n] = j;
     weight[n] = w;
-    cos_over_d2[n] = cos_s / d2;
+    cos_falloff[n] = cos_s / (d2 + softening2);
     directions[n] = wi;
     t_max[n] = distance * (1.0f - 1e-4f);
     ++n;
   }
   // Traces the gathered rays together in packets from `from` and reports the unblocked ones to
-  // the sink in the gathered order, with base = f_beta cos / d^2 x weight.
+  // the sink in the gathered order, with base = f_beta cos / (d^2 + e^2) x weight.
   void Trace(const RayTracer& tracer, const Eigen::Vector3f& from, const Eigen::Vector3f& f_beta,
              const VoxelCoefficientSink& sink, RayCounts* counts) {
     if (n == 0) return;
@@ -330,7 +371,7 @@ struct VoxelShadowRays {
       // I(w) = L sum_k lambda_k max(0, w . d_k) with w = -wi, from the voxel to the surface.
       out_voxel[m] = voxel[i];
       out_w[m] = -directions[i];
-      out_base[m] = f_beta * (cos_over_d2[i] * weight[i]);
+      out_base[m] = f_beta * (cos_falloff[i] * weight[i]);
       ++m;
     }
     if (m > 0) sink({m, out_voxel.data(), out_w.data(), out_base.data()});
@@ -356,6 +397,7 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
   }
   const std::vector<Eigen::Vector3f>& centres = prepared->centres;
   thread_local VoxelShadowRays rays;
+  rays.softening2 = static_cast<float>(grid.softening * grid.softening);
   rays.Reserve(
       std::max(prepared->connected.size(), static_cast<size_t>(std::max(splitting.samples, 0))));
 
@@ -432,11 +474,13 @@ RenderOutput PathTracer::Render(const PosedView& view, const RenderOptions& opti
           out.object(u, v) = hit->mesh;
         }
         Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        const path::PixelLattice lattice(seed, pixel);
         for (int s = 0; s < options.spp; ++s) {
           CounterRng rng(seed, pixel, static_cast<uint64_t>(s));
           // Pixel (u, v) covers [u - 0.5, u + 0.5) x [v - 0.5, v + 0.5) (DESIGN.md §1).
-          double x = box ? u - 0.5 + rng.UniformDouble() : u;
-          double y = box ? v - 0.5 + rng.UniformDouble() : v;
+          if (box) rng.UniformDouble(), rng.UniformDouble();  // the stream as before the lattice
+          double x = box ? u - 0.5 + lattice(s, 0) : u;
+          double y = box ? v - 0.5 + lattice(s, 1) : v;
           if (gaussian) {
             // Like Mitsuba without sample_border, only positions inside the image contribute.
             do {
@@ -445,7 +489,8 @@ RenderOutput PathTracer::Render(const PosedView& view, const RenderOptions& opti
             } while (x < -0.5 || y < -0.5 || x >= k.width - 0.5 || y >= k.height - 0.5);
           }
           const Eigen::Vector3f dir = rotation * k.RayDirection(x, y).cast<float>().normalized();
-          const Eigen::Vector3f l = Radiance(eye, dir, options, rng, &pixel_rays[pixel]);
+          const Eigen::Vector3f l =
+              Radiance(eye, dir, options, rng, &pixel_rays[pixel], lattice(s, 2));
           if (!l.allFinite()) {
             throw Error(Format("rendering failed at pixel (", u, ", ", v, ") sample ", s,
                                ": radiance (", l.transpose(), ") is not finite (seed ", seed, ")"));

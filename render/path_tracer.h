@@ -42,6 +42,10 @@ struct RenderOptions {
   // Lights sampled per path vertex (next-event estimation), combined with the BSDF's hits on area
   // lights by the power heuristic over both counts.
   int light_samples = 1;
+  // With light_selection "contribution" and only point and voxel lights: at a path's first
+  // vertex the lights with this many largest unshadowed contributions there are taken each with
+  // a shadow ray, and one of the others is sampled (per light sample); 0: every light sampled.
+  int exact_lights = 4;
 
   // The stages that trace paths hold their path settings as one RenderOptions and list them under
   // these keys, saying in `spp_help` what one of their samples is.
@@ -70,6 +74,9 @@ struct RenderOptions {
       "choice of light per shading point: contribution (point and voxel lights by their "
       "unshadowed contribution there) or power");
     v("light_samples", light_samples, "", "lights sampled per path vertex");
+    v("exact_lights", exact_lights, "",
+      "at the first vertex, the lights of this many largest contributions each get a shadow ray "
+      "(point and voxel lights; 0: all sampled)");
   }
   void Validate() const;
 };
@@ -138,10 +145,12 @@ class PathTracer {
   RenderOutput Render(const PosedView& view, const RenderOptions& options, uint64_t seed) const;
 
   // Radiance along one camera ray (one path sample), for tests and the inverse stages.
-  // Adds the rays it traces to `counts` when given.
+  // Adds the rays it traces to `counts` when given. `first_light_u` in [0, 1), when given, is
+  // the number that chooses the first vertex's light (Render stratifies it over a pixel's
+  // samples); otherwise `rng` draws it.
   Eigen::Vector3f Radiance(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
                            const RenderOptions& options, CounterRng& rng,
-                           RayCounts* counts = nullptr) const;
+                           RayCounts* counts = nullptr, double first_light_u = -1.0) const;
 
   // Light estimation's walk: the same camera path as Radiance() (BSDF sampling,
   // Russian roulette, max_depth), but at every vertex it connects to the voxels of `splitting`
@@ -172,15 +181,20 @@ class PathTracer {
   std::optional<SurfacePoint> Hit(const Eigen::Vector3f& origin,
                                   const Eigen::Vector3f& direction) const;
   // One light sample for next-event estimation at `at`, chosen by power alone or by its
-  // contribution there (RenderOptions::light_selection).
-  std::optional<LightSample> SampleLight(const SurfacePoint& at, bool by_power,
-                                         CounterRng& rng) const;
+  // contribution there (RenderOptions::light_selection). `choice_u` in [0, 1) chooses the light
+  // when given (rng's draw for it is then discarded).
+  std::optional<LightSample> SampleLight(const SurfacePoint& at, bool by_power, CounterRng& rng,
+                                         double choice_u = -1.0) const;
+  // The sample of light entry i (chosen with probability pmf) at `at`.
+  std::optional<LightSample> EvaluateLight(const SurfacePoint& at, size_t i, float pmf,
+                                           CounterRng& rng) const;
   // Solid-angle pdf with which SampleLight picks the point `p` of emitting face (mesh, face).
   float AreaLightPdf(const SurfacePoint& from, const SurfacePoint& on_light) const;
 
   Scene scene_;
   std::unique_ptr<RayTracer> tracer_;
   std::unique_ptr<LightSampler> lights_;
+  bool has_area_lights_ = false;
 };
 
 // Two independent renders of a view with half the paths each (random numbers keyed by seed_a and

@@ -93,6 +93,24 @@ double Penalty(const Eigen::VectorXd& params, int voxels, double weight, double 
   return penalty;
 }
 
+// The chroma term, r_j = L_j - m s_j (sum_c r_jc = 0):
+//     chroma = scale sum_j |r_j|^2,   d chroma / d L_jc = 2 scale (r_jc - m . r_j).
+// Adds the gradient when given.
+double ChromaPenalty(const Eigen::VectorXd& params, int voxels, const Eigen::Vector3d& m,
+                     double scale, Eigen::VectorXd* gradient) {
+  double sum = 0.0;
+  for (int j = 0; j < voxels; ++j) {
+    const Eigen::Vector3d l = params.segment<3>(9 * j);
+    const Eigen::Vector3d r = l - m * l.sum();
+    sum += r.squaredNorm();
+    if (gradient) {
+      const double mr = m.dot(r);
+      for (int c = 0; c < 3; ++c) (*gradient)[9 * j + c] += 2.0 * scale * (r[c] - mr);
+    }
+  }
+  return scale * sum;
+}
+
 }  // namespace
 
 // E = sum_c I_c^T I_c normalises the data term. The activation scale is
@@ -100,7 +118,7 @@ double Penalty(const Eigen::VectorXd& params, int voxels, double weight, double 
 // the summed intensity of the best uniform lighting (UniformFit), which lights every voxel some
 // path reaches (with adaptive refinement only the candidates are traced).
 LightCost::LightCost(const NormalEquations& equations, double penalty_weight,
-                     double penalty_epsilon)
+                     double penalty_epsilon, double chroma_weight)
     : eq_(equations), weight_(penalty_weight) {
   energy_ = eq_.observed_sq[0] + eq_.observed_sq[1] + eq_.observed_sq[2];
   if (eq_.used.empty()) {
@@ -115,6 +133,8 @@ LightCost::LightCost(const NormalEquations& equations, double penalty_weight,
     used_voxels += i == 0 || eq_.used[i] / 6 != eq_.used[i - 1] / 6;
   const double s_ref = alpha.sum() * used_voxels;
   epsilon_ = penalty_epsilon * std::max(s_ref, 1e-30);
+  if (alpha.sum() > 0.0) chroma_target_ = alpha / alpha.sum();
+  if (chroma_weight > 0.0 && s_ref > 0.0) chroma_scale_ = chroma_weight / (s_ref * s_ref);
 }
 
 Eigen::VectorXd LightCost::Pack(const VoxelLightGrid& grid) {
@@ -134,7 +154,7 @@ void LightCost::Unpack(const Eigen::VectorXd& params, VoxelLightGrid* grid) {
   }
 }
 
-// f = data + penalty (ChannelResiduals, Penalty above).
+// f = data + penalty + chroma (ChannelResiduals, Penalty, ChromaPenalty above).
 double LightCost::Evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradient, double* data,
                            std::array<Eigen::VectorXd, 3>* gram_x) const {
   const int voxels = eq_.parameters / 6;
@@ -148,8 +168,11 @@ double LightCost::Evaluate(const Eigen::VectorXd& params, Eigen::VectorXd* gradi
     AddDataGradient(eq_, params, gx, energy_, gradient);
   }
   const double penalty = weight_ > 0.0 ? Penalty(params, voxels, weight_, epsilon_, gradient) : 0.0;
+  const double chroma = chroma_scale_ > 0.0
+                            ? ChromaPenalty(params, voxels, chroma_target_, chroma_scale_, gradient)
+                            : 0.0;
   if (data) *data = data_sum / energy_;
-  return data_sum / energy_ + penalty;
+  return data_sum / energy_ + penalty + chroma;
 }
 
 }  // namespace genscene::inverse

@@ -78,8 +78,8 @@ class LightEstimator {
         equation_bytes_(NormalEquationsBoundBytes(options.grid)),
         scale_(views.size(), Eigen::Vector3d::Ones()) {
     out_.pixels = pixels_.size();
-    out_.lights =
-        MakeVoxelGrid(tracer_.scene(), options.grid, options.boundary_inset, options.grid_margin);
+    out_.lights = MakeVoxelGrid(tracer_.scene(), options.grid, options.boundary_inset,
+                                options.grid_margin, options.softening);
     out_.lights.active_fraction = options.active_fraction;
     CheckEquationBytes();
   }
@@ -166,7 +166,7 @@ class LightEstimator {
   // The coarse rounds over `round_pixels`, from the dark grid, then the moves in a final solve.
   void CoarseRounds(const std::vector<SampledPixel>& round_pixels) {
     out_.lights = MakeVoxelGrid(tracer_.scene(), options_.grid, options_.boundary_inset,
-                                options_.grid_margin);
+                                options_.grid_margin, options_.softening);
     out_.lights.active_fraction = options_.active_fraction;
     std::vector<double> previous_power;
     for (int round = 0; round < options_.rounds; ++round) {
@@ -261,7 +261,7 @@ class LightEstimator {
     RefinementLevel state;
     state.level = level;
     state.fine = MakeVoxelGrid(tracer_.scene(), 2 * out_.lights.dims.x(), options_.boundary_inset,
-                               options_.grid_margin);
+                               options_.grid_margin, options_.softening);
     state.fine.active_fraction = options_.active_fraction;
     state.enabled.assign(static_cast<size_t>(state.fine.VoxelCount()), false);
     bool left_out = false;
@@ -595,9 +595,11 @@ Scene WithoutLights(const Scene& scene) {
   return out;
 }
 
-VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset, double margin) {
+VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset, double margin,
+                             double softening) {
   GS_CHECK(boundary_inset >= 0.0 && boundary_inset <= 0.5);
   GS_CHECK(margin >= 0.0);
+  GS_CHECK(softening >= 0.0);
   VoxelLightGrid g;
   for (const SceneMesh& m : scene.meshes) {
     if (m.IsEmitter()) continue;
@@ -626,6 +628,7 @@ VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset
   g.intensity.assign(static_cast<size_t>(g.VoxelCount()), Eigen::Vector3f::Zero());
   g.weights.assign(static_cast<size_t>(g.VoxelCount()), {1, 1, 1, 1, 1, 1});
   g.cube_size = 0.01 * g.bounds.sizes().minCoeff() / dims;
+  g.softening = softening * g.bounds.sizes().minCoeff() / dims;
   return g;
 }
 

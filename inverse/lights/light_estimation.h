@@ -70,9 +70,10 @@ namespace genscene::inverse {
 // option's; 0.5: the box split into dims^3 cells; smaller: the grid grows so that lights can sit
 // near the walls and the ceiling, where real lights are). `margin` > 0 first grows the box by that
 // share of its size on every side, so that voxels can stand for light from outside the scan.
+// The lights' softening (VoxelLightGrid::Falloff) is `softening` times the voxels' smallest side.
 VoxelLightGrid MakeVoxelGrid(const render::Scene& scene, int dims,
                              double boundary_inset = LightEstimationOptions().boundary_inset,
-                             double margin = 0.0);
+                             double margin = 0.0, double softening = 0.0);
 
 struct LightRound {
   int round = 0;

@@ -15,9 +15,11 @@ void LightEstimationOptions::Validate() const {
   RequireRange("split_depth", split_depth, 1, 1 << 20);
   RequireRange("refine_coarse_pixels", refine_coarse_pixels, 0, 1 << 24);
   RequireRange("boundary_inset", boundary_inset, 0.0, 0.5);
+  RequireRange("softening", softening, 0.0, 2.0);
   RequireRange("grid_margin", grid_margin, 0.0, 10.0);
   RequireRange("penalty_weight", penalty_weight, 0.0, 1e6);
   RequireRange("penalty_epsilon", penalty_epsilon, 1e-9, 1e6);
+  RequireRange("chroma_weight", chroma_weight, 0.0, 1e6);
   RequireRange("rounds", rounds, 1, 100);
   RequireRange("round_tolerance", round_tolerance, 0.0, 10.0);
   RequireRange("resample_voxels", resample_voxels, 1, 1 << 16);

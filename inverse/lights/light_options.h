@@ -15,7 +15,11 @@ struct LightEstimationOptions {
   double grid_margin = 0.0;
   double boundary_inset = 0.1;  // the outer voxel centres lie this many voxels inside the
                                 // bounding box (0.5: cells that tile it; see MakeVoxelGrid)
-  int pixels_per_view = 3000;   // sampled pixels per training view
+  // A voxel light's falloff is 1 / (d^2 + e^2) with e this share of the voxels' smallest side
+  // (VoxelLightGrid::softening): a wall next to a voxel centre is not lit without bound, and the
+  // model's renders have no fireflies there. 0: point lights.
+  double softening = 0.5;
+  int pixels_per_view = 3000;  // sampled pixels per training view
   // Camera paths per sampled pixel (spp; box filter over the pixel; even: two independent halves
   // give the normal equations), max_depth (-1: Russian roulette ends a path) and rr_depth.
   render::RenderOptions paths = render::RenderOptions::Paths(16);
@@ -27,6 +31,7 @@ struct LightEstimationOptions {
                                   // resample_voxels voxels
   double penalty_weight = 1e-3;   // w of the activation penalty
   double penalty_epsilon = 0.01;  // eps relative to s_ref
+  double chroma_weight = 0.0;     // w_chroma: voxel colours pulled toward the room's (LightCost)
   int rounds = 1;                 // tracing rounds at most (1 = no resampling); the normal
                                   // equations of all rounds add up. With the default split_depth
                                   // a later round only adds fresh paths: on the replica a second
@@ -88,6 +93,8 @@ struct LightEstimationOptions {
       "the grid reaches this share of the scene's size beyond its bounding box on every side");
     v("boundary_inset", boundary_inset, "voxels",
       "outer voxel centres this far inside the bounding box (0.5: cells tile it)");
+    v("softening", softening, "voxels",
+      "a voxel light's falloff is 1 / (d^2 + e^2), e this share of the voxels' smallest side");
     v("pixels_per_view", pixels_per_view, "", "random valid pixels sampled per training view");
     paths.VisitPaths(v, "camera paths per sampled pixel (even: two independent halves)");
     v("direct_paths", direct_paths, "",
@@ -97,6 +104,8 @@ struct LightEstimationOptions {
     v("penalty_weight", penalty_weight, "", "weight of the log activation penalty (0: none)");
     v("penalty_epsilon", penalty_epsilon, "",
       "activation scale, relative to the best uniform lighting");
+    v("chroma_weight", chroma_weight, "",
+      "weight of the pull of every voxel's colour toward the best uniform light's (0: off)");
     v("rounds", rounds, "", "tracing rounds at most (later rounds resample voxels by power)");
     v("round_tolerance", round_tolerance, "", "stop when the voxel powers change less than this");
     v("resample_voxels", resample_voxels, "",

@@ -46,7 +46,7 @@ class AlternatingSolver {
                     const VoxelLightGrid& grid)
       : eq_(eq),
         options_(options),
-        cost_(eq, options.penalty_weight, options.penalty_epsilon),
+        cost_(eq, options.penalty_weight, options.penalty_epsilon, options.chroma_weight),
         voxels_(grid.VoxelCount()),
         energy_(eq.observed_sq[0] + eq.observed_sq[1] + eq.observed_sq[2]),
         n_(static_cast<int>(eq.used.size())) {
@@ -240,15 +240,25 @@ class AlternatingSolver {
     }
     Eigen::VectorXd lambda_of(n_);
     for (int i = 0; i < n_; ++i) lambda_of[i] = lambda_(voxel_of_[i], face_of_[i]);
-    // Channels in parallel, each by one task.
-    ParallelFor(
-        0, 3, [&](size_t c) { LStepChannel(c, q, lambda_of); }, 1);
+    if (cost_.chroma_scale() > 0.0) {
+      // The chroma term couples a voxel's channels: one after the other, each seeing the
+      // others' latest values.
+      for (size_t c = 0; c < 3; ++c) LStepChannel(c, q, lambda_of);
+    } else {
+      // Channels in parallel, each by one task.
+      ParallelFor(
+          0, 3, [&](size_t c) { LStepChannel(c, q, lambda_of); }, 1);
+    }
   }
 
   // Cyclic coordinate descent on L_jc with H = S^T D G D S never formed: H_jj is the voxel's
   // 6 x 6 block, (H L)_j = sum_i lambda_i (G x)_i over its parameters, and a change of L_jc adds
   // the voxel's columns of G to G x. A sweep costs O(n) plus O(n) per parameter of a voxel
   // that changes; most stay dark. `gx_[c]` holds G_c x_c (current L, lambda) on entry and after.
+  // The chroma term (scale a, target m) adds, with u = L_jc and o the voxel's other channels'
+  // sum, E a [((1 - m_c) u - m_c o)^2 + sum_{c' != c} (L_jc' - m_c' (u + o))^2]: to the
+  // curvature E a kappa_c, kappa_c = (1 - m_c)^2 + sum_{c' != c} m_c'^2, and to g
+  // E a [(1 - m_c) m_c o + sum_{c' != c} m_c' (L_jc' - m_c' o)].
   void LStepChannel(size_t c, const Eigen::VectorXd& q, const Eigen::VectorXd& lambda_of) {
     const Eigen::MatrixXd& gram = eq_.gram[c];
     Eigen::VectorXd& gxc = gx_[c];
@@ -265,6 +275,24 @@ class AlternatingSolver {
       g[v] = gv;
       l[v] = light_(reached_[v], c);
     }
+    // The chroma term's curvature and linear part per voxel (the other channels held).
+    const double a = energy_ * cost_.chroma_scale();
+    const Eigen::Vector3d& m = cost_.chroma_target();
+    Eigen::VectorXd hc = Eigen::VectorXd::Zero(slots_), gc = Eigen::VectorXd::Zero(slots_);
+    if (a > 0.0) {
+      double kappa = (1.0 - m[c]) * (1.0 - m[c]);
+      for (size_t o = 0; o < 3; ++o) kappa += o == c ? 0.0 : m[o] * m[o];
+      for (int v = 0; v < slots_; ++v) {
+        const int j = reached_[v];
+        double others = 0.0;
+        for (size_t o = 0; o < 3; ++o) others += o == c ? 0.0 : light_(j, o);
+        double lin = (1.0 - m[c]) * m[c] * others;
+        for (size_t o = 0; o < 3; ++o)
+          if (o != c) lin += m[o] * (light_(j, o) - m[o] * others);
+        hc[v] = a * kappa;
+        gc[v] = a * lin;
+      }
+    }
     for (int sweep = 0; sweep < 10; ++sweep) {
       double change = 0.0, scale = 0.0;
       for (int v = 0; v < slots_; ++v) {
@@ -272,7 +300,8 @@ class AlternatingSolver {
         if (h[v] > 0.0) {
           double hl = 0.0;
           for (int a = slot_begin_[v]; a < slot_begin_[v + 1]; ++a) hl += lambda_of[a] * gxc[a];
-          value = std::max(0.0, l[v] - (hl - g[v] + 0.5 * q[v]) / h[v]);
+          value = std::max(0.0,
+                           l[v] - (hl + hc[v] * l[v] - g[v] - gc[v] + 0.5 * q[v]) / (h[v] + hc[v]));
         }
         const double delta = value - l[v];
         if (delta != 0.0) {

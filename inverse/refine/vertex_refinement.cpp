@@ -18,6 +18,7 @@ using namespace genscene::render;  // the renderer the inverse stages are built 
 using namespace refine_detail;
 
 void RefineOptions::Validate() const {
+  RequireRange("held_out_z", held_out_z, -1e6, 1e6);
   RequireRange("iterations", iterations, 0, 1000);
   paths.Validate();
   RequireRange("pixels_per_view", pixels_per_view, 0, 1 << 26);
@@ -421,14 +422,24 @@ HeldOutComparison CompareOnFreshPixels(const Scene& scene, const std::vector<int
   out.pixels = static_cast<int>(pixels.size());
   if (pixels.empty()) return out;
   const double rms = ReferenceRms(targets, pixels), channels = 3.0 * pixels.size();
-  const auto rmse_at = [&](const Eigen::VectorXd& x) {
+  // Per pixel, the squared error summed over the channels.
+  const auto errors_at = [&](const Eigen::VectorXd& x, double* rmse) {
     tracer.SetPositions(x, false);
-    return std::sqrt(Evaluate(tracer, targets, pixels, options, seed, 1.0, false).sum_squared /
-                     channels) /
-           rms;
+    const Evaluation e = Evaluate(tracer, targets, pixels, options, seed, 1.0, false);
+    *rmse = std::sqrt(e.sum_squared / channels) / rms;
+    std::vector<double> squared(pixels.size(), 0.0);
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      for (int c = 0; c < 3; ++c) squared[i] += e.rows[i][c].value() * e.rows[i][c].value();
+    }
+    return squared;
   };
-  out.rmse_a = rmse_at(xa);
-  out.rmse_b = rmse_at(xb);
+  const std::vector<double> ea = errors_at(xa, &out.rmse_a), eb = errors_at(xb, &out.rmse_b);
+  const double n = static_cast<double>(pixels.size());
+  double mean = 0.0, var = 0.0;
+  for (size_t i = 0; i < pixels.size(); ++i) mean += (ea[i] - eb[i]) / n;
+  for (size_t i = 0; i < pixels.size(); ++i) var += (ea[i] - eb[i] - mean) * (ea[i] - eb[i] - mean);
+  const double standard_error = pixels.size() > 1 ? std::sqrt(var / (n - 1.0) / n) : 0.0;
+  out.improvement_z = standard_error > 0.0 ? mean / standard_error : 0.0;
   return out;
 }
 

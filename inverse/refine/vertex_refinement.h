@@ -65,6 +65,11 @@ struct RefineOptions {
   // The stage's gate (apps/refine.h): refine a workspace only when its lights fit the keyframes
   // better than a constant ambient light (else their renders carry no geometric information).
   bool fit_gate = true;
+  // The held-out gate (apps/refine.h): the refined mesh is kept only when it fits a fresh sample
+  // of pixels better than the unrefined one by at least this many standard errors of the paired
+  // per-pixel difference (HeldOutComparison::improvement_z); a gain within the noise keeps the
+  // unrefined mesh.
+  double held_out_z = 2.0;
 
   template <typename V>
   void Visit(V&& v) {
@@ -72,6 +77,9 @@ struct RefineOptions {
     v("fit_gate", fit_gate, "",
       "refine a workspace only when its lights fit the keyframes better than a constant ambient "
       "light (lights.json); else the unrefined mesh is kept");
+    v("held_out_z", held_out_z, "",
+      "keep the refined mesh only when it fits held-out pixels better by this many standard "
+      "errors");
     paths.VisitPaths(v, "path samples per pixel and evaluation");
     v("pixels_per_view", pixels_per_view, "", "pixels sampled per view (0 = every pixel)");
     v("refine_unseen", refine_unseen, "",
@@ -187,9 +195,12 @@ RefineLinearization LinearizeRefinement(const render::DifferentiablePathTracer& 
 // RefineResult::initial and positions) on the same pixels: a fresh sample (keyed by `seed`, drawn
 // at `b`; with a seed other than the refinement's, pixels the refinement did not fit) traced with
 // the same random numbers at both. RMS of (I - I*) over RMS of I*, as RefineIteration::data_rmse.
+// improvement_z: the mean over the pixels of the paired difference of squared errors, a's minus
+// b's, over its standard error (> 0: b fits better; 2: better by two standard errors).
 struct HeldOutComparison {
   int pixels = 0;
   double rmse_a = 0.0, rmse_b = 0.0;
+  double improvement_z = 0.0;
 };
 HeldOutComparison CompareOnFreshPixels(const render::Scene& scene,
                                        const std::vector<int>& refined_meshes,

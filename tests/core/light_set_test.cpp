@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <limits>
 
 #include "core/check.h"
 #include "core/color.h"
@@ -22,6 +23,7 @@ VoxelLightGrid SmallGrid() {
   g.weights[5] = {0.1f, 0.0f, 0.25f, 1.0f, 0.5f, 0.75f};
   g.intensity[17] = Eigen::Vector3f(0.01f, 0.02f, 0.03f);
   g.cube_size = 0.02;
+  g.softening = 0.035;
   return g;
 }
 
@@ -34,8 +36,23 @@ TEST(LightSet, LightsJsonRoundTrips) {
   EXPECT_EQ(back.bounds.min(), g.bounds.min());
   EXPECT_EQ(back.bounds.max(), g.bounds.max());
   EXPECT_EQ(back.cube_size, g.cube_size);
+  EXPECT_EQ(back.softening, g.softening);
   EXPECT_EQ(back.intensity, g.intensity);
   EXPECT_EQ(back.weights, g.weights);
+}
+
+// The falloff 1 / (d^2 + e^2): a point's 1 / d^2 far away, bounded by 1 / e^2 at the centre; a
+// negative or infinite softening is an error.
+TEST(LightSet, SofteningBoundsTheFalloff) {
+  VoxelLightGrid g = SmallGrid();
+  EXPECT_FLOAT_EQ(g.Falloff(0.0f), 1.0f / (0.035f * 0.035f));
+  EXPECT_NEAR(g.Falloff(100.0f) * 100.0f, 1.0, 2e-5);
+  g.softening = 0.0;
+  EXPECT_FLOAT_EQ(g.Falloff(0.25f), 4.0f);
+  for (double bad : {-0.01, std::numeric_limits<double>::infinity()}) {
+    g.softening = bad;
+    EXPECT_THROW(g.Validate(), Error) << bad;
+  }
 }
 
 TEST(LightSet, PowerAndActiveVoxels) {

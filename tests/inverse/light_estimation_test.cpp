@@ -109,29 +109,34 @@ TEST(MakeVoxelGrid, OuterCentresLieTheInsetInsideTheBox) {
 }
 
 // The cache's estimator (splitting over voxels) and the path tracer's (one light sample per
-// vertex) are different Monte Carlo estimators of the same pixel: their means agree.
+// vertex) are different Monte Carlo estimators of the same pixel: their means agree, with point
+// lights and with softened ones (the bottom voxel lights the floor 1/3 m below it).
 TEST(LightCache, AgreesWithThePathTracerOnAverage) {
-  SmallScene s;
-  const Scene lit = s.Lit();
-  const PathTracer tracer(s.geometry), lit_tracer(lit);
-  const std::vector<PosedView> all = CornellLightViews(12, 9);
-  const std::vector<PosedImage> views = Views({all[0]});
-  LightEstimationOptions o;
-  o.paths.spp = 256;
-  o.pixels_per_view = 1000;
-  const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
-  const std::vector<Eigen::Vector3f> predicted =
-      TraceLightCache(tracer, s.grid, VoxelSplitting{}, views, pixels, o, 5).Predict(s.grid);
-  RenderOptions ro;
-  ro.spp = 1024;
-  const RenderOutput render = lit_tracer.Render(all[0], ro, 9);
-  Eigen::Vector3d sum_cache = Eigen::Vector3d::Zero(), sum_render = Eigen::Vector3d::Zero();
-  for (size_t i = 0; i < pixels.size(); ++i) {
-    sum_cache += predicted[i].cast<double>();
-    sum_render += render.radiance(pixels[i].u, pixels[i].v).cast<double>();
-  }
-  for (int c = 0; c < 3; ++c) {
-    EXPECT_NEAR(sum_cache[c] / sum_render[c], 1.0, 0.02) << "channel " << c;
+  for (const double softening : {0.0, 0.3}) {
+    SmallScene s;
+    s.grid.softening = softening;
+    const Scene lit = s.Lit();
+    const PathTracer tracer(s.geometry), lit_tracer(lit);
+    const std::vector<PosedView> all = CornellLightViews(12, 9);
+    const std::vector<PosedImage> views = Views({all[0]});
+    LightEstimationOptions o;
+    o.paths.spp = 256;
+    o.pixels_per_view = 1000;
+    const std::vector<SampledPixel> pixels = SamplePixels(tracer, views, o, 3);
+    const std::vector<Eigen::Vector3f> predicted =
+        TraceLightCache(tracer, s.grid, VoxelSplitting{}, views, pixels, o, 5).Predict(s.grid);
+    RenderOptions ro;
+    ro.spp = 1024;
+    const RenderOutput render = lit_tracer.Render(all[0], ro, 9);
+    Eigen::Vector3d sum_cache = Eigen::Vector3d::Zero(), sum_render = Eigen::Vector3d::Zero();
+    for (size_t i = 0; i < pixels.size(); ++i) {
+      sum_cache += predicted[i].cast<double>();
+      sum_render += render.radiance(pixels[i].u, pixels[i].v).cast<double>();
+    }
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(sum_cache[c] / sum_render[c], 1.0, 0.02)
+          << "channel " << c << ", softening " << softening;
+    }
   }
 }
 
@@ -184,32 +189,36 @@ TEST(LightCost, GradientEqualsCentralDifferences) {
   const std::vector<PosedView> all = CornellLightViews(16, 12);
   const std::vector<PosedImage> views = Render(lit, {all[0], all[1]}, 16);
   const NormalEquations eq = SmallEquations(s, views, 0.5);
-  const LightCost cost(eq, 1e-3, 0.01);
-  // A random interior point (every L and lambda away from 0 and from the bounds), and the same
-  // with only three voxels lit (G x then sums the lit parameters' columns).
-  CounterRng rng(5, 0);
-  Eigen::VectorXd dense(9 * 27);
-  for (Eigen::Index i = 0; i < dense.size(); ++i) dense[i] = 0.05 + 0.9 * rng.UniformDouble();
-  Eigen::VectorXd sparse = dense;
-  for (int j = 0; j < 27; ++j) {
-    if (j != 4 && j != 13 && j != 22) sparse.segment<3>(9 * j).setZero();
-  }
-  for (const Eigen::VectorXd& x : {dense, sparse}) {
-    Eigen::VectorXd gradient;
-    cost.Evaluate(x, &gradient);
-    double worst = 0.0, mean = 0.0;
-    for (Eigen::Index i = 0; i < x.size(); ++i) {
-      const double h = 1e-5 * std::max(1.0, std::abs(x[i]));
-      Eigen::VectorXd plus = x, minus = x;
-      plus[i] += h;
-      minus[i] -= h;
-      const double numeric = (cost.Evaluate(plus) - cost.Evaluate(minus)) / (2.0 * h);
-      const double error = std::abs(numeric - gradient[i]) / std::max(1e-8, std::abs(gradient[i]));
-      worst = std::max(worst, error);
-      mean += error / x.size();
+  for (const double chroma : {0.0, 0.7}) {
+    const LightCost cost(eq, 1e-3, 0.01, chroma);
+    // A random interior point (every L and lambda away from 0 and from the bounds), and the same
+    // with only three voxels lit (G x then sums the lit parameters' columns).
+    CounterRng rng(5, 0);
+    Eigen::VectorXd dense(9 * 27);
+    for (Eigen::Index i = 0; i < dense.size(); ++i) dense[i] = 0.05 + 0.9 * rng.UniformDouble();
+    Eigen::VectorXd sparse = dense;
+    for (int j = 0; j < 27; ++j) {
+      if (j != 4 && j != 13 && j != 22) sparse.segment<3>(9 * j).setZero();
     }
-    EXPECT_LT(worst, 1e-4) << "mean relative error " << mean
-                           << (&x == &dense ? " (all lit)" : " (three lit)");
+    for (const Eigen::VectorXd& x : {dense, sparse}) {
+      Eigen::VectorXd gradient;
+      cost.Evaluate(x, &gradient);
+      double worst = 0.0, mean = 0.0;
+      for (Eigen::Index i = 0; i < x.size(); ++i) {
+        const double h = 1e-5 * std::max(1.0, std::abs(x[i]));
+        Eigen::VectorXd plus = x, minus = x;
+        plus[i] += h;
+        minus[i] -= h;
+        const double numeric = (cost.Evaluate(plus) - cost.Evaluate(minus)) / (2.0 * h);
+        const double error =
+            std::abs(numeric - gradient[i]) / std::max(1e-8, std::abs(gradient[i]));
+        worst = std::max(worst, error);
+        mean += error / x.size();
+      }
+      EXPECT_LT(worst, 1e-4) << "mean relative error " << mean
+                             << (&x == &dense ? " (all lit)" : " (three lit)") << ", chroma weight "
+                             << chroma;
+    }
   }
 }
 
@@ -569,6 +578,7 @@ TEST(EstimateLights, AFinerLevelThatFitsWorseLeavesTheCoarseResult) {
   const std::vector<PosedImage> views = TrainingViews(lit);
   LightEstimationOptions o = SmallOptions();
   o.rounds = 1;
+  o.softening = 0.0;  // the scene's lights are points: the coarse grid fits them closely
   const LightEstimate coarse = EstimateLights(lit, views, o, 1);
   o.refine_levels = 1;
   o.refine_spp = 8;
@@ -620,6 +630,43 @@ TEST(EstimateLights, SameSeedSameLightsWithOneOrTwoThreads) {
   EXPECT_EQ(results[0].train_rmse, results[1].train_rmse);
 }
 
+// The chroma term: the solve's cost never rises with it (its L step minimises the coupled
+// channels exactly), and the lit voxels' colours move toward the target chromaticity as its
+// weight grows: the scene's two lights are warm (2, 1.5, 1) and blue (0.3, 0.3, 0.6).
+TEST(SolveLights, TheChromaTermPullsTheVoxelColoursTogether) {
+  SmallScene s;
+  const std::vector<PosedImage> views = TrainingViews(s.Lit());
+  const NormalEquations eq = SmallEquations(s, views, 0.0);
+  std::vector<double> spread;
+  for (const double weight : {0.0, 1.0, 100.0}) {
+    LightEstimationOptions o;
+    o.chroma_weight = weight;
+    const LightCost cost(eq, o.penalty_weight, o.penalty_epsilon, weight);
+    VoxelLightGrid grid = s.grid;
+    for (auto& l : grid.intensity) l.setZero();
+    const SolveReport r = SolveLights(eq, o, &grid);
+    for (size_t i = 1; i < r.history.size(); ++i)
+      EXPECT_LE(r.history[i], r.history[i - 1] * (1.0 + 1e-9))
+          << "weight " << weight << " it " << i;
+    // The power-weighted mean distance of the lit voxels' chromaticities from the target.
+    const Eigen::Vector3d m = cost.chroma_target();
+    double sum = 0.0, total = 0.0;
+    for (int j = 0; j < grid.VoxelCount(); ++j) {
+      const Eigen::Vector3d l = grid.intensity[j].cast<double>();
+      if (l.sum() <= 0.0) continue;
+      const double p = Luminance(grid.Power(j));
+      sum += p * (l / l.sum() - m).norm();
+      total += p;
+    }
+    ASSERT_GT(total, 0.0) << weight;
+    spread.push_back(sum / total);
+    std::printf("chroma weight %g: colour spread %.4f, data %.5f\n", weight, spread.back(), r.data);
+  }
+  EXPECT_GT(spread[0], 0.05) << "the two lights' colours differ: the test needs them to";
+  EXPECT_LT(spread[1], spread[0]);
+  EXPECT_LT(spread[2], 0.25 * spread[0]);
+}
+
 // The solve's moves: on equations of one voxel light, a start with the light in the neighbouring
 // voxel (a local minimum of the log penalty) ends with it in its own voxel, at the cost of the
 // truth or below.
@@ -666,6 +713,7 @@ TEST(EstimateLights, PenaltyZeroAndHugeStayFinite) {
   o.pixels_per_view = 150;
   o.rounds = 1;
   o.paths.spp = 4;
+  o.refine_levels = 0;  // the counts are compared on one grid (refinement runs only with w > 0)
   int previous_active = 1 << 30;
   for (double w : {0.0, 1e-3, 1e6}) {
     o.penalty_weight = w;

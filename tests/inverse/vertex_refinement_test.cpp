@@ -107,6 +107,31 @@ TEST(VertexRefinement, TwoPerturbedVerticesMoveTowardsTheTruthFromOneView) {
   }
 }
 
+// The held-out comparison's paired z: the true sphere against its spike and dent fits the
+// fresh pixels better by many standard errors (and the other way round, worse by as many); the
+// same positions twice give exactly 0.
+TEST(CompareOnFreshPixels, TheImprovementIsMeasuredInStandardErrors) {
+  Replica replica(256, 2);
+  const Eigen::VectorXd truth = replica.Truth();
+  const Eigen::VectorXd start = replica.Perturbed().positions;
+  RefineOptions options;
+  options.paths.spp = 16;
+  options.paths.max_depth = 2;
+  options.pixels_per_view = 2000;
+  const auto compare = [&](const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+    return CompareOnFreshPixels(replica.box.scene, replica.refined, replica.targets, options, 77,
+                                {a}, {b});
+  };
+  const HeldOutComparison better = compare(start, truth);
+  std::printf("perturbed -> truth: RMSE %.4f -> %.4f, z %.1f\n", better.rmse_a, better.rmse_b,
+              better.improvement_z);
+  EXPECT_LT(better.rmse_b, better.rmse_a);
+  EXPECT_GT(better.improvement_z, 4.0);
+  EXPECT_LT(compare(truth, start).improvement_z, -4.0);
+  EXPECT_EQ(compare(start, start).improvement_z, 0.0);
+  EXPECT_EQ(compare(start, start).rmse_a, compare(start, start).rmse_b);
+}
+
 TEST(VertexRefinement, SameSeedSameVerticesWithOneOrTwoThreads) {
   Replica replica(16, 2);
   const SpikeAndDent start = replica.Perturbed();

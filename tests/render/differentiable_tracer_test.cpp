@@ -57,7 +57,8 @@ TEST(SparseDual, NormalizedCrossProductMatchesFiniteDifferences) {
 }
 
 // A refined icosphere (radius 0.2, level 1) above a floor, one of three kinds of light.
-enum class LightKind { kPoint, kArea, kVoxel };
+// kSoftVoxel: the voxel lights with a softening of 0.25 m (VoxelLightGrid::Falloff).
+enum class LightKind { kPoint, kArea, kVoxel, kSoftVoxel };
 
 Scene SphereOnFloor(LightKind light, bool smooth) {
   Scene scene;
@@ -95,7 +96,8 @@ Scene SphereOnFloor(LightKind light, bool smooth) {
       scene.meshes.push_back(panel);
       break;
     }
-    case LightKind::kVoxel: {
+    case LightKind::kVoxel:
+    case LightKind::kSoftVoxel: {
       VoxelLightGrid grid;
       grid.bounds =
           Eigen::AlignedBox3d(Eigen::Vector3d(-0.9, -0.9, 0.6), Eigen::Vector3d(0.9, 0.9, 1.2));
@@ -106,6 +108,7 @@ Scene SphereOnFloor(LightKind light, bool smooth) {
       grid.weights[3] = {0.3f, 0.1f, 0.5f, 0.2f, 0.1f, 1.0f};
       grid.intensity[14] = Eigen::Vector3f(0.5f, 0.5f, 0.8f);
       grid.weights[14] = {1, 1, 1, 1, 1, 1};
+      if (light == LightKind::kSoftVoxel) grid.softening = 0.25;
       scene.voxel_lights = grid;
       break;
     }
@@ -247,7 +250,7 @@ TEST_P(DifferentiableTracerGradient, MatchesCentralDifferencesAwayFromVisibility
 }
 
 std::string CaseName(const ::testing::TestParamInfo<Case>& info) {
-  static const char* const kLight[] = {"Point", "Area", "Voxel"};
+  static const char* const kLight[] = {"Point", "Area", "Voxel", "SoftVoxel"};
   return std::string(kLight[static_cast<int>(info.param.light)]) +
          (info.param.smooth ? "Smooth" : "Flat") +
          (info.param.max_depth == 2 ? "Direct" : "OneBounce");
@@ -258,7 +261,8 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(Case{LightKind::kPoint, false, 2}, Case{LightKind::kPoint, true, 2},
                       Case{LightKind::kPoint, true, 3}, Case{LightKind::kArea, false, 2},
                       Case{LightKind::kArea, true, 2}, Case{LightKind::kArea, true, 3},
-                      Case{LightKind::kVoxel, false, 2}, Case{LightKind::kVoxel, true, 3}),
+                      Case{LightKind::kVoxel, false, 2}, Case{LightKind::kVoxel, true, 3},
+                      Case{LightKind::kSoftVoxel, true, 2}, Case{LightKind::kSoftVoxel, true, 3}),
     CaseName);
 
 // Hard cases: a smooth fan of `n` triangles around a raised centre vertex

@@ -11,6 +11,7 @@
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "core/synthetic.h"
+#include "render/light_sampler.h"
 #include "render/ray_tracer.h"
 
 namespace genscene::render {
@@ -78,41 +79,73 @@ TEST(PathTracer, PointLightOverPlaneIsExact) {
   }
 }
 
+// Direct light of one voxel over a plane against the emission model, as a point (softening 0)
+// and softened: E = I(w) cos / (r^2 + e^2).
 TEST(PathTracer, VoxelLightOverPlaneFollowsEmissionModel) {
-  const Eigen::Vector3f albedo(0.6f, 0.6f, 0.6f);
-  Scene scene;
-  scene.meshes.push_back(Square(40.0, 0.0, true, albedo));
-  VoxelLightGrid grid;
-  grid.dims = Eigen::Vector3i(1, 1, 1);
-  grid.bounds =
-      Eigen::AlignedBox3d(Eigen::Vector3d(-0.1, -0.1, 0.9), Eigen::Vector3d(0.1, 0.1, 1.1));
-  grid.intensity = {Eigen::Vector3f(1.0f, 2.0f, 3.0f)};
-  grid.weights = {{0.1f, 0.9f, 0.3f, 0.0f, 0.2f, 1.0f}};
-  scene.voxel_lights = grid;
-  const PathTracer tracer(scene);
-  const PosedView view = LookingDownAt({0.3, -1.0, 2.5}, {0.0, 0.0, 0.0}, 20, 16, 12.0);
-  RenderOptions options;
-  options.filter = "center";
-  options.spp = 1;
-  options.max_depth = 2;
-  const RenderOutput out = tracer.Render(view, options, 3);
-  const Eigen::Vector3d c(0.0, 0.0, 1.0);
-  for (int v = 0; v < 16; ++v) {
-    for (int u = 0; u < 20; ++u) {
-      const Eigen::Vector3d p = PointAt(view, out, u, v);
-      const Eigen::Vector3d w = (p - c).normalized();  // from the voxel to the receiver
-      const auto& l = grid.weights[0];
-      // I(w) = L sum_k lambda_k max(0, w . d_k); E = I cos / r^2; L_o = rho / pi E.
-      const double sum = l[0] * std::max(0.0, w.x()) + l[1] * std::max(0.0, -w.x()) +
-                         l[2] * std::max(0.0, w.y()) + l[3] * std::max(0.0, -w.y()) +
-                         l[4] * std::max(0.0, w.z()) + l[5] * std::max(0.0, -w.z());
-      const double r2 = (c - p).squaredNorm(), cos_theta = (c - p).z() / std::sqrt(r2);
-      for (int ch = 0; ch < 3; ++ch) {
-        const double expected = albedo[ch] / M_PI * grid.intensity[0][ch] * sum * cos_theta / r2;
-        EXPECT_NEAR(out.radiance(u, v)[ch], expected, 1e-4 * expected + 1e-7) << u << "," << v;
+  for (const double softening : {0.0, 0.4}) {
+    const Eigen::Vector3f albedo(0.6f, 0.6f, 0.6f);
+    Scene scene;
+    scene.meshes.push_back(Square(40.0, 0.0, true, albedo));
+    VoxelLightGrid grid;
+    grid.dims = Eigen::Vector3i(1, 1, 1);
+    grid.bounds =
+        Eigen::AlignedBox3d(Eigen::Vector3d(-0.1, -0.1, 0.9), Eigen::Vector3d(0.1, 0.1, 1.1));
+    grid.intensity = {Eigen::Vector3f(1.0f, 2.0f, 3.0f)};
+    grid.weights = {{0.1f, 0.9f, 0.3f, 0.0f, 0.2f, 1.0f}};
+    grid.softening = softening;
+    scene.voxel_lights = grid;
+    const PathTracer tracer(scene);
+    const PosedView view = LookingDownAt({0.3, -1.0, 2.5}, {0.0, 0.0, 0.0}, 20, 16, 12.0);
+    RenderOptions options;
+    options.filter = "center";
+    options.spp = 1;
+    options.max_depth = 2;
+    const RenderOutput out = tracer.Render(view, options, 3);
+    const Eigen::Vector3d c(0.0, 0.0, 1.0);
+    for (int v = 0; v < 16; ++v) {
+      for (int u = 0; u < 20; ++u) {
+        const Eigen::Vector3d p = PointAt(view, out, u, v);
+        const Eigen::Vector3d w = (p - c).normalized();  // from the voxel to the receiver
+        const auto& l = grid.weights[0];
+        // I(w) = L sum_k lambda_k max(0, w . d_k); E = I cos / r^2; L_o = rho / pi E.
+        const double sum = l[0] * std::max(0.0, w.x()) + l[1] * std::max(0.0, -w.x()) +
+                           l[2] * std::max(0.0, w.y()) + l[3] * std::max(0.0, -w.y()) +
+                           l[4] * std::max(0.0, w.z()) + l[5] * std::max(0.0, -w.z());
+        const double r2 = (c - p).squaredNorm(), cos_theta = (c - p).z() / std::sqrt(r2);
+        for (int ch = 0; ch < 3; ++ch) {
+          const double expected = albedo[ch] / M_PI * grid.intensity[0][ch] * sum * cos_theta /
+                                  (r2 + softening * softening);
+          EXPECT_NEAR(out.radiance(u, v)[ch], expected, 1e-4 * expected + 1e-7)
+              << u << "," << v << " softening " << softening;
+        }
       }
     }
   }
+}
+
+// A 40 m plane of `albedo` at z = 0 under 24 point lights at random over [-2, 2]^2, between
+// `lowest` and lowest + 1 m high.
+Scene PointLightsOverAPlane(const Eigen::Vector3f& albedo, double lowest) {
+  Scene scene;
+  scene.meshes.push_back(Square(40.0, 0.0, true, albedo));
+  CounterRng rng(5, 0);
+  for (int i = 0; i < 24; ++i) {
+    const Eigen::Vector3d at(rng.UniformDouble() * 4 - 2, rng.UniformDouble() * 4 - 2,
+                             lowest + rng.UniformDouble());
+    scene.point_lights.push_back({at, Eigen::Vector3f::Constant(0.2f + rng.Uniform())});
+  }
+  return scene;
+}
+
+// The exact direct light (channel 0) the plane of PointLightsOverAPlane reflects at p.
+double DirectFromPointLights(const Scene& scene, double albedo, const Eigen::Vector3d& p) {
+  double expected = 0.0;
+  for (const PointLight& light : scene.point_lights) {
+    const Eigen::Vector3d to = light.position - p;
+    if (to.z() <= 0.0) continue;
+    expected += albedo / M_PI * light.intensity[0] * to.z() / std::pow(to.norm(), 3.0);
+  }
+  return expected;
 }
 
 // Many point lights over a plane, one below it and one far fainter than the rest: next-event
@@ -121,14 +154,7 @@ TEST(PathTracer, VoxelLightOverPlaneFollowsEmissionModel) {
 // nothing casting shadows it is exact up to rounding: the pmf is the integrand).
 TEST(PathTracer, LightsChosenByContributionAreUnbiasedAndLessNoisy) {
   const Eigen::Vector3f albedo(0.5f, 0.5f, 0.5f);
-  Scene scene;
-  scene.meshes.push_back(Square(40.0, 0.0, true, albedo));
-  CounterRng rng(5, 0);
-  for (int i = 0; i < 24; ++i) {
-    const Eigen::Vector3d at(rng.UniformDouble() * 4 - 2, rng.UniformDouble() * 4 - 2,
-                             0.05 + rng.UniformDouble());
-    scene.point_lights.push_back({at, Eigen::Vector3f::Constant(0.2f + rng.Uniform())});
-  }
+  Scene scene = PointLightsOverAPlane(albedo, 0.05);
   scene.point_lights.push_back({Eigen::Vector3d(0, 0, -0.5), Eigen::Vector3f::Constant(5.0f)});
   scene.point_lights.push_back({Eigen::Vector3d(1, 1, 1), Eigen::Vector3f::Constant(1e-5f)});
   const PathTracer tracer(scene);
@@ -143,13 +169,7 @@ TEST(PathTracer, LightsChosenByContributionAreUnbiasedAndLessNoisy) {
     const RenderOutput out = tracer.Render(view, options, 11);
     for (int v = 0; v < 24; ++v) {
       for (int u = 0; u < 32; ++u) {
-        const Eigen::Vector3d p = PointAt(view, out, u, v);
-        double expected = 0.0;
-        for (const PointLight& light : scene.point_lights) {
-          const Eigen::Vector3d to = light.position - p;
-          if (to.z() <= 0.0) continue;
-          expected += albedo[0] / M_PI * light.intensity[0] * to.z() / std::pow(to.norm(), 3.0);
-        }
+        const double expected = DirectFromPointLights(scene, albedo[0], PointAt(view, out, u, v));
         const double got = out.radiance(u, v)[0];
         error[mode] += (got - expected) * (got - expected);
         mean[mode] += got / (32 * 24);
@@ -163,6 +183,117 @@ TEST(PathTracer, LightsChosenByContributionAreUnbiasedAndLessNoisy) {
       std::sqrt(error[0] / 768), std::sqrt(error[1] / 768), mean[0], mean[1], expected_mean);
   EXPECT_NEAR(mean[1], expected_mean, 0.01 * expected_mean);
   EXPECT_LT(error[1], 0.25 * error[0]) << "variance by contribution against by power";
+}
+
+// LightSampler::SplitAt: the strongest near-field lights taken exactly plus one of the others
+// over its renormalised probability is, averaged over u, exactly the sum of every light's
+// unshadowed contribution (here of 12 voxel lights and a faint point light at a floor point);
+// the rest's probabilities sum to 1 and the exact lights are the strongest.
+TEST(LightSampler, TheSplitIntoExactAndSampledLightsIsUnbiased) {
+  Scene scene;
+  scene.meshes.push_back(Square(10.0, 0.0, true, Eigen::Vector3f::Constant(0.5f)));
+  VoxelLightGrid grid;
+  grid.dims = Eigen::Vector3i(4, 3, 1);
+  grid.bounds = Eigen::AlignedBox3d(Eigen::Vector3d(-1, -1, 0.5), Eigen::Vector3d(1, 1, 1.0));
+  grid.softening = 0.1;
+  CounterRng rng(3, 0);
+  for (int j = 0; j < grid.VoxelCount(); ++j) {
+    grid.intensity.push_back(Eigen::Vector3f::Constant(0.1f + rng.Uniform()));
+    grid.weights.push_back(
+        {rng.Uniform(), rng.Uniform(), rng.Uniform(), rng.Uniform(), rng.Uniform(), rng.Uniform()});
+  }
+  scene.voxel_lights = grid;
+  scene.point_lights.push_back({Eigen::Vector3d(0.3, 0.2, 2.0), Eigen::Vector3f::Constant(1e-6f)});
+  const LightSampler sampler(scene);
+  const Eigen::Vector3f p(0.2f, -0.1f, 0.0f), n(0.0f, 0.0f, 1.0f);
+  // The unshadowed luminance each entry gives p, as the path tracer evaluates it.
+  const auto contribution = [&](size_t i) {
+    const LightSampler::Entry& e = sampler.entry(i);
+    Eigen::Vector3d at = e.kind == LightSampler::Kind::kVoxel
+                             ? grid.VoxelCenter(e.index)
+                             : scene.point_lights[e.index].position;
+    const Eigen::Vector3d to = at - p.cast<double>();
+    const double d2 = to.squaredNorm(), cos = std::max(0.0, to.z() / std::sqrt(d2));
+    if (e.kind == LightSampler::Kind::kPoint)
+      return Luminance(scene.point_lights[e.index].intensity) * cos / d2;
+    return Luminance(grid.Intensity(e.index, -to / std::sqrt(d2))) * cos *
+           grid.Falloff(static_cast<float>(d2));
+  };
+  double all = 0.0;
+  std::vector<double> each;
+  for (size_t i = 0; i < 13; ++i) each.push_back(contribution(i)), all += each.back();
+  std::vector<double> scratch;
+  std::vector<size_t> exact;
+  for (int count : {0, 1, 4, 12, 20}) {
+    double sum = 0.0, exact_sum = 0.0;
+    const int grid_points = 200000;
+    for (int k = 0; k < grid_points; ++k) {
+      LightSampler::Choice rest;
+      sampler.SplitAt(p, n, count, (k + 0.5) / grid_points, &scratch, &exact, &rest);
+      if (rest.pmf > 0.0f) sum += each[rest.entry] / rest.pmf / grid_points;
+      if (k == 0) {
+        for (size_t e : exact) exact_sum += each[e];
+        EXPECT_EQ(exact.size(), static_cast<size_t>(std::min(count, 12))) << count;
+        // The exact ones are the strongest near-field lights.
+        double weakest_exact = 1e30, strongest_other = 0.0;
+        for (size_t i = 0; i < 13; ++i) {
+          if (sampler.entry(i).kind != LightSampler::Kind::kVoxel) continue;
+          const bool taken = std::find(exact.begin(), exact.end(), i) != exact.end();
+          if (taken) weakest_exact = std::min(weakest_exact, each[i]);
+          if (!taken) strongest_other = std::max(strongest_other, each[i]);
+        }
+        if (!exact.empty()) EXPECT_GE(weakest_exact, strongest_other * 0.999) << count;
+      }
+    }
+    EXPECT_NEAR(exact_sum + sum, all, 1e-3 * all) << count << " exact lights";
+  }
+}
+
+// A pixel's samples choose the first vertex's light on a stratified lattice (Render), not
+// independently (Radiance without first_light_u): on 24 point lights both are unbiased and the
+// stratified error is smaller. (The lights are 0.3 m and more above the plane: by power, lights
+// close to it would make the error too heavy-tailed for its standard error.)
+TEST(PathTracer, StratifiedLightChoiceIsUnbiasedAndLessNoisy) {
+  const Eigen::Vector3f albedo(0.5f, 0.5f, 0.5f);
+  const Scene scene = PointLightsOverAPlane(albedo, 0.3);
+  const PathTracer tracer(scene);
+  const PosedView view = LookingDownAt({0.2, -0.3, 3.0}, {0.0, 0.0, 0.0}, 32, 24, 14.0);
+  RenderOptions options;
+  options.filter = "center";
+  options.spp = 16;
+  options.max_depth = 2;
+  options.light_selection = "power";
+  const RenderOutput out = tracer.Render(view, options, 11);
+  const Eigen::Matrix3f rotation = view.world_from_camera.rotation().cast<float>();
+  const Eigen::Vector3f eye = view.world_from_camera.translation().cast<float>();
+  double error[2] = {0, 0}, mean[2] = {0, 0}, expected_mean = 0.0;
+  for (int v = 0; v < 24; ++v) {
+    for (int u = 0; u < 32; ++u) {
+      const double expected = DirectFromPointLights(scene, albedo[0], PointAt(view, out, u, v));
+      const Eigen::Vector3f dir =
+          rotation * view.intrinsics.RayDirection(u, v).cast<float>().normalized();
+      double independent = 0.0;
+      for (int s = 0; s < options.spp; ++s) {
+        CounterRng sample_rng(11, static_cast<uint64_t>(v * 32 + u), static_cast<uint64_t>(s));
+        independent += tracer.Radiance(eye, dir, options, sample_rng)[0] / options.spp;
+      }
+      const double got[2] = {out.radiance(u, v)[0], independent};
+      for (int k = 0; k < 2; ++k) {
+        error[k] += (got[k] - expected) * (got[k] - expected);
+        mean[k] += got[k] / (32 * 24);
+      }
+      expected_mean += expected / (32 * 24);
+    }
+  }
+  std::printf(
+      "[ closed   ] 24 point lights by power, 16 spp: RMS error stratified %.5f, independent "
+      "%.5f; means %.5f %.5f vs %.5f\n",
+      std::sqrt(error[0] / 768), std::sqrt(error[1] / 768), mean[0], mean[1], expected_mean);
+  // Unbiased: each mean within four standard errors (RMS error / sqrt(pixels)) of the truth.
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_NEAR(mean[k], expected_mean, 4.0 * std::sqrt(error[k] / 768) / std::sqrt(768.0)) << k;
+  }
+  EXPECT_LT(error[0], 0.6 * error[1]) << "squared error stratified against independent";
 }
 
 // Form factor from a differential area to a parallel rectangle a x b at distance h, with the
