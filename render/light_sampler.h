@@ -162,8 +162,8 @@ class LightSampler {
       }
       acc += mass;
     }
-    if (local_share_ >= 1.0) {
-      // Round-off past the last near-field light: the last one with weight.
+    if (order_.size() == local_.size()) {
+      // Every light is near-field; round-off past the last one: the last one with weight.
       for (size_t k = local_.size(); k-- > 0;) {
         if (w[k] > 0.0) {
           *rest = {local_[k], static_cast<float>(local_share_ * w[k] / total / remaining)};
