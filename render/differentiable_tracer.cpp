@@ -331,7 +331,8 @@ DualRgb DifferentiablePathTracer::Pixel(const PosedView& view, int u, int v,
   const path::PixelLattice lattice(seed, pixel);
   for (int s = 0; s < options.spp; ++s) {
     CounterRng rng(seed, pixel, static_cast<uint64_t>(s));
-    if (box) rng.UniformDouble(), rng.UniformDouble();  // as PathTracer::Render
+    // As PathTracer::Render: a sample's first two numbers belong to its pixel position.
+    if (box) rng.UniformDouble(), rng.UniformDouble();
     const double x = box ? u - 0.5 + lattice(s, 0) : u;
     const double y = box ? v - 0.5 + lattice(s, 1) : v;
     // As PathTracer::Render: the direction is normalised in float there, here in double.

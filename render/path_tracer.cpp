@@ -249,11 +249,8 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
         LightSampler::Choice rest;
         lights_->SplitAt(at.p, at.ns, options.exact_lights, u, &scratch, &exact, &rest);
         if (k == 0) {
-          for (size_t e : exact) {
-            // Taken once, but `add` divides by n: n times over the n rounds' first.
-            std::optional<LightSample> light = EvaluateLight(at, e, 1.0f / n, rng);
-            add(light);
-          }
+          // Each exact light once, with pmf 1 / n against `add`'s division by n.
+          for (size_t e : exact) add(EvaluateLight(at, e, 1.0f / n, rng));
         }
         if (rest.pmf > 0.0f) add(EvaluateLight(at, rest.entry, rest.pmf, rng));
       }
@@ -478,7 +475,8 @@ RenderOutput PathTracer::Render(const PosedView& view, const RenderOptions& opti
         for (int s = 0; s < options.spp; ++s) {
           CounterRng rng(seed, pixel, static_cast<uint64_t>(s));
           // Pixel (u, v) covers [u - 0.5, u + 0.5) x [v - 0.5, v + 0.5) (DESIGN.md §1).
-          if (box) rng.UniformDouble(), rng.UniformDouble();  // the stream as before the lattice
+          // A sample's first two numbers belong to its pixel position, which the lattice gives.
+          if (box) rng.UniformDouble(), rng.UniformDouble();
           double x = box ? u - 0.5 + lattice(s, 0) : u;
           double y = box ? v - 0.5 + lattice(s, 1) : v;
           if (gaussian) {
