@@ -1,10 +1,18 @@
 // Fusion speed against error: frames per second of tracking + fusion, and of integration alone,
 // on TUM-layout folders with ground truth (e.g. made by genscene-synth at 320x240 and 640x480),
 // with the ATE of each run. Usage: bench_fusion FOLDER [FOLDER ...] [--threads N]
+//
+// Then the per-frame cost against the size of the volume: the model raycast of every tracked
+// frame, timed on the volume the run built and on that volume with `--copies` translated copies
+// of all its blocks beside it (out of every frustum, as the rest of a room scanned before is):
+// only the blocks of chunks in the frustum are visited, so the two times should agree.
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <exception>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,7 +28,60 @@ namespace {
 constexpr const char* kUsage =
     "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] "
     "[--allocation-stride N]"
-    " [--weighting noise|uniform]\n";
+    " [--weighting noise|uniform] [--copies N]\n";
+
+// The raycast of fusion's model (its intrinsics, depth range and normals) at every pose of
+// `trajectory`, on `volume` and on `volume` with `copies` copies of its blocks beside it.
+void TimeRaycastAgainstVolumeSize(const TsdfVolume& volume, const Trajectory& trajectory,
+                                  const CameraIntrinsics& intrinsics,
+                                  const fusion::FusionOptions& options, int copies,
+                                  double per_frame_seconds) {
+  TsdfVolumeParams params = volume.params();
+  params.memory_cap_bytes = 0;
+  TsdfVolume large(params);
+  Eigen::Vector3i lo = volume.block_key(0), hi = lo;
+  for (size_t b = 0; b < volume.num_blocks(); ++b) {
+    lo = lo.cwiseMin(volume.block_key(b));
+    hi = hi.cwiseMax(volume.block_key(b));
+  }
+  // Copies side by side along x, a gap of 30 m between them (beyond the raycast's depth range).
+  const int gap = static_cast<int>(std::ceil(30.0 / (kTsdfBlockSide * volume.voxel_size())));
+  const int stride = hi.x() - lo.x() + 1 + gap;
+  for (int c = 0; c <= copies; ++c) {
+    for (size_t b = 0; b < volume.num_blocks(); ++b) {
+      large.block(large.AllocateBlock(volume.block_key(b) + Eigen::Vector3i(c * stride, 0, 0))) =
+          volume.block(b);
+    }
+  }
+  const CameraIntrinsics k = intrinsics.Scaled(1.0 / options.model_subsample);
+  const int normal_step = std::max(1, 2 / options.model_subsample);
+  double seconds[2] = {};
+  size_t projected[2] = {};
+  for (int pass = 0; pass < 3; ++pass) {  // the first pass warms the caches, untimed
+    for (const StampedPose& p : trajectory.poses()) {
+      for (int which = 0; which < 2; ++which) {
+        const TsdfVolume& v = which == 0 ? volume : large;
+        const auto start = std::chrono::steady_clock::now();
+        const fusion::RaycastResult r =
+            fusion::RaycastVolume(v, k, p.world_from_camera, options.preprocess.min_depth,
+                                  options.preprocess.max_depth, false, normal_step);
+        if (pass == 0) continue;
+        seconds[which] +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        projected[which] += r.blocks_projected;
+      }
+    }
+  }
+  const double n = 2.0 * static_cast<double>(trajectory.size());
+  std::printf(
+      "  model raycast %dx%d per frame: volume %zu blocks / %zu chunks: %.2f ms, %.0f blocks "
+      "projected; %dx as large (%zu blocks / %zu chunks): %.2f ms, %.0f blocks projected; "
+      "per-frame time %+.1f %%\n",
+      k.width, k.height, volume.num_blocks(), volume.num_chunks(), 1e3 * seconds[0] / n,
+      static_cast<double>(projected[0]) / n, copies + 1, large.num_blocks(), large.num_chunks(),
+      1e3 * seconds[1] / n, static_cast<double>(projected[1]) / n,
+      100.0 * (seconds[1] - seconds[0]) / n / per_frame_seconds);
+}
 
 int Run(int argc, char** argv) {
   std::vector<std::string> folders;
@@ -28,12 +89,15 @@ int Run(int argc, char** argv) {
   int model_subsample = fusion::FusionOptions().model_subsample;
   int allocation_stride = fusion::FusionOptions().allocation_stride;
   std::string weighting = fusion::FusionOptions().weighting;
+  int copies = 3;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
       std::printf(
           "%s"
           "  FOLDER: a TUM-layout sequence with groundtruth.txt (e.g. from genscene-synth)\n"
-          "  prints per-frame times of each step, fps, ATE, and integration alone (known poses)\n",
+          "  prints per-frame times of each step, fps, ATE, and integration alone (known poses);\n"
+          "  then the model raycast per frame on the volume and on it with N translated copies\n"
+          "  of its blocks out of view (--copies, default 3: a volume 4x as large)\n",
           kUsage);
       return 0;
     }
@@ -43,6 +107,8 @@ int Run(int argc, char** argv) {
       weighting = argv[++i];
     } else if (std::strcmp(argv[i], "--allocation-stride") == 0 && i + 1 < argc) {
       allocation_stride = std::atoi(argv[++i]);
+    } else if (std::strcmp(argv[i], "--copies") == 0 && i + 1 < argc) {
+      copies = std::atoi(argv[++i]);
     } else if (std::strcmp(argv[i], "--threads") == 0 && i + 1 < argc) {
       threads = std::atoi(argv[++i]);
     } else {
@@ -66,6 +132,9 @@ int Run(int argc, char** argv) {
     double totals[2][4] = {};
     double ate = 0.0;
     size_t blocks = 0;
+    std::optional<TsdfVolume> volume;
+    Trajectory trajectory;
+    fusion::FusionOptions icp_options;
     for (int mode = 0; mode < 2; ++mode) {
       fusion::FusionOptions options;
       options.tracking = mode == 0 ? "icp" : "known";
@@ -84,6 +153,9 @@ int Run(int argc, char** argv) {
       if (mode == 0) {
         ate = ComputeAte(kf.trajectory(), source->KnownPoses()).rmse;
         blocks = kf.volume().num_blocks();
+        volume = kf.volume();
+        trajectory = kf.trajectory();
+        icp_options = options;
       }
     }
     const double n = static_cast<double>(frames.size());
@@ -96,6 +168,10 @@ int Run(int argc, char** argv) {
                 frames.size(), 1e3 * totals[0][0] / n, 1e3 * totals[0][1] / n,
                 1e3 * totals[0][2] / n, 1e3 * totals[0][3] / n, 1.0 / per_frame, 100.0 * ate,
                 n / totals[1][2], blocks);
+    if (copies > 0 && volume && volume->num_blocks() > 0) {
+      TimeRaycastAgainstVolumeSize(*volume, trajectory, source->Intrinsics(), icp_options, copies,
+                                   per_frame);
+    }
   }
   return 0;
 }

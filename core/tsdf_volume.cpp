@@ -99,6 +99,14 @@ int32_t TsdfVolume::AllocateBlock(const Eigen::Vector3i& key) {
   blocks_.emplace_back();
   keys_.push_back(key);
   table_.Insert(key, index);
+  const Eigen::Vector3i chunk = ChunkOf(key);
+  if (const auto c = chunk_table_.Find(chunk)) {
+    chunk_blocks_[static_cast<size_t>(*c)].push_back(index);
+  } else {
+    chunk_table_.Insert(chunk, static_cast<int32_t>(chunk_keys_.size()));
+    chunk_keys_.push_back(chunk);
+    chunk_blocks_.push_back({index});
+  }
   return index;
 }
 
@@ -201,6 +209,9 @@ void TsdfVolume::Clear() {
   blocks_.clear();
   keys_.clear();
   table_.Clear();
+  chunk_keys_.clear();
+  chunk_blocks_.clear();
+  chunk_table_.Clear();
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -19,6 +19,11 @@
 //
 // Block order is the allocation order; the allocating code (fusion) allocates in a
 // deterministic order, so block indices are identical with any thread count.
+//
+// Blocks are also grouped into chunks of 8x8x8 blocks (64^3 voxels: 64 cm at 1 cm voxels), each
+// with the list of its allocated blocks, so that a per-frame pass (the raycast's depth ranges)
+// tests a chunk against the camera's frustum and visits only the blocks of the chunks it
+// touches: its cost follows what the camera sees, not the size of the scanned room.
 #pragma once
 
 #include <Eigen/Core>
@@ -46,6 +51,8 @@ struct TsdfVoxel {
 
 constexpr int kTsdfBlockSide = 8;
 constexpr int kTsdfBlockVoxels = kTsdfBlockSide * kTsdfBlockSide * kTsdfBlockSide;
+constexpr int kTsdfChunkShift = 3;  // a chunk is 2^3 = 8 blocks per side
+constexpr int kTsdfChunkSide = kTsdfBlockSide << kTsdfChunkShift;  // voxels per side of a chunk
 
 struct alignas(64) TsdfBlock {
   TsdfBlock() {
@@ -107,6 +114,17 @@ class TsdfVolume {
   double allocated_bytes() const { return static_cast<double>(blocks_.size()) * sizeof(TsdfBlock); }
 
   std::optional<int32_t> FindBlock(const Eigen::Vector3i& key) const { return table_.Find(key); }
+
+  // Chunks (8^3 blocks) that hold at least one allocated block, in the order of their first
+  // block's allocation; chunk c covers blocks 8 * chunk_key(c) + [0, 8)^3 and lists the indices of
+  // its allocated blocks in allocation order.
+  size_t num_chunks() const { return chunk_keys_.size(); }
+  const Eigen::Vector3i& chunk_key(size_t c) const { return chunk_keys_[c]; }
+  const std::vector<int32_t>& chunk_blocks(size_t c) const { return chunk_blocks_[c]; }
+  static Eigen::Vector3i ChunkOf(const Eigen::Vector3i& block_key) {
+    return Eigen::Vector3i(block_key.x() >> kTsdfChunkShift, block_key.y() >> kTsdfChunkShift,
+                           block_key.z() >> kTsdfChunkShift);  // arithmetic shift: floor
+  }
   // Returns the block's index, allocating an unobserved block when missing. Throws Error when
   // the allocation would exceed params().memory_cap_bytes. Not thread-safe.
   int32_t AllocateBlock(const Eigen::Vector3i& key);
@@ -150,6 +168,9 @@ class TsdfVolume {
   std::vector<Eigen::Vector3i> keys_;
   std::deque<TsdfBlock> blocks_;  // a deque: growing never moves (copies) the existing blocks
   BlockHashTable table_;
+  std::vector<Eigen::Vector3i> chunk_keys_;
+  std::vector<std::vector<int32_t>> chunk_blocks_;
+  BlockHashTable chunk_table_;  // chunk key -> chunk index
 };
 
 // The .gsv file ("genscene volume"), little-endian binary:

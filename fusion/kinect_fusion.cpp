@@ -202,6 +202,8 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
       start = std::chrono::steady_clock::now();
       model_ = RaycastModel(pose);
       report.seconds_raycast = SecondsSince(start);
+      report.raycast_chunks = model_.chunks_tested;
+      report.raycast_blocks = model_.blocks_projected;
       last_good_ = pose;
       held_out_pose_.reset();
       trajectory_.Add(frame.timestamp, pose);
@@ -222,6 +224,8 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     start = std::chrono::steady_clock::now();
     model_ = RaycastModel(pose);
     report.seconds_raycast = SecondsSince(start);
+    report.raycast_chunks = model_.chunks_tested;
+    report.raycast_blocks = model_.blocks_projected;
     if (options_.feature_tracking && !frame.color.empty()) {
       last_fused_.color = frame.color;
       last_fused_.depth =
@@ -338,6 +342,8 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
               {"feature_inliers", r.features.inliers},
               {"blocks_touched", r.integration.blocks_touched},
               {"blocks_allocated", r.integration.blocks_allocated},
+              {"raycast_chunks", r.raycast_chunks},
+              {"raycast_blocks", r.raycast_blocks},
               {"ms_preprocess", 1e3 * r.seconds_preprocess},
               {"ms_track", 1e3 * r.seconds_track},
               {"ms_integrate", 1e3 * r.seconds_integrate},

@@ -160,6 +160,9 @@ struct FrameReport {
   FeatureAlignReport features;  // when ICP lost the frame and features were tried
   bool feature_start = false;   // tracked by ICP from the features' pose
   IntegrationStats integration;
+  // The model raycast's pass over the volume: chunks tested against the frustum, blocks of the
+  // chunks inside it projected (0 when no model was raycast).
+  size_t raycast_chunks = 0, raycast_blocks = 0;
   std::optional<Eigen::Isometry3d> world_from_camera;  // the estimate (none when lost/blank)
   double seconds_preprocess = 0.0, seconds_track = 0.0, seconds_integrate = 0.0,
          seconds_raycast = 0.0;

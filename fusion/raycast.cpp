@@ -92,11 +92,89 @@ static_assert(kTsdfBlockSide == 8, "CachedVoxelAccess assumes 8^3 blocks (shift 
 struct TileRanges {
   int tiles_x = 0, tiles_y = 0;
   std::vector<float> near, far;  // planar z range of allocated blocks over each tile
+  size_t chunks_tested = 0, blocks_projected = 0;
 };
 
-// Projects the corners of every allocated block and widens the depth range of the tiles its
-// bounding box covers. A ray can only meet the surface inside an allocated block, and every
-// block it passes is counted in its pixel's tile, so the march may start at the tile's nearest.
+// The image footprint and depth range of a lattice box.
+struct BoxFootprint {
+  bool visible = false;  // within [min_depth, max_depth] and overlapping the image
+  float z_near = 0.0f, z_far = 0.0f;
+  float u0 = 0.0f, v0 = 0.0f, u1 = 0.0f, v1 = 0.0f;  // bounding box of the projected corners
+};
+
+class BoxProjector {
+ public:
+  BoxProjector(const TsdfVolume& volume, const CameraIntrinsics& k,
+               const Eigen::Isometry3d& camera_from_world, float min_depth, float max_depth)
+      : k_(k), min_depth_(min_depth), max_depth_(max_depth) {
+    a_ = camera_from_world.linear() * volume.voxel_size();
+    b_ = camera_from_world * volume.origin();
+    a_f_ = a_.cast<float>();
+  }
+
+  // The box of `side` voxels per side whose lowest lattice corner is `corner` (in voxels). `pad`
+  // widens the depth range (metres) and the image (pixels) that count as visible, for a
+  // conservative test of a box that holds others (their corners round differently).
+  BoxFootprint Project(const Eigen::Vector3i& corner, int side, float pad = 0.0f) const {
+    BoxFootprint f;
+    const Eigen::Vector3f corner0 = (a_ * corner.cast<double>() + b_).cast<float>();
+    const float fx = static_cast<float>(k_.fx), fy = static_cast<float>(k_.fy);
+    const float cx = static_cast<float>(k_.cx), cy = static_cast<float>(k_.cy);
+    const float s = static_cast<float>(side);
+    float z_near = std::numeric_limits<float>::infinity(), z_far = 0.0f;
+    float u0 = z_near, v0 = z_near, u1 = -z_near, v1 = -z_near;
+    bool straddles = false;
+    // Corners outside each side plane of the frustum (the planes through the camera centre and
+    // the image's edges, u = -0.5 - pad, u = width - 0.5 + pad, and the same in v): a box with
+    // every corner outside one of them is out of view, even when it reaches behind the camera.
+    int left = 0, right = 0, top = 0, bottom = 0;
+    const float u_lo = cx + 0.5f + pad, u_hi = cx - (static_cast<float>(k_.width) - 0.5f + pad);
+    const float v_lo = cy + 0.5f + pad, v_hi = cy - (static_cast<float>(k_.height) - 0.5f + pad);
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3f p =
+          corner0 + a_f_ * (s * Eigen::Vector3f(c & 1, (c >> 1) & 1, (c >> 2) & 1));
+      left += fx * p.x() + u_lo * p.z() < 0.0f;
+      right += fx * p.x() + u_hi * p.z() > 0.0f;
+      top += fy * p.y() + v_lo * p.z() < 0.0f;
+      bottom += fy * p.y() + v_hi * p.z() > 0.0f;
+      z_near = std::min(z_near, p.z());
+      z_far = std::max(z_far, p.z());
+      if (p.z() < min_depth_ - pad) {
+        straddles = true;
+        continue;
+      }
+      const float u = fx * p.x() / p.z() + cx, v = fy * p.y() / p.z() + cy;
+      u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
+    }
+    if (z_far < min_depth_ - pad || z_near > max_depth_ + pad) return f;
+    if (left == 8 || right == 8 || top == 8 || bottom == 8) return f;
+    // A box cut by the near plane may cover any part of the image.
+    if (straddles)
+      u0 = v0 = 0.0f, u1 = static_cast<float>(k_.width), v1 = static_cast<float>(k_.height);
+    if (u1 < -0.5f - pad || v1 < -0.5f - pad || u0 > k_.width - 0.5f + pad ||
+        v0 > k_.height - 0.5f + pad)
+      return f;
+    f.visible = true;
+    f.z_near = std::max(z_near, min_depth_);
+    f.z_far = std::min(z_far, max_depth_);
+    f.u0 = u0, f.v0 = v0, f.u1 = u1, f.v1 = v1;
+    return f;
+  }
+
+ private:
+  const CameraIntrinsics& k_;
+  float min_depth_, max_depth_;
+  Eigen::Matrix3d a_;
+  Eigen::Vector3d b_;
+  Eigen::Matrix3f a_f_;
+};
+
+// Projects the corners of every allocated block in the frustum and widens the depth range of the
+// tiles its bounding box covers. A ray can only meet the surface inside an allocated block, and
+// every block it passes is counted in its pixel's tile, so the march may start at the tile's
+// nearest. Chunks (8^3 blocks) are tested first: a chunk outside the frustum or the depth range
+// holds no block that is inside, so its blocks are not visited (the same ranges, bit for bit, at
+// a cost that follows the frustum rather than the whole volume).
 TileRanges ComputeTileRanges(const TsdfVolume& volume, const CameraIntrinsics& k,
                              const Eigen::Isometry3d& camera_from_world, float min_depth,
                              float max_depth) {
@@ -105,46 +183,27 @@ TileRanges ComputeTileRanges(const TsdfVolume& volume, const CameraIntrinsics& k
   t.tiles_y = (k.height + kTile - 1) / kTile;
   t.near.assign(static_cast<size_t>(t.tiles_x * t.tiles_y), std::numeric_limits<float>::infinity());
   t.far.assign(t.near.size(), 0.0f);
-  const double vs = volume.voxel_size();
-  const Eigen::Matrix3d a = camera_from_world.linear() * vs;
-  const Eigen::Vector3d b = camera_from_world * volume.origin();
-  const Eigen::Matrix3f a_f = a.cast<float>();
-  const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy);
-  const float cx = static_cast<float>(k.cx), cy = static_cast<float>(k.cy);
-  for (size_t i = 0; i < volume.num_blocks(); ++i) {
-    const Eigen::Vector3f corner0 =
-        (a * (kTsdfBlockSide * volume.block_key(i)).cast<double>() + b).cast<float>();
-    // Bounding box of the projected corners of the block, and its depth range.
-    float z_near = std::numeric_limits<float>::infinity(), z_far = 0.0f;
-    float u0 = z_near, v0 = z_near, u1 = -z_near, v1 = -z_near;
-    bool straddles = false;
-    for (int c = 0; c < 8; ++c) {
-      const Eigen::Vector3f p =
-          corner0 + a_f * (kTsdfBlockSide * Eigen::Vector3f(c & 1, (c >> 1) & 1, (c >> 2) & 1));
-      z_near = std::min(z_near, p.z());
-      z_far = std::max(z_far, p.z());
-      if (p.z() < min_depth) {
-        straddles = true;
-        continue;
-      }
-      const float u = fx * p.x() / p.z() + cx, v = fy * p.y() / p.z() + cy;
-      u0 = std::min(u0, u), u1 = std::max(u1, u), v0 = std::min(v0, v), v1 = std::max(v1, v);
-    }
-    if (z_far < min_depth || z_near > max_depth) continue;
-    // A block cut by the near plane may cover any part of the image.
-    if (straddles)
-      u0 = v0 = 0.0f, u1 = static_cast<float>(k.width), v1 = static_cast<float>(k.height);
-    z_near = std::max(z_near, min_depth);
-    if (u1 < -0.5f || v1 < -0.5f || u0 > k.width - 0.5f || v0 > k.height - 0.5f) continue;
-    const int tx0 = std::max(0, static_cast<int>(std::floor((u0 + 0.5f) / kTile)));
-    const int tx1 = std::min(t.tiles_x - 1, static_cast<int>(std::floor((u1 + 0.5f) / kTile)));
-    const int ty0 = std::max(0, static_cast<int>(std::floor((v0 + 0.5f) / kTile)));
-    const int ty1 = std::min(t.tiles_y - 1, static_cast<int>(std::floor((v1 + 0.5f) / kTile)));
-    for (int ty = ty0; ty <= ty1; ++ty) {
-      for (int tx = tx0; tx <= tx1; ++tx) {
-        const size_t tile = static_cast<size_t>(ty * t.tiles_x + tx);
-        t.near[tile] = std::min(t.near[tile], z_near);
-        t.far[tile] = std::max(t.far[tile], std::min(z_far, max_depth));
+  const BoxProjector projector(volume, k, camera_from_world, min_depth, max_depth);
+  t.chunks_tested = volume.num_chunks();
+  for (size_t c = 0; c < volume.num_chunks(); ++c) {
+    constexpr float kChunkPad = 1e-3f;  // metres and pixels
+    if (!projector.Project(kTsdfChunkSide * volume.chunk_key(c), kTsdfChunkSide, kChunkPad).visible)
+      continue;
+    for (const int32_t i : volume.chunk_blocks(c)) {
+      ++t.blocks_projected;
+      const BoxFootprint f = projector.Project(
+          kTsdfBlockSide * volume.block_key(static_cast<size_t>(i)), kTsdfBlockSide);
+      if (!f.visible) continue;
+      const int tx0 = std::max(0, static_cast<int>(std::floor((f.u0 + 0.5f) / kTile)));
+      const int tx1 = std::min(t.tiles_x - 1, static_cast<int>(std::floor((f.u1 + 0.5f) / kTile)));
+      const int ty0 = std::max(0, static_cast<int>(std::floor((f.v0 + 0.5f) / kTile)));
+      const int ty1 = std::min(t.tiles_y - 1, static_cast<int>(std::floor((f.v1 + 0.5f) / kTile)));
+      for (int ty = ty0; ty <= ty1; ++ty) {
+        for (int tx = tx0; tx <= tx1; ++tx) {
+          const size_t tile = static_cast<size_t>(ty * t.tiles_x + tx);
+          t.near[tile] = std::min(t.near[tile], f.z_near);
+          t.far[tile] = std::max(t.far[tile], f.z_far);
+        }
       }
     }
   }
@@ -165,6 +224,8 @@ RaycastResult RaycastVolume(const TsdfVolume& volume, const CameraIntrinsics& k,
   const Eigen::Isometry3d camera_from_world = world_from_camera.inverse();
   const TileRanges tiles = ComputeTileRanges(
       volume, k, camera_from_world, static_cast<float>(min_depth), static_cast<float>(max_depth));
+  out.chunks_tested = tiles.chunks_tested;
+  out.blocks_projected = tiles.blocks_projected;
   const double vs = volume.voxel_size();
   // Lattice position along the ray of pixel (u, v) at planar depth z: o + z D(u, v).
   const Eigen::Vector3f o = volume.WorldToLattice(world_from_camera.translation()).cast<float>();

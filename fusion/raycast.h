@@ -19,6 +19,9 @@ struct RaycastResult {
   PointImage points;   // camera-frame surface points (zero = none)
   PointImage normals;  // camera-frame unit normals facing the camera (zero = none)
   ImageRgb color;      // interpolated voxel colour (zero = none)
+  // The per-frame pass over the volume: chunks (8^3 blocks) tested against the frustum, and the
+  // blocks of the chunks in it whose corners were projected.
+  size_t chunks_tested = 0, blocks_projected = 0;
 };
 
 // Rays start no nearer than min_depth and stop at max_depth (metres, planar z). The colour

@@ -1,5 +1,6 @@
 #include "core/tsdf_volume.h"
 
+#include <algorithm>
 #include <fstream>
 
 #include "core/se3.h"
@@ -80,6 +81,53 @@ TEST(TsdfVolume, HashTableKeepsThousandsOfBlocks) {
     EXPECT_EQ(*found, i);
   }
   EXPECT_FALSE(volume.FindBlock(Eigen::Vector3i(100, 100, 100)).has_value());
+}
+
+// Every block is listed in exactly one chunk, the one of 8^3 blocks that holds it (floor
+// division, negative keys included), in allocation order; a read-back volume has the same
+// chunks and Clear() empties them.
+TEST(TsdfVolume, ChunksListEveryBlockOnceInItsChunk) {
+  TsdfVolumeParams p;
+  p.memory_cap_bytes = 0;
+  TsdfVolume volume(p);
+  for (int i = 0; i < 2000; ++i)
+    volume.AllocateBlock(Eigen::Vector3i(i % 23 - 11, (i / 23) % 19 - 9, (i * 7) % 29 - 14));
+  std::vector<int> seen(volume.num_blocks(), 0);
+  size_t listed = 0;
+  for (size_t c = 0; c < volume.num_chunks(); ++c) {
+    const std::vector<int32_t>& blocks = volume.chunk_blocks(c);
+    ASSERT_FALSE(blocks.empty());
+    EXPECT_TRUE(std::is_sorted(blocks.begin(), blocks.end()));
+    for (const int32_t b : blocks) {
+      const Eigen::Vector3i key = volume.block_key(static_cast<size_t>(b));
+      for (int axis = 0; axis < 3; ++axis) {
+        const int lo = 8 * volume.chunk_key(c)[axis];
+        EXPECT_LE(lo, key[axis]);
+        EXPECT_LT(key[axis], lo + 8);
+      }
+      ++seen[static_cast<size_t>(b)];
+      ++listed;
+    }
+  }
+  EXPECT_EQ(listed, volume.num_blocks());
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), static_cast<long>(seen.size()));
+  EXPECT_EQ(TsdfVolume::ChunkOf(Eigen::Vector3i(-1, -8, -9)), Eigen::Vector3i(-1, -1, -2));
+  EXPECT_EQ(TsdfVolume::ChunkOf(Eigen::Vector3i(7, 8, 0)), Eigen::Vector3i(0, 1, 0));
+  EXPECT_GT(volume.num_chunks(), 8u);
+
+  TempDir dir;
+  WriteTsdfVolume(dir / "c.gsv", volume);
+  const TsdfVolume back = ReadTsdfVolume(dir / "c.gsv", 0);
+  ASSERT_EQ(back.num_chunks(), volume.num_chunks());
+  for (size_t c = 0; c < volume.num_chunks(); ++c) {
+    EXPECT_EQ(back.chunk_key(c), volume.chunk_key(c));
+    EXPECT_EQ(back.chunk_blocks(c), volume.chunk_blocks(c));
+  }
+  volume.Clear();
+  EXPECT_EQ(volume.num_chunks(), 0u);
+  volume.AllocateBlock(Eigen::Vector3i(3, 3, 3));
+  ASSERT_EQ(volume.num_chunks(), 1u);
+  EXPECT_EQ(volume.chunk_blocks(0), std::vector<int32_t>{0});
 }
 
 TEST(TsdfVolume, TrilinearInterpolationIsExactForLinearFields) {

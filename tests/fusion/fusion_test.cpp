@@ -349,6 +349,61 @@ TEST(Fusion, SparserAllocationKeepsASubsetOfTheBlocksAndTheSurface) {
   EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }), "allocation_stride");
 }
 
+// The raycast's per-frame pass visits the blocks of the chunks in the frustum only: the same
+// room beside a volume four times as large (blocks 30 m away, outside every frustum) gives the
+// same images bit for bit and projects the same blocks, and a view that sees part of the room
+// projects fewer blocks than the room holds.
+TEST(Fusion, RaycastVisitsOnlyTheBlocksOfChunksInTheFrustum) {
+  const std::vector<RgbdFrame> frames = Render(Room(), Orbit(12), Camera(160, 120));
+  FusionOptions o = DefaultOptions();
+  o.voxel_size = 0.01;
+  o.truncation = 0.04;
+  o.tracking = "known";
+  const FusionRun run = Fuse(frames, o);
+  const TsdfVolume& room = run.fusion->volume();
+  TsdfVolume large = room;
+  const size_t room_blocks = room.num_blocks();
+  const int side = static_cast<int>(std::ceil(std::cbrt(3.0 * static_cast<double>(room_blocks))));
+  for (int x = 0; x < side; ++x) {
+    for (int y = 0; y < side; ++y) {
+      for (int z = 0; z < side; ++z) {
+        TsdfBlock& block = large.block(large.AllocateBlock(Eigen::Vector3i(375 + x, y, z)));
+        for (TsdfVoxel& v : block.voxels) v = TsdfVoxel{0.0f, 1.0f};  // observed surface
+      }
+    }
+  }
+  ASSERT_GE(large.num_blocks(), 4 * room_blocks);
+  const CameraIntrinsics& k = frames.front().intrinsics;
+  for (const size_t f : {size_t{2}, size_t{9}}) {
+    const Eigen::Isometry3d pose = *frames[f].world_from_camera;
+    const RaycastResult a = RaycastVolume(room, k, pose);
+    const RaycastResult b = RaycastVolume(large, k, pose);
+    std::cout << "frame " << f << ": room " << room_blocks << " blocks in " << room.num_chunks()
+              << " chunks, " << a.blocks_projected << " projected; large " << large.num_blocks()
+              << " blocks in " << large.num_chunks() << " chunks, " << b.blocks_projected
+              << " projected\n";
+    EXPECT_EQ(a.chunks_tested, room.num_chunks());
+    EXPECT_EQ(b.chunks_tested, large.num_chunks());
+    EXPECT_EQ(a.blocks_projected, b.blocks_projected);
+    EXPECT_GT(a.blocks_projected, 0u);
+    ASSERT_EQ(a.depth.size(), b.depth.size());
+    size_t hits = 0;
+    for (size_t i = 0; i < a.depth.size(); ++i) {
+      ASSERT_EQ(a.depth.pixels()[i], b.depth.pixels()[i]) << "pixel " << i;
+      ASSERT_EQ(a.color.pixels()[i], b.color.pixels()[i]) << "pixel " << i;
+      hits += a.depth.pixels()[i] > 0.0f;
+    }
+    EXPECT_GT(hits, a.depth.size() / 2);
+  }
+  // Looking at a corner from close by: most of the room's chunks are outside the frustum.
+  const Eigen::Vector3d eye(0.0, 0.0, 0.6), target = eye + Eigen::Vector3d(0.0, 1.0, -0.3);
+  const Eigen::Isometry3d close = LookAt(eye, target);
+  const RaycastResult c = RaycastVolume(large, k, close);
+  std::cout << "one wall: " << c.blocks_projected << " of " << large.num_blocks()
+            << " blocks projected\n";
+  EXPECT_LT(c.blocks_projected, room_blocks);
+}
+
 // Noise weights: a wall measured once from 0.8 m (exactly) and once from 3 m (2 cm too far, a
 // typical error there) ends where the near measurement put it; uniform weights split the
 // difference.
