@@ -131,7 +131,6 @@ int Run(int argc, char** argv) {
     const std::vector<RgbdFrame> frames = ReadAllFrames(*source);  // decoding is not timed
     double totals[2][4] = {};
     double ate = 0.0;
-    size_t blocks = 0;
     std::optional<TsdfVolume> volume;
     Trajectory trajectory;
     fusion::FusionOptions icp_options;
@@ -152,7 +151,6 @@ int Run(int argc, char** argv) {
       }
       if (mode == 0) {
         ate = ComputeAte(kf.trajectory(), source->KnownPoses()).rmse;
-        blocks = kf.volume().num_blocks();
         volume = kf.volume();
         trajectory = kf.trajectory();
         icp_options = options;
@@ -167,7 +165,7 @@ int Run(int argc, char** argv) {
                 folder.substr(folder.size() > 28 ? folder.size() - 28 : 0).c_str(), size,
                 frames.size(), 1e3 * totals[0][0] / n, 1e3 * totals[0][1] / n,
                 1e3 * totals[0][2] / n, 1e3 * totals[0][3] / n, 1.0 / per_frame, 100.0 * ate,
-                n / totals[1][2], blocks);
+                n / totals[1][2], volume ? volume->num_blocks() : size_t{0});
     if (copies > 0 && volume && volume->num_blocks() > 0) {
       TimeRaycastAgainstVolumeSize(*volume, trajectory, source->Intrinsics(), icp_options, copies,
                                    per_frame);

@@ -199,11 +199,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
                              " of 6 pose directions constrained (condition ", icp.condition, ")");
       report.world_from_camera = pose;
       // The next frame tracks from this pose: against the model as seen from here.
-      start = std::chrono::steady_clock::now();
-      model_ = RaycastModel(pose);
-      report.seconds_raycast = SecondsSince(start);
-      report.raycast_chunks = model_.chunks_tested;
-      report.raycast_blocks = model_.blocks_projected;
+      UpdateModel(pose, &report);
       last_good_ = pose;
       held_out_pose_.reset();
       trajectory_.Add(frame.timestamp, pose);
@@ -221,11 +217,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   report.fused = true;
   report.seconds_integrate = SecondsSince(start);
   if (options_.tracking != "known") {  // with known poses nothing tracks against the model
-    start = std::chrono::steady_clock::now();
-    model_ = RaycastModel(pose);
-    report.seconds_raycast = SecondsSince(start);
-    report.raycast_chunks = model_.chunks_tested;
-    report.raycast_blocks = model_.blocks_projected;
+    UpdateModel(pose, &report);
     if (options_.feature_tracking && !frame.color.empty()) {
       last_fused_.color = frame.color;
       last_fused_.depth =
@@ -243,6 +235,14 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   posed.intrinsics = intrinsics_;
   keyframe_selector_.Offer(posed);
   return finish(report);
+}
+
+void KinectFusion::UpdateModel(const Eigen::Isometry3d& pose, FrameReport* report) {
+  const auto start = std::chrono::steady_clock::now();
+  model_ = RaycastModel(pose);
+  report->seconds_raycast = SecondsSince(start);
+  report->raycast_chunks = model_.chunks_tested;
+  report->raycast_blocks = model_.blocks_projected;
 }
 
 RaycastResult KinectFusion::RaycastModel(const Eigen::Isometry3d& pose) const {

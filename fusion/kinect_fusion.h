@@ -203,6 +203,8 @@ class KinectFusion {
                       const Eigen::Isometry3d& pose, FrameReport report);
   // The model raycast at `pose` for tracking.
   RaycastResult RaycastModel(const Eigen::Isometry3d& pose) const;
+  // model_ = the model raycast at `pose`, its time and its pass over the volume in `report`.
+  void UpdateModel(const Eigen::Isometry3d& pose, FrameReport* report);
   // Step 3b: the pose of a frame ICP lost, from features against the last fused frame refined by
   // ICP, when both agree; `report` gets the feature and ICP figures, `why` the reason when not.
   std::optional<Eigen::Isometry3d> TrackFromFeatures(const std::vector<PyramidLevel>& pyramid,

@@ -151,9 +151,6 @@ class BoxProjector {
     // A box cut by the near plane may cover any part of the image.
     if (straddles)
       u0 = v0 = 0.0f, u1 = static_cast<float>(k_.width), v1 = static_cast<float>(k_.height);
-    if (u1 < -0.5f - pad || v1 < -0.5f - pad || u0 > k_.width - 0.5f + pad ||
-        v0 > k_.height - 0.5f + pad)
-      return f;
     f.visible = true;
     f.z_near = std::max(z_near, min_depth_);
     f.z_far = std::min(z_far, max_depth_);
@@ -185,8 +182,8 @@ TileRanges ComputeTileRanges(const TsdfVolume& volume, const CameraIntrinsics& k
   t.far.assign(t.near.size(), 0.0f);
   const BoxProjector projector(volume, k, camera_from_world, min_depth, max_depth);
   t.chunks_tested = volume.num_chunks();
+  constexpr float kChunkPad = 1e-3f;  // metres and pixels
   for (size_t c = 0; c < volume.num_chunks(); ++c) {
-    constexpr float kChunkPad = 1e-3f;  // metres and pixels
     if (!projector.Project(kTsdfChunkSide * volume.chunk_key(c), kTsdfChunkSide, kChunkPad).visible)
       continue;
     for (const int32_t i : volume.chunk_blocks(c)) {
