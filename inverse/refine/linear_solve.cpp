@@ -20,6 +20,41 @@ void NormalEquations::Multiply(const Eigen::VectorXd& v, Eigen::VectorXd* out) c
   }
 }
 
+void Coupling::Set(Eigen::SparseMatrix<double, Eigen::RowMajor> c, int vertices) {
+  factor = std::move(c);
+  factor.makeCompressed();
+  blocks.assign(vertices, Eigen::Matrix3d::Zero());
+  // A row's entries are sorted by column: those of one vertex are adjacent.
+  for (int r = 0; r < factor.outerSize(); ++r) {
+    const int begin = factor.outerIndexPtr()[r], end = factor.outerIndexPtr()[r + 1];
+    const int* col = factor.innerIndexPtr();
+    const double* value = factor.valuePtr();
+    for (int a = begin; a < end; ++a) {
+      for (int b = a; b < end && col[b] / 3 == col[a] / 3; ++b) {
+        const double ab = value[a] * value[b];
+        blocks[col[a] / 3](col[a] % 3, col[b] % 3) += ab;
+        if (b != a) blocks[col[a] / 3](col[b] % 3, col[a] % 3) += ab;
+      }
+    }
+  }
+}
+
+void Coupling::AddProduct(const Eigen::VectorXd& v, Eigen::VectorXd* out,
+                          Eigen::VectorXd* scratch) const {
+  if (Empty()) return;
+  scratch->noalias() = factor * v;
+  out->noalias() += factor.transpose() * *scratch;
+}
+
+double Coupling::HalfSquaredNorm(const Eigen::VectorXd& x) const {
+  return Empty() ? 0.0 : 0.5 * (factor * x).squaredNorm();
+}
+
+Eigen::SparseMatrix<double> Coupling::Matrix() const {
+  Eigen::SparseMatrix<double> c = factor;
+  return Eigen::SparseMatrix<double>(c.transpose() * c);
+}
+
 // Per residual r with partials d_a = dr / dx_a (one 3-vector per vertex a it depends on) and
 // weight w: g_a += w r d_a, H_aa += w d_a d_a^T, H_ab += w d_a d_b^T.
 NormalEquations Assemble(const Evaluation& e, int vertices, double robust, bool keep_blocks) {
@@ -60,23 +95,26 @@ namespace {
 
 // diag(H), H = J^T W J + P + Q.
 Eigen::VectorXd DiagonalOf(const NormalEquations& n, const std::vector<Eigen::Matrix3d>& prior,
-                           const Eigen::SparseMatrix<double>& coupling) {
+                           const Coupling& coupling) {
   const int size = static_cast<int>(n.gradient.size());
   Eigen::VectorXd diagonal(size);
-  for (int i = 0; i < size / 3; ++i)
+  for (int i = 0; i < size / 3; ++i) {
     diagonal.segment<3>(3 * i) = (n.diagonal[i] + prior[i]).diagonal();
-  if (coupling.nonZeros() > 0) diagonal += coupling.diagonal();
+    if (!coupling.Empty()) diagonal.segment<3>(3 * i) += coupling.blocks[i].diagonal();
+  }
   return diagonal;
 }
 
 // H + mu diag(H) from the kept blocks, `diagonal` = diag(H).
 Eigen::SparseMatrix<double> DampedMatrix(const NormalEquations& n,
                                          const std::vector<Eigen::Matrix3d>& prior,
-                                         const Eigen::SparseMatrix<double>& coupling,
+                                         const Coupling& coupled_by,
                                          const Eigen::VectorXd& diagonal, double mu) {
   const int size = static_cast<int>(n.gradient.size());
   const int vertices = size / 3;
-  const bool coupled = coupling.nonZeros() > 0;
+  const bool coupled = !coupled_by.Empty();
+  const Eigen::SparseMatrix<double> coupling =
+      coupled ? coupled_by.Matrix() : Eigen::SparseMatrix<double>(size, size);
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(n.blocks.size() * 18 + 9 * vertices);
   for (int i = 0; i < vertices; ++i) {
@@ -109,9 +147,8 @@ Eigen::SparseMatrix<double> DampedMatrix(const NormalEquations& n,
 }
 
 Eigen::VectorXd SolveByCholesky(const NormalEquations& n, const std::vector<Eigen::Matrix3d>& prior,
-                                const Eigen::SparseMatrix<double>& coupling,
-                                const Eigen::VectorXd& diagonal, double mu,
-                                const Eigen::VectorXd& rhs) {
+                                const Coupling& coupling, const Eigen::VectorXd& diagonal,
+                                double mu, const Eigen::VectorXd& rhs) {
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(
       DampedMatrix(n, prior, coupling, diagonal, mu));
   if (solver.info() != Eigen::Success)
@@ -123,35 +160,34 @@ Eigen::VectorXd SolveByCholesky(const NormalEquations& n, const std::vector<Eige
 // J^T W J v + P v + Q v; the preconditioner is the inverse of each vertex's damped 3 x 3 block.
 Eigen::VectorXd SolveByConjugateGradients(const NormalEquations& n,
                                           const std::vector<Eigen::Matrix3d>& prior,
-                                          const Eigen::SparseMatrix<double>& coupling,
-                                          const Eigen::VectorXd& diagonal, double mu,
-                                          const Eigen::VectorXd& rhs) {
+                                          const Coupling& coupling, const Eigen::VectorXd& diagonal,
+                                          double mu, const Eigen::VectorXd& rhs) {
   const int size = static_cast<int>(n.gradient.size());
   const int vertices = size / 3;
-  const bool coupled = coupling.nonZeros() > 0;
+  const bool coupled = !coupling.Empty();
   std::vector<Eigen::Matrix3d> preconditioner(vertices);
   for (int i = 0; i < vertices; ++i) {
     Eigen::Matrix3d m = n.diagonal[i] + prior[i];
-    for (int r = 0; coupled && r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) m(r, c) += coupling.coeff(3 * i + r, 3 * i + c);
-    }
+    if (coupled) m += coupling.blocks[i];
     m.diagonal() = diagonal.segment<3>(3 * i) * (1.0 + mu);
     preconditioner[i] = m.inverse();
   }
+  Eigen::VectorXd scratch;
   const auto apply = [&](const Eigen::VectorXd& v, Eigen::VectorXd* out) {
     n.Multiply(v, out);
     for (int i = 0; i < vertices; ++i) out->segment<3>(3 * i) += prior[i] * v.segment<3>(3 * i);
-    if (coupled) *out += coupling * v;
+    coupling.AddProduct(v, out, &scratch);
     *out += mu * diagonal.cwiseProduct(v);
   };
-  const auto precondition = [&](const Eigen::VectorXd& r) {
-    Eigen::VectorXd z(size);
+  const auto precondition = [&](const Eigen::VectorXd& r, Eigen::VectorXd* z) {
     for (int i = 0; i < vertices; ++i)
-      z.segment<3>(3 * i) = preconditioner[i] * r.segment<3>(3 * i);
-    return z;
+      z->segment<3>(3 * i) = preconditioner[i] * r.segment<3>(3 * i);
   };
+  // Every vector is allocated once: the loop only writes into them.
   Eigen::VectorXd step = Eigen::VectorXd::Zero(size);
-  Eigen::VectorXd residual = rhs, z = precondition(residual), direction = z, product(size);
+  Eigen::VectorXd residual = rhs, z(size), direction(size), product(size);
+  precondition(residual, &z);
+  direction = z;
   double rz = residual.dot(z);
   const double stop = 1e-20 * rhs.squaredNorm();
   for (int k = 0; k < 1000 && residual.squaredNorm() > stop; ++k) {
@@ -161,7 +197,7 @@ Eigen::VectorXd SolveByConjugateGradients(const NormalEquations& n,
     const double alpha = rz / curvature;
     step += alpha * direction;
     residual -= alpha * product;
-    z = precondition(residual);
+    precondition(residual, &z);
     const double rz_next = residual.dot(z);
     direction = z + (rz_next / rz) * direction;
     rz = rz_next;
@@ -172,8 +208,8 @@ Eigen::VectorXd SolveByConjugateGradients(const NormalEquations& n,
 }  // namespace
 
 Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior_gradient,
-                          const std::vector<Eigen::Matrix3d>& prior,
-                          const Eigen::SparseMatrix<double>& coupling, double mu) {
+                          const std::vector<Eigen::Matrix3d>& prior, const Coupling& coupling,
+                          double mu) {
   const Eigen::VectorXd diagonal = DiagonalOf(n, prior, coupling);
   const Eigen::VectorXd rhs = -(n.gradient + prior_gradient);
   const Eigen::VectorXd step =

@@ -33,6 +33,25 @@ struct NormalEquations {
   void Multiply(const Eigen::VectorXd& v, Eigen::VectorXd* out) const;
 };
 
+// The relaxation and bending terms' matrix Q = C^T C, kept as its factor C (one row per residual,
+// over its sigma): a product Q v = C^T (C v) costs O(nnz(C)), where Q, which couples each vertex to
+// its 4-ring, holds about 4.5 times as many non-zeros (a 65k-vertex mesh: 35 M, 0.4 GB, and a
+// sparse-sparse product to form them every iteration).
+struct Coupling {
+  Eigen::SparseMatrix<double, Eigen::RowMajor> factor;  // C (no rows: Q = 0)
+  std::vector<Eigen::Matrix3d> blocks;                  // Q's (i, i) 3 x 3 blocks
+
+  // Sets C and Q's diagonal blocks over `vertices` parameter vertices.
+  void Set(Eigen::SparseMatrix<double, Eigen::RowMajor> c, int vertices);
+  bool Empty() const { return factor.nonZeros() == 0; }
+  // out += Q v (`scratch` holds C v).
+  void AddProduct(const Eigen::VectorXd& v, Eigen::VectorXd* out, Eigen::VectorXd* scratch) const;
+  // x^T Q x / 2
+  double HalfSquaredNorm(const Eigen::VectorXd& x) const;
+  // Q itself (for the direct solve of small problems).
+  Eigen::SparseMatrix<double> Matrix() const;
+};
+
 // The normal equations of the evaluation's rows over `vertices` parameter vertices, each residual
 // weighted by HuberWeight(r, robust).
 NormalEquations Assemble(const Evaluation& e, int vertices, double robust, bool keep_blocks);
@@ -45,7 +64,7 @@ NormalEquations Assemble(const Evaluation& e, int vertices, double robust, bool 
 // 1e-10 (at most 1000 iterations; serial, so the same with any thread count). Throws Error when
 // the system cannot be factorised or the step is not finite.
 Eigen::VectorXd SolveStep(const NormalEquations& n, const Eigen::VectorXd& prior_gradient,
-                          const std::vector<Eigen::Matrix3d>& prior,
-                          const Eigen::SparseMatrix<double>& coupling, double mu);
+                          const std::vector<Eigen::Matrix3d>& prior, const Coupling& coupling,
+                          double mu);
 
 }  // namespace genscene::inverse::refine_detail

@@ -83,17 +83,18 @@ void Relaxation::AddMesh(const DifferentiablePathTracer& tracer, int mesh) {
   }
 }
 
-Eigen::SparseMatrix<double> Relaxation::Matrix(const Eigen::VectorXd& x) const {
-  Eigen::SparseMatrix<double> q(size_, size_);
-  if (sigma_ <= 0.0 && smooth_sigma_ <= 0.0) return q;
-  const std::vector<Eigen::Vector3d> unit = UnitNormals(x);
-  if (sigma_ > 0.0) q = RelaxationMatrix(unit);
-  if (smooth_sigma_ > 0.0) {
-    const Eigen::SparseMatrix<double> bend = BendingMatrix(x, unit);
-    q = sigma_ > 0.0 ? Eigen::SparseMatrix<double>(q + bend) : bend;
+Eigen::SparseMatrix<double, Eigen::RowMajor> Relaxation::Factor(const Eigen::VectorXd& x) const {
+  std::vector<Eigen::Triplet<double>> entries;
+  int rows = size_;  // A's rows, zero where relax_sigma is 0
+  if (sigma_ > 0.0 || smooth_sigma_ > 0.0) {
+    const std::vector<Eigen::Vector3d> unit = UnitNormals(x);
+    if (sigma_ > 0.0) RelaxationRows(unit, &entries);
+    if (smooth_sigma_ > 0.0) BendingRows(x, unit, size_, &rows, &entries);
   }
-  q.prune(0.0);
-  return q;
+  Eigen::SparseMatrix<double, Eigen::RowMajor> c(rows, size_);
+  c.setFromTriplets(entries.begin(), entries.end());
+  c.prune(0.0);
+  return c;
 }
 
 // n_r: the area-weighted normal of row r's vertex at x, normalised.
@@ -111,31 +112,28 @@ std::vector<Eigen::Vector3d> Relaxation::UnitNormals(const Eigen::VectorXd& x) c
   return unit;
 }
 
-// A^T A / relax_sigma^2, the relaxation's residuals
+// The rows of A / relax_sigma (Q's part A^T A / relax_sigma^2), the relaxation's residuals
 //   r_i = T_i (x_i - c_i) / relax_sigma,   T_i = I - n_i n_i^T,   c_i = mean_{j in ring(i)} x_j,
 // three rows per vertex that has a normal.
-Eigen::SparseMatrix<double> Relaxation::RelaxationMatrix(
-    const std::vector<Eigen::Vector3d>& unit) const {
-  std::vector<Eigen::Triplet<double>> entries;
+void Relaxation::RelaxationRows(const std::vector<Eigen::Vector3d>& unit,
+                                std::vector<Eigen::Triplet<double>>* entries) const {
   for (size_t r = 0; r < rows_.size(); ++r) {
     const Row& row = rows_[r];
     if (unit[r].isZero()) continue;
-    const Eigen::Matrix3d t = Eigen::Matrix3d::Identity() - unit[r] * unit[r].transpose();
+    const Eigen::Matrix3d t =
+        (Eigen::Matrix3d::Identity() - unit[r] * unit[r].transpose()) / sigma_;
     const auto put = [&](int vertex, double scale) {
       for (int i = 0; i < 3; ++i) {
         for (int c = 0; c < 3; ++c)
-          entries.emplace_back(3 * row.vertex + i, 3 * vertex + c, scale * t(i, c));
+          entries->emplace_back(3 * row.vertex + i, 3 * vertex + c, scale * t(i, c));
       }
     };
     put(row.vertex, 1.0);
     for (int j : row.ring) put(j, -1.0 / row.ring.size());
   }
-  Eigen::SparseMatrix<double> a(size_, size_);
-  a.setFromTriplets(entries.begin(), entries.end());
-  return (a.transpose() * a) / (sigma_ * sigma_);
 }
 
-// B^T B / smooth_sigma^2, the bending term's residuals
+// The rows of B / smooth_sigma (Q's part B^T B / smooth_sigma^2), the bending term's residuals
 //   r_i = (k_i - mean_{j in ring(i)} k_j) / smooth_sigma,   k_i = n_i . (x_i - c_i) * l / l_i,
 // where n_i . (x_i - c_i) is the vertex's offset along its normal from its one-ring's centroid
 // (the umbrella Laplacian along the normal), l_i the mean squared length of its edges and l the
@@ -144,8 +142,9 @@ Eigen::SparseMatrix<double> Relaxation::RelaxationMatrix(
 // plane), whatever the valence and the edge lengths, so a sphere or a plane bends at no cost; the
 // offset alone differs by 19 % between the icosphere's vertices of valence 5 and 6, which this
 // term would then flatten. One row per vertex whose ring has rows, normals and edges.
-Eigen::SparseMatrix<double> Relaxation::BendingMatrix(
-    const Eigen::VectorXd& x, const std::vector<Eigen::Vector3d>& unit) const {
+void Relaxation::BendingRows(const Eigen::VectorXd& x, const std::vector<Eigen::Vector3d>& unit,
+                             int first, int* rows,
+                             std::vector<Eigen::Triplet<double>>* entries) const {
   std::vector<double> spread(rows_.size(), 0.0);  // l_r
   double mean_spread = 0.0;
   for (size_t r = 0; r < rows_.size(); ++r) {
@@ -154,8 +153,7 @@ Eigen::SparseMatrix<double> Relaxation::BendingMatrix(
     spread[r] /= rows_[r].ring.size();
     mean_spread += spread[r] / rows_.size();
   }
-  std::vector<Eigen::Triplet<double>> entries;
-  int rows = 0;
+  int row_index = first;
   for (size_t r = 0; r < rows_.size(); ++r) {
     const Row& row = rows_[r];
     if (row.ring_rows.empty() || unit[r].isZero() || !(spread[r] > 0.0)) continue;
@@ -164,19 +162,17 @@ Eigen::SparseMatrix<double> Relaxation::BendingMatrix(
     if (!complete) continue;
     const auto put_h = [&](int k, double scale) {  // scale * k_k
       const Row& of = rows_[k];
-      const Eigen::Vector3d n = unit[k] * (scale * mean_spread / spread[k]);
+      const Eigen::Vector3d n = unit[k] * (scale * mean_spread / spread[k] / smooth_sigma_);
       for (int c = 0; c < 3; ++c) {
-        entries.emplace_back(rows, 3 * of.vertex + c, n[c]);
-        for (int j : of.ring) entries.emplace_back(rows, 3 * j + c, -n[c] / of.ring.size());
+        entries->emplace_back(row_index, 3 * of.vertex + c, n[c]);
+        for (int j : of.ring) entries->emplace_back(row_index, 3 * j + c, -n[c] / of.ring.size());
       }
     };
     put_h(static_cast<int>(r), 1.0);
     for (int k : row.ring_rows) put_h(k, -1.0 / row.ring_rows.size());
-    ++rows;
+    ++row_index;
   }
-  Eigen::SparseMatrix<double> b(rows, size_);
-  b.setFromTriplets(entries.begin(), entries.end());
-  return (b.transpose() * b) / (smooth_sigma_ * smooth_sigma_);
+  *rows = row_index;
 }
 
 // --- The regularisers of E together --------------------------------------------------------------
@@ -201,7 +197,7 @@ Regularisers::Regularisers(const DifferentiablePathTracer& tracer, const RefineO
 // proportion (on the replica a 3 mm prior leaves the 40 mm spike 4-5 mm short). Held vertices
 // stay quadratic (threshold 0, as prior_robust 0).
 double Regularisers::Distance(const Eigen::VectorXd& at, size_t v) const {
-  const Eigen::Vector3d d = (at - initial_).segment<3>(3 * v);
+  const Eigen::Vector3d d = at.segment<3>(3 * v) - initial_.segment<3>(3 * v);
   return std::sqrt(d.dot(prior_[v] * d));
 }
 
@@ -213,16 +209,17 @@ double Regularisers::PriorWeight(const Eigen::VectorXd& at, size_t v) const {
 double Regularisers::Cost(const Eigen::VectorXd& at) const {
   double sum = 0.0;
   for (size_t v = 0; v < prior_.size(); ++v) sum += HuberCost(Distance(at, v), Threshold(v));
-  if (coupling_.nonZeros() > 0) sum += 0.5 * at.dot(coupling_ * at);
-  return sum;
+  return sum + coupling_.HalfSquaredNorm(at);
 }
 
 // w_i P_i d_i per vertex, plus Q x
 Eigen::VectorXd Regularisers::Gradient(const Eigen::VectorXd& at) const {
   Eigen::VectorXd g(at.size());
   for (size_t v = 0; v < prior_.size(); ++v)
-    g.segment<3>(3 * v) = PriorWeight(at, v) * (prior_[v] * (at - initial_).segment<3>(3 * v));
-  if (coupling_.nonZeros() > 0) g += coupling_ * at;
+    g.segment<3>(3 * v) =
+        PriorWeight(at, v) * (prior_[v] * (at.segment<3>(3 * v) - initial_.segment<3>(3 * v)));
+  Eigen::VectorXd scratch;
+  coupling_.AddProduct(at, &g, &scratch);
   return g;
 }
 

@@ -6,6 +6,7 @@
 #include <Eigen/Sparse>
 #include <vector>
 
+#include "inverse/refine/linear_solve.h"
 #include "inverse/refine/vertex_refinement.h"
 
 namespace genscene::inverse::refine_detail {
@@ -26,9 +27,9 @@ std::vector<Eigen::Matrix3d> PriorBlocks(const render::DifferentiablePathTracer&
                                          const RefineOptions& options);
 
 // The relaxation and bending terms together as x^T Q x / 2, Q = A^T A / relax_sigma^2 +
-// B^T B / smooth_sigma^2 (Matrix gives their rows). Both act on a vertex's offset from the
+// B^T B / smooth_sigma^2 (Factor gives their rows). Both act on a vertex's offset from the
 // centroid of its one-ring, c_i = mean_{j in ring(i)} x_j, at the normals n_i of the positions
-// Matrix is given (held for an iteration, so the terms are quadratic).
+// Factor is given (held for an iteration, so the terms are quadratic).
 //
 // Relaxation (relax_sigma): three rows of A per vertex inside its mesh,
 //   a_i = T_i (x_i - c_i),   T_i = I - n_i n_i^T,
@@ -41,7 +42,7 @@ std::vector<Eigen::Matrix3d> PriorBlocks(const render::DifferentiablePathTracer&
 // Vertices on a mesh boundary get no row: their one-ring's centroid lies inside the surface.
 //
 // Bending (smooth_sigma): one row of B per vertex whose ring has rows too, a change of curvature
-// from a vertex to its ring (see Matrix). It holds a single vertex from walking along its normal,
+// from a vertex to its ring (see Factor). It holds a single vertex from walking along its normal,
 // where visibility changes (not differentiated) at a silhouette pull it.
 //
 // The connectivity (one-rings, boundaries) is found once; only the normals change with x.
@@ -49,8 +50,9 @@ class Relaxation {
  public:
   Relaxation(const render::DifferentiablePathTracer& tracer, double sigma, double smooth_sigma);
 
-  // Q at the parameter vector `x`; empty when relax_sigma and smooth_sigma are 0.
-  Eigen::SparseMatrix<double> Matrix(const Eigen::VectorXd& x) const;
+  // C with Q = C^T C at the parameter vector `x`: the rows of A / relax_sigma, then those of
+  // B / smooth_sigma; no non-zeros when relax_sigma and smooth_sigma are 0.
+  Eigen::SparseMatrix<double, Eigen::RowMajor> Factor(const Eigen::VectorXd& x) const;
 
  private:
   struct Row {
@@ -61,9 +63,12 @@ class Relaxation {
   void AddMesh(const render::DifferentiablePathTracer& tracer, int mesh);
   // The unit normals n_r per row at x (0: no normal).
   std::vector<Eigen::Vector3d> UnitNormals(const Eigen::VectorXd& x) const;
-  Eigen::SparseMatrix<double> RelaxationMatrix(const std::vector<Eigen::Vector3d>& unit) const;
-  Eigen::SparseMatrix<double> BendingMatrix(const Eigen::VectorXd& x,
-                                            const std::vector<Eigen::Vector3d>& unit) const;
+  // The rows of A / relax_sigma (row 3 i + k for vertex i) and of B / smooth_sigma (from row
+  // `first`), as triplets; *rows becomes the row after the last bending row.
+  void RelaxationRows(const std::vector<Eigen::Vector3d>& unit,
+                      std::vector<Eigen::Triplet<double>>* entries) const;
+  void BendingRows(const Eigen::VectorXd& x, const std::vector<Eigen::Vector3d>& unit, int first,
+                   int* rows, std::vector<Eigen::Triplet<double>>* entries) const;
 
   int size_;
   double sigma_, smooth_sigma_;
@@ -79,13 +84,15 @@ class Regularisers {
                const Eigen::VectorXd& initial, const std::vector<bool>& held);
 
   // Q from the normals at x, for the iteration that starts at x.
-  void Relinearise(const Eigen::VectorXd& x) { coupling_ = relax_.Matrix(x); }
+  void Relinearise(const Eigen::VectorXd& x) {
+    coupling_.Set(relax_.Factor(x), static_cast<int>(prior_.size()));
+  }
   double Cost(const Eigen::VectorXd& at) const;
   Eigen::VectorXd Gradient(const Eigen::VectorXd& at) const;
   // The prior's matrix for the step at `at`: w_i P_i, w_i the IRLS weight of its distance.
   std::vector<Eigen::Matrix3d> PriorBlocksAt(const Eigen::VectorXd& at) const;
   // Q (may be empty).
-  const Eigen::SparseMatrix<double>& Coupling() const { return coupling_; }
+  const refine_detail::Coupling& Coupling() const { return coupling_; }
 
  private:
   double Threshold(size_t v) const { return held_[v] ? 0.0 : prior_robust_; }
@@ -97,7 +104,7 @@ class Regularisers {
   std::vector<Eigen::Matrix3d> prior_;  // P_i (kHeld P_i when held)
   std::vector<bool> held_;
   Relaxation relax_;
-  Eigen::SparseMatrix<double> coupling_;  // Q at the start of the iteration
+  refine_detail::Coupling coupling_;  // Q at the start of the iteration
 };
 
 }  // namespace genscene::inverse::refine_detail
