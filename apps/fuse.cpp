@@ -46,6 +46,11 @@ FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_o
                 << std::defaultfloat << "): " << fusion::ToString(r.status) << ": " << r.reason
                 << "\n";
     }
+    if (r.relocalised_against) {
+      std::cerr << "\nframe " << r.index << " (t = " << std::fixed << r.timestamp
+                << "): relocalised against the keyframe at t = " << *r.relocalised_against
+                << std::defaultfloat << " (" << r.features.inliers << " feature inliers)\n";
+    }
     std::cerr << "\rfusing: " << summary.frames;
     if (total) std::cerr << "/" << total;
     std::cerr << " frames, " << summary.frames / std::max(summary.seconds, 1e-9) << " fps, "

@@ -65,6 +65,22 @@ float DepthAt(const ImageDepth& depth, const cv::Point2f& p) {
 
 }  // namespace
 
+struct FeatureFrame::Data {
+  std::vector<cv::KeyPoint> points;
+  cv::Mat descriptors;
+};
+
+FeatureFrame::FeatureFrame(const ImageRgb& color, int max_features) {
+  if (color.empty()) return;
+  auto data = std::make_shared<Data>();
+  Detect(GrayImage(color), max_features, &data->points, &data->descriptors);
+  data_ = std::move(data);
+}
+
+int FeatureFrame::keypoints() const {
+  return data_ ? static_cast<int>(data_->points.size()) : 0;
+}
+
 void FeatureAlignOptions::Validate() const {
   RequireRange("feature_max", max_features, 50, 100000);
   RequireRange("feature_min_inliers", min_inliers, 6, 100000);
@@ -76,16 +92,24 @@ void FeatureAlignOptions::Validate() const {
 std::optional<Eigen::Isometry3d> AlignByFeatures(
     const ImageRgb& reference_color, const ImageDepth& reference_depth, const ImageRgb& live_color,
     const CameraIntrinsics& k, const FeatureAlignOptions& options, FeatureAlignReport* report) {
+  if (report) *report = FeatureAlignReport();
+  if (reference_color.empty() || live_color.empty() || !reference_color.SameSize(reference_depth))
+    return std::nullopt;
+  return AlignByFeatures(FeatureFrame(reference_color, options.max_features), reference_depth,
+                         FeatureFrame(live_color, options.max_features), k, options, report);
+}
+
+std::optional<Eigen::Isometry3d> AlignByFeatures(
+    const FeatureFrame& reference, const ImageDepth& reference_depth, const FeatureFrame& live,
+    const CameraIntrinsics& k, const FeatureAlignOptions& options, FeatureAlignReport* report) {
   FeatureAlignReport local;
   FeatureAlignReport& r = report ? *report : local;
   r = FeatureAlignReport();
-  if (reference_color.empty() || live_color.empty() || !reference_color.SameSize(reference_depth))
-    return std::nullopt;
-
-  std::vector<cv::KeyPoint> ref_points, live_points;
-  cv::Mat ref_descriptors, live_descriptors;
-  Detect(GrayImage(reference_color), options.max_features, &ref_points, &ref_descriptors);
-  Detect(GrayImage(live_color), options.max_features, &live_points, &live_descriptors);
+  if (reference.empty() || live.empty()) return std::nullopt;
+  const std::vector<cv::KeyPoint>& ref_points = reference.data().points;
+  const std::vector<cv::KeyPoint>& live_points = live.data().points;
+  const cv::Mat& ref_descriptors = reference.data().descriptors;
+  const cv::Mat& live_descriptors = live.data().descriptors;
   r.reference_keypoints = static_cast<int>(ref_points.size());
   r.live_keypoints = static_cast<int>(live_points.size());
   if (ref_points.size() < static_cast<size_t>(options.min_inliers) ||

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <memory>
 #include <optional>
 
 #include "core/camera.h"
@@ -35,6 +36,31 @@ struct FeatureAlignReport {
   int matches = 0;  // ratio-tested mutual matches with reference depth
   int inliers = 0;  // of which consistent with the PnP pose
 };
+
+// The ORB keypoints and descriptors of one colour image, detected once and matched against many
+// (relocalisation matches a lost frame against every keyframe, each keyframe against many lost
+// frames). Empty when made from an empty image.
+class FeatureFrame {
+ public:
+  FeatureFrame() = default;
+  FeatureFrame(const ImageRgb& color, int max_features);
+  bool empty() const { return !data_; }
+  int keypoints() const;
+  struct Data;  // OpenCV's keypoints and descriptors (feature_align.cpp)
+  const Data& data() const { return *data_; }
+
+ private:
+  std::shared_ptr<const Data> data_;
+};
+
+// reference_from_live from features detected before (the reference's keypoints back-projected
+// with `reference_depth`, the same size as the image they came from).
+std::optional<Eigen::Isometry3d> AlignByFeatures(const FeatureFrame& reference,
+                                                 const ImageDepth& reference_depth,
+                                                 const FeatureFrame& live,
+                                                 const CameraIntrinsics& intrinsics,
+                                                 const FeatureAlignOptions& options,
+                                                 FeatureAlignReport* report = nullptr);
 
 // reference_from_live: the live camera in the reference camera's frame, or nothing when the
 // images share too few features. Colour is linear RGB; `reference_depth` planar metres (0 =

@@ -219,6 +219,8 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   if (options_.tracking != "known") {  // with known poses nothing tracks against the model
     UpdateModel(pose, &report);
     if (options_.feature_tracking && !frame.color.empty()) {
+      relocalise_next_ = 0;  // a later lost frame tries the newest keyframes first
+      last_fused_.timestamp = frame.timestamp;
       last_fused_.color = frame.color;
       last_fused_.depth =
           frame.depth;  // unmasked: features far beyond range_max still fix the pose
@@ -266,15 +268,52 @@ std::optional<Eigen::Isometry3d> KinectFusion::TrackFromFeatures(
     *why = "no fused frame with colour to match against";
     return std::nullopt;
   }
-  const auto reference_from_live =
-      AlignByFeatures(last_fused_.color, last_fused_.depth, frame.color, intrinsics_,
-                      options_.features, &report->features);
+  const int max_features = options_.features.max_features;
+  const FeatureFrame live(frame.color, max_features);
+  auto pose =
+      PoseFromReference(pyramid, FeatureFrame(last_fused_.color, max_features), last_fused_.depth,
+                        *last_fused_.world_from_camera, live, report, why);
+  if (pose) return pose;
+  // Relocalisation: the camera may have jumped to a place a keyframe saw (a recording that starts
+  // over, a camera carried back). Newest first; the first whose features and ICP agree wins. A
+  // lost frame tries at most kKeyframesPerFrame of them (a try matches the features both ways and
+  // runs PnP: 0.1-0.2 s at 640x480 on slambook), the next lost frame the ones after those, so that
+  // a long recording's keyframes are all tried within a few frames without stalling any one.
+  constexpr size_t kKeyframesPerFrame = 12;
+  const FeatureAlignReport last_fused_features = report->features;
+  const std::vector<RgbdFrame>& keyframes = keyframe_selector_.keyframes();
+  const size_t n = keyframes.size();
+  for (size_t tried = 0; tried < std::min(n, kKeyframesPerFrame); ++tried) {
+    const size_t newest_first = relocalise_next_++ % n;
+    const RgbdFrame& key = keyframes[n - 1 - newest_first];
+    if (key.timestamp == last_fused_.timestamp || !key.world_from_camera) continue;  // tried
+    auto [features, fresh] = keyframe_features_.try_emplace(key.timestamp);
+    if (fresh) features->second = FeatureFrame(key.color, max_features);
+    std::string ignored;
+    pose = PoseFromReference(pyramid, features->second, key.depth, *key.world_from_camera, live,
+                             report, &ignored);
+    if (pose) {
+      report->relocalised_against = key.timestamp;
+      return pose;
+    }
+  }
+  report->features = last_fused_features;  // the figures of the first try
+  if (n > 0) *why += Format("; nor do ", std::min(n, kKeyframesPerFrame), " of ", n, " keyframes");
+  return std::nullopt;
+}
+
+std::optional<Eigen::Isometry3d> KinectFusion::PoseFromReference(
+    const std::vector<PyramidLevel>& pyramid, const FeatureFrame& reference,
+    const ImageDepth& reference_depth, const Eigen::Isometry3d& world_from_reference,
+    const FeatureFrame& live, FrameReport* report, std::string* why) const {
+  const auto reference_from_live = AlignByFeatures(reference, reference_depth, live, intrinsics_,
+                                                   options_.features, &report->features);
   if (!reference_from_live) {
     *why = Format(report->features.inliers, " of ", report->features.matches,
                   " matches agree with one pose (", options_.features.min_inliers, " needed)");
     return std::nullopt;
   }
-  const Eigen::Isometry3d start = *last_fused_.world_from_camera * *reference_from_live;
+  const Eigen::Isometry3d start = world_from_reference * *reference_from_live;
   // ICP against the model as seen from the features' pose: it must converge (the residual test)
   // on enough of the frame and stay near that pose (the two agree), else the frame stays lost.
   // A frame far from the last one overlaps the model less than tracking's min_inlier_ratio asks
@@ -339,6 +378,8 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
               {"condition", std::isfinite(r.icp.condition) ? json(r.icp.condition) : json("inf")},
               {"constrained_directions", r.icp.constrained_directions},
               {"feature_start", r.feature_start},
+              {"relocalised_against_t",
+               r.relocalised_against ? json(*r.relocalised_against) : json(nullptr)},
               {"feature_inliers", r.features.inliers},
               {"blocks_touched", r.integration.blocks_touched},
               {"blocks_allocated", r.integration.blocks_allocated},

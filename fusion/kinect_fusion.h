@@ -15,6 +15,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -116,7 +117,8 @@ struct FusionOptions {
     v("max_translation", icp.max_translation, "m", "tracking is lost when a frame moves farther");
     v("max_rotation", icp.max_rotation, "deg", "tracking is lost when a frame turns more");
     v("feature_tracking", feature_tracking, "",
-      "a frame ICP loses starts again from ORB features matched against the last fused frame");
+      "a frame ICP loses starts again from ORB features matched against the last fused frame, "
+      "else against the keyframes (relocalisation)");
     v("feature_max", features.max_features, "", "ORB keypoints per image for feature tracking");
     v("feature_min_inliers", features.min_inliers, "",
       "feature matches consistent with one pose needed to start ICP from it");
@@ -159,6 +161,9 @@ struct FrameReport {
   IcpReport icp;
   FeatureAlignReport features;  // when ICP lost the frame and features were tried
   bool feature_start = false;   // tracked by ICP from the features' pose
+  // The time stamp of the keyframe the features' pose came from when the last fused frame gave
+  // none: the camera was relocalised.
+  std::optional<double> relocalised_against;
   IntegrationStats integration;
   // The model raycast's pass over the volume: chunks tested against the frustum, blocks of the
   // chunks inside it projected (0 when no model was raycast).
@@ -206,9 +211,18 @@ class KinectFusion {
   // model_ = the model raycast at `pose`, its time and its pass over the volume in `report`.
   void UpdateModel(const Eigen::Isometry3d& pose, FrameReport* report);
   // Step 3b: the pose of a frame ICP lost, from features against the last fused frame refined by
-  // ICP, when both agree; `report` gets the feature and ICP figures, `why` the reason when not.
+  // ICP, when both agree, else against the keyframes, newest first (relocalisation); `report`
+  // gets the feature and ICP figures, `why` the reason when none agrees.
   std::optional<Eigen::Isometry3d> TrackFromFeatures(const std::vector<PyramidLevel>& pyramid,
                                                      const RgbdFrame& frame, FrameReport* report,
+                                                     std::string* why) const;
+  // The pose from features against one reference (its features, depth and pose), verified by
+  // ICP against the model from there.
+  std::optional<Eigen::Isometry3d> PoseFromReference(const std::vector<PyramidLevel>& pyramid,
+                                                     const FeatureFrame& reference,
+                                                     const ImageDepth& reference_depth,
+                                                     const Eigen::Isometry3d& world_from_reference,
+                                                     const FeatureFrame& live, FrameReport* report,
                                                      std::string* why) const;
 
   FusionOptions options_;
@@ -226,6 +240,9 @@ class KinectFusion {
   std::vector<RgbdFrame> held_out_;
   std::optional<Eigen::Isometry3d> held_out_pose_;  // a held-out frame's pose after last_good_
   RgbdFrame last_fused_;  // colour, depth and pose of the last fused frame (feature tracking)
+  // The keyframes' features, by time stamp, detected when a lost frame first needs them.
+  mutable std::map<double, FeatureFrame> keyframe_features_;
+  mutable size_t relocalise_next_ = 0;  // the keyframe a lost frame tries first, newest = 0
 };
 
 // Writes the stage's outputs into the workspace, each atomically: trajectory.txt (TUM),

@@ -1,5 +1,6 @@
 // Fusion on real Kinect frames with motion-capture ground truth (../shared/data/real).
 #include "core/frame_source.h"
+#include "core/se3.h"
 #include "core/trajectory_metrics.h"
 #include "fusion/kinect_fusion.h"
 #include "tests/test_util.h"
@@ -68,6 +69,56 @@ TEST(FusionReal, SlambookFramesFarApartAreTrackedFromFeatures) {
     EXPECT_EQ(ate.pairs, 5u);
     EXPECT_LE(ate.rmse, 0.03);
   }
+}
+
+// A recording that starts over (a revisit): slambook's five frames, then its first two again. The
+// last fused frame, 2 m from the first, shares no features with it: the camera is found against
+// the first keyframe (relocalisation), at the pose of the first visit; the frame after it follows
+// from the features of the frame before, as on the first visit.
+TEST(FusionReal, ARecordingThatStartsOverIsRelocalisedAgainstTheFirstKeyframe) {
+  GS_REQUIRE_SHARED_DATA(data);
+  test::TempDir dir;
+  test::WriteFile(dir / "k.txt", "518.0 519.0 325.5 253.5 640 480\n");
+  SourceOptions source_options;
+  source_options.intrinsics = (dir / "k.txt").string();
+  auto source = OpenFrameSource((data / "real" / "slambook-joinmap-5f").string(), source_options);
+  std::vector<RgbdFrame> frames;
+  while (auto frame = source->Next()) frames.push_back(*frame);
+  ASSERT_EQ(frames.size(), 5u);
+  for (int i : {0, 1}) {
+    RgbdFrame again = frames[static_cast<size_t>(i)];
+    again.timestamp = frames.back().timestamp + 1.0 / 30.0;
+    frames.push_back(again);
+  }
+  KinectFusion fusion(FusionOptions(), source->Intrinsics());
+  std::vector<FrameReport> reports;
+  for (const RgbdFrame& f : frames) {
+    reports.push_back(fusion.ProcessFrame(f));
+    const FrameReport& r = reports.back();
+    std::cout << "frame " << r.index << ": " << ToString(r.status)
+              << " relocalised against t = " << r.relocalised_against.value_or(-1.0)
+              << ", ORB inliers " << r.features.inliers << " " << r.reason << "\n";
+  }
+  for (const FrameReport& r : reports) EXPECT_TRUE(r.world_from_camera) << r.index;
+  const FrameReport& back = reports[5];
+  EXPECT_EQ(back.status, FrameStatus::kTracked) << back.reason;
+  EXPECT_TRUE(back.feature_start);
+  EXPECT_EQ(back.relocalised_against, std::optional<double>(frames[0].timestamp));
+  ASSERT_TRUE(back.world_from_camera && reports[0].world_from_camera);
+  const Eigen::Isometry3d first_from_back =
+      reports[0].world_from_camera->inverse() * *back.world_from_camera;
+  std::cout << "the revisit's pose against the first visit's: "
+            << 100.0 * first_from_back.translation().norm() << " cm, "
+            << RotationAngle(first_from_back) * 180.0 / M_PI << " deg\n";
+  EXPECT_LT(first_from_back.translation().norm(), 0.01);
+  EXPECT_LT(RotationAngle(first_from_back) * 180.0 / M_PI, 1.0);
+  EXPECT_EQ(reports[6].status, FrameStatus::kTracked) << reports[6].reason;
+  EXPECT_FALSE(reports[6].relocalised_against);
+  ASSERT_TRUE(reports[6].world_from_camera && reports[1].world_from_camera);
+  EXPECT_LT(
+      (reports[6].world_from_camera->translation() - reports[1].world_from_camera->translation())
+          .norm(),
+      0.02);
 }
 
 }  // namespace
