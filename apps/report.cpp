@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -90,6 +91,44 @@ std::optional<fs::path> InputFolder(const Workspace& ws) {
   return std::nullopt;
 }
 
+// The frames where tracking did more than follow the camera: lost, degenerate and blank frames,
+// frames started again from features, relocalisations (against which keyframe). At most
+// kListed frames per row, then how many more.
+void TrackingEvents(const Json& frames, std::ostream& md) {
+  constexpr size_t kListed = 20;
+  const std::vector<std::string> order = {"relocalised", "started from features", "lost",
+                                          "degenerate", "blank"};
+  std::map<std::string, std::vector<std::string>> events;
+  for (const Json& f : frames) {
+    const std::string at = std::to_string(f["index"].get<long>());
+    const std::string status = f["status"].get<std::string>();
+    const Json& against = f.contains("relocalised_against_t") ? f["relocalised_against_t"] : Json();
+    if (against.is_number()) {
+      events["relocalised"].push_back(at + " (keyframe t = " + Fixed(against.get<double>(), 3) +
+                                      ")");
+    } else if (f.value("feature_start", false)) {
+      events["started from features"].push_back(at);
+    }
+    if (status == "lost" || status == "degenerate" || status == "blank")
+      events[status].push_back(at);
+  }
+  if (events.empty()) {
+    md << "Every frame was tracked from the one before it.\n\n";
+    return;
+  }
+  md << "| tracking | frames |\n|---|---|\n";
+  for (const std::string& kind : order) {
+    const auto it = events.find(kind);
+    if (it == events.end()) continue;
+    md << "| " << kind << " | ";
+    for (size_t i = 0; i < std::min(it->second.size(), kListed); ++i)
+      md << (i ? ", " : "") << it->second[i];
+    if (it->second.size() > kListed) md << " and " << it->second.size() - kListed << " more";
+    md << " |\n";
+  }
+  md << "\n";
+}
+
 void Tracking(const Workspace& ws, const fs::path& dir, std::ostream& md) {
   const auto fusion = ReadJson(ws.FusionJson());
   if (!fusion) return;
@@ -108,6 +147,7 @@ void Tracking(const Workspace& ws, const fs::path& dir, std::ostream& md) {
   for (double v : total.y) mean += v / std::max<size_t>(1, total.y.size());
   md << total.x.size() << " frames, " << Fixed(mean, 1) << " ms per frame on average ("
      << Fixed(1000.0 / mean, 1) << " fps).\n\n![per-frame time](tracking_time.png)\n\n";
+  TrackingEvents((*fusion)["frames"], md);
 
   const auto input = InputFolder(ws);
   if (!input || !fs::exists(*input / "groundtruth.txt") || !fs::exists(ws.Trajectory())) return;
