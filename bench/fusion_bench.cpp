@@ -6,18 +6,28 @@
 // frame, timed on the volume the run built and on that volume with `--copies` translated copies
 // of all its blocks beside it (out of every frustum, as the rest of a room scanned before is):
 // only the blocks of chunks in the frustum are visited, so the two times should agree.
+//
+// --scale N: a long scan instead of folders: N frames of 640x480 of the analytic room of
+// core/synthetic.h (exact depth with Kinect-v1 noise, AddKinectDepthNoise), hand-held around the
+// room at 0.9 degrees a frame (a turn in 400 frames), rendered one at a time (untimed) and tracked
+// and fused with the defaults; every 100 frames a row of fps over those frames, blocks, the
+// volume's megabytes, the process's peak memory and the ATE so far.
+#include <sys/resource.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <exception>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "core/frame_source.h"
 #include "core/parallel.h"
+#include "core/synthetic.h"
 #include "core/trajectory_metrics.h"
 #include "fusion/kinect_fusion.h"
 
@@ -28,7 +38,61 @@ namespace {
 constexpr const char* kUsage =
     "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] "
     "[--allocation-stride N]"
-    " [--weighting noise|uniform] [--copies N]\n";
+    " [--weighting noise|uniform] [--copies N]\n"
+    "       bench_fusion --scale N [--threads N]\n";
+
+double PeakMegabytes() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return usage.ru_maxrss / 1024.0;  // kilobytes on Linux
+}
+
+// The long scan of --scale (see the top of the file).
+void LongScan(int frames) {
+  const SyntheticScene room = MakeCornellScene();
+  const CameraIntrinsics k = CameraIntrinsics::Centered(640, 480, 525.0);
+  const Trajectory truth =
+      MakeHandheldTrajectory(Eigen::Vector3d(0.0, 0.0, 0.6), 0.7, 1.1, 0.9 * frames, frames, 11);
+  fusion::FusionOptions options;
+  options.Validate();
+  fusion::KinectFusion kf(options, k);
+  std::printf("long scan of the analytic room, %d frames of %dx%d, Kinect noise, threads %d\n",
+              frames, k.width, k.height, ThreadCount());
+  std::printf("%7s | %8s %8s | %8s %9s %9s | %8s | %s\n", "frames", "fps", "worst ms", "blocks",
+              "volume MB", "peak MB", "ATE cm", "statuses");
+  double seconds = 0.0, worst = 0.0;
+  int window = 0;
+  std::map<std::string, int> statuses;
+  for (int i = 0; i < frames; ++i) {
+    const StampedPose& p = truth.poses()[static_cast<size_t>(i)];
+    RgbdFrame frame = RenderSyntheticFrame(room, k, p.world_from_camera, p.timestamp);
+    AddKinectDepthNoise(frame.depth, 5, static_cast<uint64_t>(i));
+    frame.world_from_camera.reset();  // tracked, not given
+    const fusion::FrameReport r = kf.ProcessFrame(frame);
+    seconds += r.seconds();
+    worst = std::max(worst, r.seconds());
+    ++window;
+    ++statuses[fusion::ToString(r.status)];
+    if ((i + 1) % 100 == 0 || i + 1 == frames) {
+      Trajectory so_far;
+      for (int j = 0; j <= i; ++j)
+        so_far.Add(truth.poses()[j].timestamp, truth.poses()[j].world_from_camera);
+      double ate = std::nan("");
+      try {
+        ate = ComputeAte(kf.trajectory(), so_far).rmse;
+      } catch (const std::exception&) {
+      }
+      std::string counts;
+      for (const auto& [name, n] : statuses) counts += name + " " + std::to_string(n) + " ";
+      std::printf("%7d | %8.1f %8.1f | %8zu %9.1f %9.0f | %8.3f | %s\n", i + 1, window / seconds,
+                  1e3 * worst, kf.volume().num_blocks(), kf.volume().allocated_bytes() / 1e6,
+                  PeakMegabytes(), 100.0 * ate, counts.c_str());
+      std::fflush(stdout);
+      seconds = worst = 0.0;
+      window = 0;
+    }
+  }
+}
 
 // The raycast of fusion's model (its intrinsics, depth range and normals) at every pose of
 // `trajectory`, on `volume` and on `volume` with `copies` copies of its blocks beside it.
@@ -90,6 +154,7 @@ int Run(int argc, char** argv) {
   int allocation_stride = fusion::FusionOptions().allocation_stride;
   std::string weighting = fusion::FusionOptions().weighting;
   int copies = 3;
+  int scale = 0;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
       std::printf(
@@ -111,9 +176,16 @@ int Run(int argc, char** argv) {
       copies = std::atoi(argv[++i]);
     } else if (std::strcmp(argv[i], "--threads") == 0 && i + 1 < argc) {
       threads = std::atoi(argv[++i]);
+    } else if (std::strcmp(argv[i], "--scale") == 0 && i + 1 < argc) {
+      scale = std::atoi(argv[++i]);
     } else {
       folders.push_back(argv[i]);
     }
+  }
+  if (scale > 0) {
+    SetThreadCount(threads);
+    LongScan(scale);
+    return 0;
   }
   if (folders.empty()) {
     std::fprintf(stderr, "%s", kUsage);
