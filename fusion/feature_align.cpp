@@ -77,26 +77,12 @@ FeatureFrame::FeatureFrame(const ImageRgb& color, int max_features) {
   data_ = std::move(data);
 }
 
-int FeatureFrame::keypoints() const {
-  return data_ ? static_cast<int>(data_->points.size()) : 0;
-}
-
 void FeatureAlignOptions::Validate() const {
   RequireRange("feature_max", max_features, 50, 100000);
   RequireRange("feature_min_inliers", min_inliers, 6, 100000);
   // Not options a user sets (fixed in the struct).
   GS_CHECK(ratio > 0.0 && ratio <= 1.0);
   GS_CHECK(reprojection_error > 0.0);
-}
-
-std::optional<Eigen::Isometry3d> AlignByFeatures(
-    const ImageRgb& reference_color, const ImageDepth& reference_depth, const ImageRgb& live_color,
-    const CameraIntrinsics& k, const FeatureAlignOptions& options, FeatureAlignReport* report) {
-  if (report) *report = FeatureAlignReport();
-  if (reference_color.empty() || live_color.empty() || !reference_color.SameSize(reference_depth))
-    return std::nullopt;
-  return AlignByFeatures(FeatureFrame(reference_color, options.max_features), reference_depth,
-                         FeatureFrame(live_color, options.max_features), k, options, report);
 }
 
 std::optional<Eigen::Isometry3d> AlignByFeatures(

@@ -45,7 +45,6 @@ class FeatureFrame {
   FeatureFrame() = default;
   FeatureFrame(const ImageRgb& color, int max_features);
   bool empty() const { return !data_; }
-  int keypoints() const;
   struct Data;  // OpenCV's keypoints and descriptors (feature_align.cpp)
   const Data& data() const { return *data_; }
 
@@ -53,21 +52,13 @@ class FeatureFrame {
   std::shared_ptr<const Data> data_;
 };
 
-// reference_from_live from features detected before (the reference's keypoints back-projected
-// with `reference_depth`, the same size as the image they came from).
+// reference_from_live: the live camera in the reference camera's frame, or nothing when the
+// frames share too few features. The reference's keypoints are back-projected with
+// `reference_depth` (planar metres, 0 = none; the size of the image its features came from);
+// both frames seen through `intrinsics`. Colour for FeatureFrame is linear RGB.
 std::optional<Eigen::Isometry3d> AlignByFeatures(const FeatureFrame& reference,
                                                  const ImageDepth& reference_depth,
                                                  const FeatureFrame& live,
-                                                 const CameraIntrinsics& intrinsics,
-                                                 const FeatureAlignOptions& options,
-                                                 FeatureAlignReport* report = nullptr);
-
-// reference_from_live: the live camera in the reference camera's frame, or nothing when the
-// images share too few features. Colour is linear RGB; `reference_depth` planar metres (0 =
-// none), the same size; both frames seen through `intrinsics`.
-std::optional<Eigen::Isometry3d> AlignByFeatures(const ImageRgb& reference_color,
-                                                 const ImageDepth& reference_depth,
-                                                 const ImageRgb& live_color,
                                                  const CameraIntrinsics& intrinsics,
                                                  const FeatureAlignOptions& options,
                                                  FeatureAlignReport* report = nullptr);
