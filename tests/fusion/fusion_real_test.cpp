@@ -1,5 +1,6 @@
 // Fusion on real Kinect frames with motion-capture ground truth (../shared/data/real).
 #include "core/frame_source.h"
+#include "core/parallel.h"
 #include "core/se3.h"
 #include "core/trajectory_metrics.h"
 #include "fusion/kinect_fusion.h"
@@ -75,35 +76,53 @@ TEST(FusionReal, SlambookFramesFarApartAreTrackedFromFeatures) {
 // last fused frame, 2 m from the first, shares no features with it: the camera is found against
 // the first keyframe (relocalisation), at the pose of the first visit; the frame after it follows
 // from the features of the frame before, as on the first visit.
-TEST(FusionReal, ARecordingThatStartsOverIsRelocalisedAgainstTheFirstKeyframe) {
-  GS_REQUIRE_SHARED_DATA(data);
-  test::TempDir dir;
+struct Revisit {
+  std::vector<RgbdFrame> frames;
+  std::vector<FrameReport> reports;
+  std::vector<std::string> pose_bytes;  // each fused pose's 16 doubles, bit for bit
+};
+
+Revisit RunRevisit(const std::filesystem::path& data, const std::filesystem::path& dir) {
   test::WriteFile(dir / "k.txt", "518.0 519.0 325.5 253.5 640 480\n");
   SourceOptions source_options;
   source_options.intrinsics = (dir / "k.txt").string();
   auto source = OpenFrameSource((data / "real" / "slambook-joinmap-5f").string(), source_options);
-  std::vector<RgbdFrame> frames;
-  while (auto frame = source->Next()) frames.push_back(*frame);
-  ASSERT_EQ(frames.size(), 5u);
+  Revisit run;
+  while (auto frame = source->Next()) run.frames.push_back(*frame);
+  if (run.frames.size() != 5u) return run;
   for (int i : {0, 1}) {
-    RgbdFrame again = frames[static_cast<size_t>(i)];
-    again.timestamp = frames.back().timestamp + 1.0 / 30.0;
-    frames.push_back(again);
+    RgbdFrame again = run.frames[static_cast<size_t>(i)];
+    again.timestamp = run.frames.back().timestamp + 1.0 / 30.0;
+    run.frames.push_back(again);
   }
   KinectFusion fusion(FusionOptions(), source->Intrinsics());
-  std::vector<FrameReport> reports;
-  for (const RgbdFrame& f : frames) {
-    reports.push_back(fusion.ProcessFrame(f));
-    const FrameReport& r = reports.back();
+  for (const RgbdFrame& f : run.frames) {
+    run.reports.push_back(fusion.ProcessFrame(f));
+    const FrameReport& r = run.reports.back();
     std::cout << "frame " << r.index << ": " << ToString(r.status)
               << " relocalised against t = " << r.relocalised_against.value_or(-1.0)
               << ", ORB inliers " << r.features.inliers << " " << r.reason << "\n";
+    std::string bytes;
+    if (r.world_from_camera) {
+      const Eigen::Matrix4d m = r.world_from_camera->matrix();
+      bytes.assign(reinterpret_cast<const char*>(m.data()), sizeof(double) * 16);
+    }
+    run.pose_bytes.push_back(bytes);
   }
+  return run;
+}
+
+TEST(FusionReal, ARecordingThatStartsOverIsRelocalisedAgainstTheFirstKeyframe) {
+  GS_REQUIRE_SHARED_DATA(data);
+  test::TempDir dir;
+  const Revisit run = RunRevisit(data, dir.path());
+  ASSERT_EQ(run.frames.size(), 7u);
+  const std::vector<FrameReport>& reports = run.reports;
   for (const FrameReport& r : reports) EXPECT_TRUE(r.world_from_camera) << r.index;
   const FrameReport& back = reports[5];
   EXPECT_EQ(back.status, FrameStatus::kTracked) << back.reason;
   EXPECT_TRUE(back.feature_start);
-  EXPECT_EQ(back.relocalised_against, std::optional<double>(frames[0].timestamp));
+  EXPECT_EQ(back.relocalised_against, std::optional<double>(run.frames[0].timestamp));
   ASSERT_TRUE(back.world_from_camera && reports[0].world_from_camera);
   const Eigen::Isometry3d first_from_back =
       reports[0].world_from_camera->inverse() * *back.world_from_camera;
@@ -119,6 +138,28 @@ TEST(FusionReal, ARecordingThatStartsOverIsRelocalisedAgainstTheFirstKeyframe) {
       (reports[6].world_from_camera->translation() - reports[1].world_from_camera->translation())
           .norm(),
       0.02);
+}
+
+// Feature starts and the relocalisation (ORB, PnP RANSAC, ICP) give the same poses, bit for bit,
+// with one worker thread and with two.
+TEST(FusionReal, RelocalisationGivesTheSamePosesWithOneAndTwoThreads) {
+  GS_REQUIRE_SHARED_DATA(data);
+  test::TempDir dir;
+  std::vector<Revisit> runs;
+  for (int threads : {1, 2}) {
+    SetThreadCount(threads);
+    runs.push_back(RunRevisit(data, dir.path()));
+  }
+  SetThreadCount(0);
+  ASSERT_EQ(runs[0].reports.size(), 7u);
+  ASSERT_EQ(runs[1].reports.size(), 7u);
+  EXPECT_EQ(runs[0].reports[5].relocalised_against, runs[1].reports[5].relocalised_against);
+  EXPECT_TRUE(runs[0].reports[5].relocalised_against) << "frame 5 was not relocalised";
+  for (size_t i = 0; i < 7; ++i) {
+    EXPECT_FALSE(runs[0].pose_bytes[i].empty()) << "frame " << i << " has no pose";
+    EXPECT_TRUE(runs[0].pose_bytes[i] == runs[1].pose_bytes[i])
+        << "frame " << i << "'s pose differs between 1 and 2 threads";
+  }
 }
 
 }  // namespace
