@@ -51,6 +51,7 @@ void ChainOptions::AddTo(CommandLine& cli) {
   cli.Add(lights, "Light estimation (flags --lights-*)", "lights");
   cli.Add(refine, "Vertex refinement (flags --refine-*)", "refine");
   cli.Add(evaluate, "Evaluation against a synthetic ground truth (flags --evaluate-*)", "evaluate");
+  cli.Add(preview, "The stages' renders (flags --preview-*)", "preview");
 }
 
 ChainOptions RunChainOptions() {
@@ -399,17 +400,19 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
             [&] { return ToString(AlbedoWorkspace({}, options.albedo, ws)); });
 
   stage.Run("lights", {ws.Lights()}, {ws.Mesh(), ws.Albedo(), ws.Keyframes()},
-            Hash(OptionsText(options.lights), seed), [&] {
-              const LightsSummary s = LightsWorkspace({}, options.lights, seed, ws);
+            Hash(OptionsText(options.lights), seed, options.preview.lights_spp), [&] {
+              LightsInputs in;
+              in.render_spp = options.preview.lights_spp;
+              const LightsSummary s = LightsWorkspace(in, options.lights, seed, ws);
               Warn(s.warnings);
               return ToString(s);
             });
 
   stage.Run("refine", {ws.RefinedMesh()},
             {ws.Mesh(), ws.ModelAlbedo(), ws.Lights(), ws.Keyframes()},
-            Hash(OptionsText(options.refine), seed), [&] {
+            Hash(OptionsText(options.refine), seed, options.preview.refine_spp), [&] {
               RefineInputs in;
-              in.render_spp = 16;
+              in.render_spp = options.preview.refine_spp;
               const RefineSummary s = RefineWorkspace(in, options.refine, seed, ws);
               Warn(s.warnings);
               return ToString(s);
@@ -482,6 +485,11 @@ void RunChain(const std::string& input, const SourceOptions& source, const Chain
           return result;
         });
   }
+}
+
+void PreviewOptions::Validate() const {
+  RequireRange("lights_spp", lights_spp, 2, 1 << 16);
+  RequireRange("refine_spp", refine_spp, 0, 1 << 16);
 }
 
 void EvaluationOptions::Validate() const {

@@ -49,6 +49,24 @@ struct EvaluationOptions {
   void Validate() const;
 };
 
+// The renders the lights and refine stages write beside their figures: the training views with
+// the estimated lights (`lights/train_*`, and their relative RMSE in the summary) and refinement's
+// image of the first view after each iteration (`refine/iter_*`).
+struct PreviewOptions {
+  static constexpr const char* kSection = "preview";
+  int lights_spp = 64;  // samples per pixel of the lights stage's training-view renders
+  int refine_spp = 16;  // samples per pixel of refinement's per-iteration renders (0 = none)
+  template <typename V>
+  void Visit(V&& v) {
+    v("lights_spp", lights_spp, "",
+      "samples per pixel of the lights stage's renders of the training views (two halves: the "
+      "figures take their noise out)");
+    v("refine_spp", refine_spp, "",
+      "samples per pixel of refinement's render of the first view after each iteration (0: none)");
+  }
+  void Validate() const;
+};
+
 // The stages' options, as flags and config sections of `genscene run` and `genscene demo`.
 struct ChainOptions {
   fusion::FusionOptions fusion;
@@ -58,6 +76,7 @@ struct ChainOptions {
   inverse::LightEstimationOptions lights;
   inverse::RefineOptions refine;
   EvaluationOptions evaluate;
+  PreviewOptions preview;
   void AddTo(CommandLine& cli);
 };
 

@@ -26,9 +26,9 @@ std::string FlagName(const std::string& key) {
 }
 
 const std::vector<std::string>& AllConfigSections() {
-  static const std::vector<std::string> sections = {"source",    "synth",  "fusion", "meshing",
-                                                    "texturing", "albedo", "lights", "refine",
-                                                    "render",    "viewer", "run",    "evaluate"};
+  static const std::vector<std::string> sections = {
+      "source", "synth",  "fusion", "meshing", "texturing", "albedo", "lights",
+      "refine", "render", "viewer", "run",     "evaluate",  "preview"};
   return sections;
 }
 

@@ -360,6 +360,10 @@ TEST_F(Apps, OutOfRangeOptions) {
   ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() +
                     " --stride 0 --out " + (dir_ / "ws").string(),
                 {"stride = 0"}, dir_ / "ws");
+  // The training views' renders need two halves to take their noise out.
+  ExpectFailure(AppPath("genscene") + " run --input " + (dir_ / "seq").string() +
+                    " --preview-lights-spp 1 --out " + (dir_ / "ws").string(),
+                {"lights_spp = 1 is not in [2, 65536]"}, dir_ / "ws");
 }
 
 TEST_F(Apps, SameSeedSameOutputWhateverTheThreadCount) {

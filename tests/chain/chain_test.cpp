@@ -248,6 +248,7 @@ TEST_F(GensceneChain, ARerunAfterAChangedOptionRunsExactlyTheStagesThatDependOnI
       {{"--chroma-bandwidth", "0.2"}, "albedo"},
       {{"--lights-penalty-weight", "0.01"}, "lights"},
       {{"--refine-spp", "2"}, "refine"},
+      {{"--preview-refine-spp", "2"}, "refine"},
       {{"--evaluate-block", "2"}, "evaluate"},
   };
   for (const auto& [flags, first] : changes) {

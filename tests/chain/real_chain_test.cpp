@@ -21,7 +21,8 @@ using test::RunCommand;
 constexpr const char* kReduced =
     " --lights-pixels-per-view 300 --lights-rounds 1 --lights-refine-levels 0"
     " --lights-albedo-iterations 1"
-    " --refine-iterations 1 --refine-pixels-per-view 200 --refine-spp 4";
+    " --refine-iterations 1 --refine-pixels-per-view 200 --refine-spp 4"
+    " --preview-lights-spp 2 --preview-refine-spp 0";
 
 struct ChainRun {
   test::CommandResult result;
