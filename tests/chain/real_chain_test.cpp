@@ -85,7 +85,9 @@ TEST(RealChain, TumFr1DeskExcerptWithDefaults) {
 TEST(RealChain, Open3dFolderWithPosesByIndex) {
   GS_REQUIRE_SHARED_DATA(data);
   test::TempDir dir;
-  const ChainRun run = RunOn(data / "real/open3d-testdata-rgbd", dir / "ws", "");
+  // A 2 cm volume and a mesh simplified to 1 cm keep the sanitizer run short.
+  const ChainRun run = RunOn(data / "real/open3d-testdata-rgbd", dir / "ws",
+                             "--voxel-size 0.02 --truncation 0.06 --decimate-max-error 0.01");
   ExpectCompleteModel(run, dir / "ws");
   // The poses of odometry.log pair with all five frames: an ATE, no abort.
   EXPECT_CONTAINS(StageResult(run.summary, "fusion"), "ATE");
@@ -114,12 +116,14 @@ TEST(RealChain, SlambookSparseViewsTrackedFromFeatures) {
   EXPECT_GE(from_features, 3) << fusion["summary"].dump();
 }
 
-// 15 of the 50 frames in a 2 cm volume (reduced settings: the sanitizer run stays short).
+// 15 of the 50 frames in a 2 cm volume, the model's renders of the held-out frames at 4 spp
+// (reduced settings: the sanitizer run stays short).
 TEST(RealChain, SevenScenesNativeLayout) {
   GS_REQUIRE_SHARED_DATA(data);
   test::TempDir dir;
   const ChainRun run = RunOn(data / "real/7scenes-redkitchen-50f", dir / "ws",
-                             "--max-frames 15 --holdout 5 --voxel-size 0.02 --truncation 0.06");
+                             "--max-frames 15 --holdout 5 --voxel-size 0.02 --truncation 0.06"
+                             " --decimate-max-error 0.01 --evaluate-model-spp 4");
   ExpectCompleteModel(run, dir / "ws", true);
   EXPECT_CONTAINS(StageResult(run.summary, "ingest"), "15 frames 640x480");
   EXPECT_CONTAINS(StageResult(run.summary, "fusion"), "ATE");
