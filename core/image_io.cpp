@@ -373,8 +373,23 @@ ImageRgb ReadColorImage(const fs::path& path, const CameraResponse& response) {
   if (depth != CV_8U && depth != CV_16U && !is_float) {
     throw Error(Format(path.string(), ": unsupported pixel type (OpenCV depth ", depth, ")"));
   }
-  cv::Mat as_float;
   const double scale = depth == CV_8U ? 1.0 / 255.0 : depth == CV_16U ? 1.0 / 65535.0 : 1.0;
+  if (depth == CV_8U) {
+    // 256 values: each decoded once (the same conversion and response as below).
+    cv::Mat codes(1, 256, CV_8U), code_values;
+    for (int i = 0; i < 256; ++i) codes.at<uint8_t>(0, i) = static_cast<uint8_t>(i);
+    codes.convertTo(code_values, CV_32F, scale);
+    float linear[256];
+    for (int i = 0; i < 256; ++i) linear[i] = response.ToLinear(code_values.at<float>(0, i));
+    for (int v = 0; v < mat.rows; ++v) {
+      const cv::Vec3b* row = mat.ptr<cv::Vec3b>(v);
+      for (int u = 0; u < mat.cols; ++u) {
+        image(u, v) = Eigen::Vector3f(linear[row[u][2]], linear[row[u][1]], linear[row[u][0]]);
+      }
+    }
+    return image;
+  }
+  cv::Mat as_float;
   mat.convertTo(as_float, CV_32FC3, scale);
   // A NaN or infinite colour (float images only) would poison every sum it enters: texturing's
   // averages, light estimation's normal equations. Negative values are kept (filters with negative

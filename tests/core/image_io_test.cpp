@@ -9,6 +9,7 @@
 #include <cmath>
 #include <fstream>
 #include <limits>
+#include <opencv2/imgcodecs.hpp>
 
 #include "core/check.h"
 #include "core/rng.h"
@@ -56,6 +57,30 @@ TEST(ImageIo, PngRoundTripWithinQuantisation) {
       // Half an 8-bit step in the encoded domain.
       EXPECT_NEAR(LinearToSrgb(back.pixels()[i][c]), LinearToSrgb(image.pixels()[i][c]),
                   0.5 / 255 + 1e-6);
+    }
+  }
+}
+
+// Every 8-bit code of each channel decodes to the camera response of code / 255, channels in RGB
+// order, for every response.
+TEST(ImageIo, EightBitCodesDecodeThroughTheCameraResponse) {
+  test::TempDir dir;
+  cv::Mat bgr(4, 64, CV_8UC3);
+  for (int i = 0; i < 256; ++i) {
+    bgr.at<cv::Vec3b>(i / 64, i % 64) =
+        cv::Vec3b(static_cast<uint8_t>(255 - i), static_cast<uint8_t>((i * 7) % 256),
+                  static_cast<uint8_t>(i));
+  }
+  ASSERT_TRUE(cv::imwrite((dir / "codes.png").string(), bgr));
+  for (const char* text : {"srgb", "linear", "gamma:2.2"}) {
+    const CameraResponse response = CameraResponse::Parse(text, "test");
+    const ImageRgb image = ReadColorImage(dir / "codes.png", response);
+    for (int i = 0; i < 256; ++i) {
+      const Eigen::Vector3f rgb = image(i % 64, i / 64);
+      // (code / 255 rounds differently in OpenCV's conversion: a few units in the last place)
+      EXPECT_NEAR(rgb[0], response.ToLinear(i / 255.0f), 1e-6) << text << " code " << i;
+      EXPECT_NEAR(rgb[1], response.ToLinear(((i * 7) % 256) / 255.0f), 1e-6) << text << " " << i;
+      EXPECT_NEAR(rgb[2], response.ToLinear((255 - i) / 255.0f), 1e-6) << text << " " << i;
     }
   }
 }

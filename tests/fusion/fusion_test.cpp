@@ -8,6 +8,7 @@
 #include <tuple>
 
 #include "core/parallel.h"
+#include "core/rng.h"
 #include "core/se3.h"
 #include "core/synthetic.h"
 #include "core/trajectory_metrics.h"
@@ -193,6 +194,38 @@ TEST(Preprocess, MasksInvalidDepthAndKeepsEdgesSharp) {
   EXPECT_FLOAT_EQ(filtered(6, 2), 1.0f);  // no blur across the 1 m step
   EXPECT_FLOAT_EQ(filtered(7, 2), 2.0f);
   EXPECT_EQ(filtered(0, 0), 0.0f);  // invalid stays invalid
+}
+
+// The window is clipped at the image's border. The same depth inside a frame of invalid pixels
+// (which contribute nothing) puts every pixel's whole window inside the larger image: the filter
+// must give the same values, bit for bit, with and without the clipping.
+TEST(Preprocess, BilateralFilterAtTheBorderIsTheFilterOfTheImageFramedByInvalidPixels) {
+  constexpr int kW = 23, kH = 17, kFrame = 3;
+  CounterRng rng(11, 0);
+  ImageDepth depth(kW, kH), framed(kW + 2 * kFrame, kH + 2 * kFrame);
+  for (int v = 0; v < kH; ++v) {
+    for (int u = 0; u < kW; ++u) {
+      // A slanted plane with noise, a step and holes.
+      float z = 1.0f + 0.01f * u + 0.02f * static_cast<float>(rng.Uniform());
+      if (u > 15) z += 0.5f;
+      if (rng.Uniform() < 0.1) z = 0.0f;
+      depth(u, v) = z;
+      framed(u + kFrame, v + kFrame) = z;
+    }
+  }
+  for (int radius : {1, 2, 3}) {
+    const ImageDepth a = BilateralFilterDepth(depth, radius, 1.5, 0.03);
+    const ImageDepth b = BilateralFilterDepth(framed, radius, 1.5, 0.03);
+    int smoothed = 0;
+    for (int v = 0; v < kH; ++v) {
+      for (int u = 0; u < kW; ++u) {
+        ASSERT_EQ(a(u, v), b(u + kFrame, v + kFrame))
+            << "radius " << radius << " at " << u << ", " << v;
+        smoothed += a(u, v) != depth(u, v);
+      }
+    }
+    EXPECT_GT(smoothed, kW * kH / 2) << "radius " << radius;
+  }
 }
 
 TEST(Preprocess, NormalsOfAPlaneFaceTheCamera) {
