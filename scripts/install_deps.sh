@@ -13,6 +13,8 @@ PACKAGES=(
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopenexr-dev
   # fusion (ORB features and PnP when ICP cannot track a frame from the last pose)
   libopencv-features2d-dev libopencv-calib3d-dev
+  # fusion's pose graph
+  libceres-dev
   libopenmesh-dev
   # inverse (path tracer, Mitsuba XML scenes)
   libembree-dev libtinyxml2-dev
