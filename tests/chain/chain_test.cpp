@@ -252,7 +252,8 @@ TEST_F(GensceneChain, ARerunAfterAChangedOptionRunsExactlyTheStagesThatDependOnI
       {{"--evaluate-block", "2"}, "evaluate"},
   };
   for (const auto& [flags, first] : changes) {
-    const fs::path ws = tmp / first;
+    const std::string name = flags.front().substr(2);  // one workspace per changed flag
+    const fs::path ws = tmp / name;
     fs::copy(Reference().root(), ws, fs::copy_options::recursive);
     std::vector<std::string> args = DemoArgs(ws);
     const auto given = std::find(args.begin(), args.end(), flags.front());
@@ -262,7 +263,7 @@ TEST_F(GensceneChain, ARerunAfterAChangedOptionRunsExactlyTheStagesThatDependOnI
       args.insert(args.end(), flags.begin(), flags.end());
     }
     const std::string refined_before = Bytes(ws / "mesh_refined.ply");
-    ASSERT_EQ(RunToEnd(args, tmp / (first + ".err")), 0) << Bytes(tmp / (first + ".err"));
+    ASSERT_EQ(RunToEnd(args, tmp / (name + ".err")), 0) << Bytes(tmp / (name + ".err"));
     // The changed stage and every later one (each reads what the one before it wrote).
     std::vector<std::string> expected(std::find(all.begin(), all.end(), first), all.end());
     // A refinement whose gates keep the unrefined mesh (here and in the reference) writes the
@@ -272,8 +273,7 @@ TEST_F(GensceneChain, ARerunAfterAChangedOptionRunsExactlyTheStagesThatDependOnI
     EXPECT_EQ(StagesRun(ws), expected) << flags.front();
     if (first != "lights") continue;
     // Once (the skip does not depend on which stage changed): the same run again runs nothing.
-    ASSERT_EQ(RunToEnd(args, tmp / (first + "_again.err")), 0)
-        << Bytes(tmp / (first + "_again.err"));
+    ASSERT_EQ(RunToEnd(args, tmp / (name + "_again.err")), 0) << Bytes(tmp / (name + "_again.err"));
     EXPECT_EQ(StagesRun(ws), std::vector<std::string>{}) << flags.front() << ", run again";
   }
   // Another recording in the same workspace (one depth image changed): every stage runs.
