@@ -88,10 +88,7 @@ Eigen::Isometry3d FromParameters(const std::array<double, 7>& p) {
 }
 
 bool IsRigid(const Eigen::Isometry3d& pose) {
-  const Eigen::Matrix4d m = pose.matrix();
-  if (!m.allFinite()) return false;
-  const Eigen::Matrix3d r = pose.rotation();
-  return (r.transpose() * r - Eigen::Matrix3d::Identity()).norm() < 1e-6 && r.determinant() > 0.0;
+  return IsValidRigidTransform(pose.matrix(), 1e-6);
 }
 
 }  // namespace

@@ -19,10 +19,11 @@
 #include <string>
 #include <vector>
 
+#include "core/se3.h"
+
 namespace genscene::fusion {
 
-using Matrix6d = Eigen::Matrix<double, 6, 6>;
-using Vector6d = Eigen::Matrix<double, 6, 1>;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;  // Vector6d: core/se3.h
 
 struct PoseGraphEdge {
   int from = 0;
