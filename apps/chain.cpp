@@ -318,6 +318,12 @@ std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings)
       render::ExportGltf(dir / "model.glb", mesh, albedo, observed ? &*observed : nullptr,
                          scene.voxel_lights ? &*scene.voxel_lights : nullptr, views);
   for (const std::string& w : glb.warnings) warnings->push_back(w);
+  const bool distant = scene.voxel_lights && scene.voxel_lights->HasDistantLight();
+  if (distant) {
+    warnings->push_back(
+        "the distant light is left out of model.glb (glTF has no environment light); model.xml "
+        "holds it as an envmap");
+  }
   try {
     for (std::string& w : render::ExportMitsubaXml(dir / "model.xml", scene, views))
       warnings->push_back(std::move(w));
@@ -329,7 +335,8 @@ std::string ExportModel(const Workspace& ws, std::vector<std::string>* warnings)
   return Format(colored.vertices.size(), " coloured vertices (", (dir / "model.ply").string(),
                 "), ", scene.voxel_lights->ActiveVoxels().size(), " active voxel lights (",
                 scene.voxel_lights->ActiveVoxels(0.0).size(),
-                " with any power, all exported) as emissive cube faces (",
+                " with any power, all exported) as emissive cube faces",
+                distant ? " and the distant light as an envmap (model_distant.exr)" : "", " (",
                 (dir / "model.xml").string(), "), glTF binary with a ", glb.atlas_width, "x",
                 glb.atlas_height, " albedo atlas, ", glb.cameras, " cameras and ", glb.lights,
                 " point lights (", (dir / "model.glb").string(), ", ", glb.bytes / 1024,

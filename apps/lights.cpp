@@ -129,6 +129,7 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
   estimate["seed"] = seed;
   estimate["pixels"] = out.estimate.pixels;
   estimate["active_voxels"] = out.estimate.active_voxels;
+  if (out.estimate.lights.distant) estimate["distant_share"] = out.estimate.distant_share;
   estimate["train_rmse_cache"] = out.estimate.train_rmse;
   estimate["seconds"] = out.estimate.seconds;
   nlohmann::ordered_json rounds = nlohmann::ordered_json::array();
@@ -203,6 +204,12 @@ std::string ToString(const LightsSummary& s) {
   const LightEstimate& e = s.estimate;
   o << e.pixels << " pixels, " << e.rounds.size() << " rounds, " << e.active_voxels
     << " active voxels of " << e.lights.VoxelCount() << ", " << Format(e.seconds) << " s";
+  if (e.lights.distant) {
+    char line[96];
+    std::snprintf(line, sizeof(line), "; distant light: %.1f %% of the light at the pixels",
+                  100.0 * e.distant_share);
+    o << line;
+  }
   for (const auto& [name, errors] :
        {std::pair{"training", &s.train}, std::pair{"novel", &s.novel}}) {
     if (errors->empty()) continue;

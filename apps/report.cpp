@@ -259,6 +259,15 @@ void Lights(const Workspace& ws, const fs::path& dir, const ReportOptions& optio
   md << "## Light estimation\n\n"
      << e["pixels"].get<long long>() << " sampled pixels, " << e["active_voxels"].get<int>()
      << " active voxels, " << Fixed(e["seconds"].get<double>(), 2) << " s.\n\n";
+  if (e.contains("distant_share") && (*lights)["voxel_lights"].contains("distant")) {
+    const Json& d = (*lights)["voxel_lights"]["distant"];
+    md << "Distant light (beyond the scan): " << Fixed(100.0 * e["distant_share"].get<double>(), 1)
+       << " % of the light at the sampled pixels; intensity (" << d["intensity"][0].get<double>()
+       << ", " << d["intensity"][1].get<double>() << ", " << d["intensity"][2].get<double>()
+       << "), lobes +x -x +y -y +z -z:";
+    for (const Json& w : d["weights"]) md << " " << Fixed(w.get<double>(), 2);
+    md << ".\n\n";
+  }
   md << "| round | cache non-zeros | rays | trace s | solve s | cost | active voxels "
         "|\n|---:|---:|---:|---:|---:|---:|---:|\n";
   for (const Json& r : e["rounds"]) {

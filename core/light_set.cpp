@@ -36,6 +36,15 @@ Eigen::Vector3f VoxelLightGrid::Intensity(int voxel, const Eigen::Vector3d& w) c
   return intensity[voxel] * static_cast<float>(sum);
 }
 
+Eigen::Vector3f VoxelLightGrid::DistantRadiance(const Eigen::Vector3f& w) const {
+  if (!distant) return Eigen::Vector3f::Zero();
+  const auto& l = distant_weights;
+  const float sum = l[0] * std::max(0.0f, w.x()) + l[1] * std::max(0.0f, -w.x()) +
+                    l[2] * std::max(0.0f, w.y()) + l[3] * std::max(0.0f, -w.y()) +
+                    l[4] * std::max(0.0f, w.z()) + l[5] * std::max(0.0f, -w.z());
+  return distant_intensity * sum;
+}
+
 float VoxelLightGrid::MaxIntensityLuminance(int voxel) const {
   const auto& l = weights[voxel];
   // max over unit w of sum_k lambda_k max(0, w.d_k) = norm of the per-axis larger weights.
@@ -65,6 +74,16 @@ void VoxelLightGrid::Validate() const {
         throw Error(
             Format("voxel lights: voxel ", v, " has a directional weight ", w, ", must be >= 0"));
       }
+    }
+  }
+  if (!distant_intensity.allFinite() || distant_intensity.minCoeff() < 0.0f) {
+    throw Error(Format("voxel lights: the distant light has intensity (",
+                       distant_intensity.transpose(), "), must be finite and >= 0"));
+  }
+  for (float w : distant_weights) {
+    if (!std::isfinite(w) || w < 0.0f) {
+      throw Error(
+          Format("voxel lights: the distant light has a directional weight ", w, ", must be >= 0"));
     }
   }
   if (!(cube_size > 0.0))
@@ -117,7 +136,7 @@ std::vector<int> VoxelLightGrid::ActiveVoxels(double fraction) const {
 VoxelLightGrid VoxelLightGridFromJson(const json& j, const std::string& where) {
   CheckKeys(j,
             {"bounds_min", "bounds_max", "dims", "cube_size", "softening", "active_fraction",
-             "intensity", "weights"},
+             "intensity", "weights", "distant"},
             where);
   for (const char* key : {"bounds_min", "bounds_max", "dims", "intensity", "weights"}) {
     if (!j.contains(key)) throw Error(Format(where, ": missing \"", key, "\""));
@@ -144,6 +163,20 @@ VoxelLightGrid VoxelLightGridFromJson(const json& j, const std::string& where) {
     g.weights.push_back({});
     for (int k = 0; k < 6; ++k) g.weights.back()[static_cast<size_t>(k)] = static_cast<float>(w[k]);
   }
+  if (j.contains("distant")) {
+    const std::string at = where + ".distant";
+    const json& d = j["distant"];
+    if (!d.is_object()) throw Error(Format(at, ": expected an object"));
+    CheckKeys(d, {"intensity", "weights"}, at);
+    for (const char* key : {"intensity", "weights"}) {
+      if (!d.contains(key)) throw Error(Format(at, ": missing \"", key, "\""));
+    }
+    g.distant = true;
+    g.distant_intensity = JsonVector<3>(d["intensity"], at + ".intensity").cast<float>();
+    const Eigen::Matrix<double, 6, 1> w = JsonVector<6>(d["weights"], at + ".weights");
+    for (int k = 0; k < 6; ++k)
+      g.distant_weights[static_cast<size_t>(k)] = static_cast<float>(w[k]);
+  }
   try {
     g.Validate();
   } catch (const Error& e) {
@@ -156,14 +189,20 @@ json VoxelLightGridToJson(const VoxelLightGrid& g) {
   json intensity = json::array(), weights = json::array();
   for (const Eigen::Vector3f& l : g.intensity) intensity.push_back(FloatsToJson(l));
   for (const auto& w : g.weights) weights.push_back(std::vector<double>(w.begin(), w.end()));
-  return {{"bounds_min", ToJson(g.bounds.min())},
-          {"bounds_max", ToJson(g.bounds.max())},
-          {"dims", {g.dims.x(), g.dims.y(), g.dims.z()}},
-          {"cube_size", g.cube_size},
-          {"softening", g.softening},
-          {"active_fraction", g.active_fraction},
-          {"intensity", intensity},
-          {"weights", weights}};
+  json out = {{"bounds_min", ToJson(g.bounds.min())},
+              {"bounds_max", ToJson(g.bounds.max())},
+              {"dims", {g.dims.x(), g.dims.y(), g.dims.z()}},
+              {"cube_size", g.cube_size},
+              {"softening", g.softening},
+              {"active_fraction", g.active_fraction},
+              {"intensity", intensity},
+              {"weights", weights}};
+  if (g.distant) {
+    out["distant"] = {
+        {"intensity", FloatsToJson(g.distant_intensity)},
+        {"weights", std::vector<double>(g.distant_weights.begin(), g.distant_weights.end())}};
+  }
+  return out;
 }
 
 void WriteLightsJson(const std::filesystem::path& path, const VoxelLightGrid& grid,

@@ -9,8 +9,11 @@
 //       "dims": [nx, ny, nz],                              voxels per axis
 //       "cube_size": s,                                     side of the exported emitting cube, m
 //       "softening": e,                                     optional, m (default 0): see below
-//       "intensity": [[r, g, b], ...],                      L per voxel (W/sr), x fastest, then y,
-//       z "weights": [[l+x, l-x, l+y, l-y, l+z, l-z], ...]    six lambdas per voxel, in [0, 1]
+//       "intensity": [[r, g, b], ...],                      L per voxel (W/sr), x fastest,
+//                                                           then y, then z
+//       "weights": [[l+x, l-x, l+y, l-y, l+z, l-z], ...]    six lambdas per voxel, in [0, 1]
+//       "distant": {"intensity": [r, g, b],                 optional: the distant light (below)
+//                   "weights": [l+x, l-x, l+y, l-y, l+z, l-z]}
 //     },
 //     "estimate": { ... }                                   free-form: how the estimate was made
 //   }
@@ -42,6 +45,16 @@ namespace genscene {
 // tracer (estimate, renders, refinement) uses this falloff. The model exports to any renderer
 // as six emissive quads of side `cube_size` with radiance L * lambda_k / cube_size^2
 // (render::VoxelCubeFaces), which matches it beyond a few e.
+//
+// The distant light (optional, `distant`): light from beyond the scan (a window, a ceiling lamp
+// never scanned), an environment at infinity in the form of a voxel's emission, six lobes: a ray
+// that leaves the scene along the unit direction w receives the radiance
+//     E(w) = L_d * sum_k lambda_dk * max(0, w . d_k)        [W / (m^2 sr)]
+// (L_d = `distant_intensity`, lambda_d = `distant_weights`, d_k the voxels' six directions, so
+// lambda_d,+y is the light from above when +y points up). It is linear in the products
+// L_d lambda_dk as a voxel is in its own, so light estimation takes it as one more light, index
+// VoxelCount() (LightCount, IntensityOf, WeightsOf). Camera rays that miss the scene do not see it
+// (as hidden emitters); every path that leaves the scene after a bounce does.
 struct VoxelLightGrid {
   Eigen::AlignedBox3d bounds;
   Eigen::Vector3i dims = Eigen::Vector3i::Constant(7);
@@ -52,9 +65,29 @@ struct VoxelLightGrid {
   // Share of the largest voxel power from which a voxel counts as an active light (the estimate's
   // own threshold, kept with the lights so that every stage and the viewer count alike).
   double active_fraction = 1e-3;
+  bool distant = false;  // the distant light is part of the model
+  Eigen::Vector3f distant_intensity = Eigen::Vector3f::Zero();  // L_d
+  std::array<float, 6> distant_weights = {1, 1, 1, 1, 1, 1};    // lambda_d
 
   static const std::array<Eigen::Vector3d, 6>& Directions();
   int VoxelCount() const { return dims.x() * dims.y() * dims.z(); }
+  // The voxels and, when `distant`, the distant light as light VoxelCount().
+  int LightCount() const { return VoxelCount() + (distant ? 1 : 0); }
+  Eigen::Vector3f& IntensityOf(int light) {
+    return light < VoxelCount() ? intensity[static_cast<size_t>(light)] : distant_intensity;
+  }
+  const Eigen::Vector3f& IntensityOf(int light) const {
+    return light < VoxelCount() ? intensity[static_cast<size_t>(light)] : distant_intensity;
+  }
+  std::array<float, 6>& WeightsOf(int light) {
+    return light < VoxelCount() ? weights[static_cast<size_t>(light)] : distant_weights;
+  }
+  const std::array<float, 6>& WeightsOf(int light) const {
+    return light < VoxelCount() ? weights[static_cast<size_t>(light)] : distant_weights;
+  }
+  // E(w) of the distant light for unit w (zero without one).
+  Eigen::Vector3f DistantRadiance(const Eigen::Vector3f& w) const;
+  bool HasDistantLight() const { return distant && distant_intensity.maxCoeff() > 0.0f; }
   Eigen::Vector3d VoxelCenter(int voxel) const;
   // 1 / (d2 + e^2): the falloff with the squared distance d2 from a voxel centre.
   float Falloff(float d2) const { return 1.0f / (d2 + static_cast<float>(softening * softening)); }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/check.h"
 #include "render/light_sampler.h"
@@ -259,6 +260,35 @@ void DifferentiablePathTracer::NextEvent(const Hit& at, const DualVec3& origin_o
   AddTo(radiance, beta_albedo.cwiseProduct(rgb), cos_s / kPi * factor * weight / pdf);
 }
 
+void DifferentiablePathTracer::DistantLight(const Hit& at, const DualVec3& origin_offset,
+                                            const Eigen::Vector3d& beta_albedo, CounterRng& rng,
+                                            DualRgb* radiance, RayCounts* counts) const {
+  const VoxelLightGrid* grid = scene_.voxel_lights ? &*scene_.voxel_lights : nullptr;
+  if (!grid || !grid->HasDistantLight()) return;
+  // As PathTracer::Radiance: the lattice's directions about the shading normal, each visible
+  // one adding E(w) = L_d sum_k lambda_dk max(0, w . d_k), differentiated through w.
+  const int rays = path::kDistantRays;
+  const float shift1 = rng.Uniform(), shift2 = rng.Uniform();
+  const auto& lambda = grid->distant_weights;
+  SparseDual sum(0.0);
+  for (int i = 0; i < rays; ++i) {
+    const auto [u1, u2] = path::DistantLatticePoint(i, rays, shift1, shift2);
+    const DualVec3 w = path::SampleCosine(at.ns, u1, u2);
+    if (at.ng.value().dot(w.value()) <= 0.0) continue;
+    ++counts->occluded;
+    if (tracer_->Occluded(origin_offset.value().cast<float>(), w.value().cast<float>(), 0.0f,
+                          std::numeric_limits<float>::infinity()))
+      continue;
+    for (int axis = 0; axis < 3; ++axis) {
+      const SparseDual& c = w[axis];
+      if (c.value() > 0.0) sum += lambda[2 * axis] * c;
+      if (c.value() < 0.0) sum -= lambda[2 * axis + 1] * c;
+    }
+  }
+  AddTo(radiance, beta_albedo.cwiseProduct(grid->distant_intensity.cast<double>()),
+        sum * (1.0 / rays));
+}
+
 DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
                                            const Eigen::Vector3d& direction,
                                            const RenderOptions& options, CounterRng& rng,
@@ -302,6 +332,7 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
     const DualVec3 origin_offset = at.p + OffsetScale(at.p.value()) * at.ng;
     NextEvent(at, origin_offset, beta.cwiseProduct(albedo), rng, &radiance, &local,
               depth == 1 ? first_light_u : -1.0);
+    DistantLight(at, origin_offset, beta.cwiseProduct(albedo), rng, &radiance, &local);
 
     DualVec3 wi;
     if (!path::ContinuePath(at.ns, at.ng, albedo, depth, options, rng, &wi, &beta)) break;

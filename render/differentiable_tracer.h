@@ -66,6 +66,10 @@ class DifferentiablePathTracer {
   // Next-event estimation at `at`: one light drawn as PathTracer::SampleLight draws it (chosen by
   // `choice_u` when given), its contribution (beta (*) albedo = `beta_albedo`) added to
   // `radiance` when unblocked.
+  // The distant light at `at` (path::DistantLatticePoint), added to `radiance`.
+  void DistantLight(const Hit& at, const DualVec3& origin_offset,
+                    const Eigen::Vector3d& beta_albedo, CounterRng& rng, DualRgb* radiance,
+                    RayCounts* counts) const;
   void NextEvent(const Hit& at, const DualVec3& origin_offset, const Eigen::Vector3d& beta_albedo,
                  CounterRng& rng, DualRgb* radiance, RayCounts* counts,
                  double choice_u = -1.0) const;

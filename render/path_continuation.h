@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "core/rng.h"
 #include "render/path_tracer.h"
@@ -94,6 +95,21 @@ bool ContinuePath(const Vec3& ns, const Vec3& ng, const Rgb& albedo, int depth,
     *beta /= q;
   }
   return true;
+}
+
+// The distant light (VoxelLightGrid::distant) at a path vertex: n cosine-distributed directions,
+// the points (i / n, i phi) of a rank-1 lattice shifted by (shift1, shift2) (uniform random numbers
+// drawn per vertex, so each direction is cosine-distributed and the estimate unbiased), each
+// traced to infinity; with f = albedo / pi, f cos / pdf = albedo, the vertex reflects
+// albedo x mean over the directions of visible x E(w). Every tracer estimates it so: the renders,
+// the light-estimation cache and the differentiable tracer. These are direction i's numbers.
+constexpr int kDistantRays = 8;
+inline std::pair<float, float> DistantLatticePoint(int i, int n, float shift1, float shift2) {
+  float u1 = shift1 + static_cast<float>(i) / static_cast<float>(n);
+  float u2 = shift2 + 0.618034f * static_cast<float>(i);
+  u1 -= std::floor(u1);
+  u2 -= std::floor(u2);
+  return {std::min(u1, 0.99999994f), std::min(u2, 0.99999994f)};
 }
 
 // The numbers of a pixel's samples that are stratified over them: the position in the pixel

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "core/check.h"
 #include "core/color.h"
@@ -72,6 +73,8 @@ PathTracer::PathTracer(const Scene& scene) : scene_(scene), tracer_(std::make_un
   tracer_->Commit();
   lights_ = std::make_unique<LightSampler>(scene_);
   has_area_lights_ = lights_->HasTriangles();
+  if (scene_.voxel_lights && scene_.voxel_lights->HasDistantLight())
+    distant_ = &*scene_.voxel_lights;
 }
 
 PathTracer::~PathTracer() = default;
@@ -264,6 +267,23 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
       }
     }
 
+    // The distant light, by its own shadow rays to infinity (path::DistantLatticePoint).
+    if (distant_) {
+      const int rays = path::kDistantRays;
+      const float shift1 = rng.Uniform(), shift2 = rng.Uniform();
+      Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+      for (int i = 0; i < rays; ++i) {
+        const auto [u1, u2] = path::DistantLatticePoint(i, rays, shift1, shift2);
+        const Eigen::Vector3f w = path::SampleCosine(at.ns, u1, u2);
+        if (at.ng.dot(w) <= 0.0f) continue;
+        ++local.occluded;
+        if (tracer_->Occluded(origin_offset, w, 0.0f, std::numeric_limits<float>::infinity()))
+          continue;
+        sum += distant_->DistantRadiance(w);
+      }
+      radiance += beta.cwiseProduct(albedo).cwiseProduct(sum) / static_cast<float>(rays);
+    }
+
     Eigen::Vector3f wi;
     if (!path::ContinuePath(at.ns, at.ng, albedo, depth, options, rng, &wi, &beta)) break;
     bsdf_pdf = at.ns.dot(wi) / static_cast<float>(M_PI);
@@ -425,6 +445,40 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
     }
     rays.Trace(*tracer_, origin_offset, beta.cwiseProduct(albedo) / static_cast<float>(M_PI), sink,
                &local);
+    // The distant light (light VoxelCount()) as path::DistantLatticePoint says: each unblocked
+    // direction w a connection with base beta albedo / n.
+    const bool distant_here = depth > 1 || first_vertex_weight > 0.0f;
+    if (grid.distant && splitting.distant && splitting.distant_rays > 0 && distant_here) {
+      const int n = splitting.distant_rays;
+      const float weight = (depth == 1 ? first_vertex_weight : 1.0f) / static_cast<float>(n);
+      const float shift1 = rng.Uniform(), shift2 = rng.Uniform();
+      rays.Reserve(static_cast<size_t>(n));
+      int m = 0;
+      for (int i = 0; i < n; ++i) {
+        const auto [u1, u2] = path::DistantLatticePoint(i, n, shift1, shift2);
+        const Eigen::Vector3f w = path::SampleCosine(at.ns, u1, u2);
+        if (at.ng.dot(w) <= 0.0f) continue;
+        rays.directions[m] = w;
+        rays.t_max[m] = std::numeric_limits<float>::infinity();
+        ++m;
+      }
+      if (m > 0) {
+        local.occluded += m;
+        tracer_->OccludedFrom(origin_offset, rays.directions.data(), rays.t_max.data(), m, 0.0f,
+                              rays.blocked.data());
+        const int light = grid.VoxelCount();
+        const Eigen::Vector3f base = beta.cwiseProduct(albedo) * weight;
+        int k = 0;
+        for (int i = 0; i < m; ++i) {
+          if (rays.blocked[i]) continue;
+          rays.out_voxel[k] = light;
+          rays.out_w[k] = rays.directions[i];
+          rays.out_base[k] = base;
+          ++k;
+        }
+        if (k > 0) sink({k, rays.out_voxel.data(), rays.out_w.data(), rays.out_base.data()});
+      }
+    }
 
     Eigen::Vector3f wi;
     if (!path::ContinuePath(at.ns, at.ng, albedo, depth, options, rng, &wi, &beta)) break;

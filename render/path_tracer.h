@@ -104,6 +104,11 @@ struct RenderOutput {
 // to every voxel too.
 struct VoxelSplitting {
   std::vector<bool> enabled;
+  // Every vertex (as the voxels' first_vertex_weight says) connects to the grid's distant light,
+  // when it has one and `distant`, as light VoxelCount(): `distant_rays` cosine-distributed
+  // shadow rays to infinity, w the direction of each unblocked one.
+  bool distant = true;
+  int distant_rays = 8;
   int all_until_depth = 1 << 30;
   int samples = 0;
   std::vector<double> pmf;
@@ -154,7 +159,8 @@ class PathTracer {
 
   // Light estimation's walk: the same camera path as Radiance() (BSDF sampling,
   // Russian roulette, max_depth), but at every vertex it connects to the voxels of `splitting`
-  // (positions from `grid`; its intensities are not read) with a shadow ray each, and reports
+  // (positions from `grid`; its intensities are not read) with a shadow ray each (and, when the
+  // grid has a distant light and `splitting.distant`, to it by rays to infinity), and reports
   // the coefficients of the products L_j lambda_jk to `sink` (once per vertex, the connections
   // whose shadow ray is not blocked) instead of adding radiance. Emitters and the
   // scene's own lights are ignored. The predicted radiance is linear in the products L lambda.
@@ -195,6 +201,7 @@ class PathTracer {
   std::unique_ptr<RayTracer> tracer_;
   std::unique_ptr<LightSampler> lights_;
   bool has_area_lights_ = false;
+  const VoxelLightGrid* distant_ = nullptr;  // the scene's voxel lights when they have one
 };
 
 // Two independent renders of a view with half the paths each (random numbers keyed by seed_a and

@@ -213,6 +213,7 @@ Renderer::Renderer(const ViewData& data) : impl_(std::make_unique<Impl>()) {
   const double scene_size = m.base_bounds.isEmpty() ? 1.0 : m.base_bounds.diagonal().norm();
   AddTrajectory(data.trajectory, &m.base_overlay);
   AddFrusta(data.keyframes, std::max(0.04 * scene_size, 1e-3), &m.base_overlay);
+  if (data.distant) AddDistantGlyph(*data.distant, m.base_bounds, &m.base_overlay);
   m.UploadOverlay(data.lights);
 }
 

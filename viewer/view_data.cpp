@@ -83,6 +83,12 @@ ViewData LoadWorkspace(const fs::path& root) {
       glyph.weights = grid.weights[j];
       data.lights.push_back(glyph);
     }
+    if (grid.HasDistantLight()) {
+      LightGlyph glyph;
+      glyph.power = grid.distant_intensity;
+      glyph.weights = grid.distant_weights;
+      data.distant = glyph;
+    }
   });
   return data;
 }
@@ -262,6 +268,31 @@ void AddLightGlyphs(const std::vector<LightGlyph>& lights, double scale, Overlay
       if (length > 0.0)
         PushSegment(overlay, light.position, light.position + length * kAxes[k], color);
     }
+  }
+}
+
+void AddDistantGlyph(const LightGlyph& distant, const Eigen::AlignedBox3d& box, Overlay* overlay) {
+  if (box.isEmpty() || !(distant.power.maxCoeff() > 0.0f) || !distant.power.allFinite()) return;
+  const float max_weight = *std::max_element(distant.weights.begin(), distant.weights.end());
+  if (!(max_weight > 0.0f)) return;
+  const Eigen::Vector3f color = (distant.power / distant.power.maxCoeff()).cwiseMax(0.0f);
+  const Eigen::Vector3d centre = box.center(), half = 0.5 * box.sizes();
+  const double size = box.diagonal().norm();
+  for (int k = 0; k < 6; ++k) {
+    if (!(distant.weights[k] > 0.0f)) continue;
+    const int axis = k / 2;
+    const double sign = k % 2 == 0 ? 1.0 : -1.0;
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    d[axis] = sign;
+    const Eigen::Vector3d inner = centre + half[axis] * d;
+    const double length = 0.5 * size * distant.weights[k] / max_weight;
+    PushSegment(overlay, inner + length * d, inner, color);
+    // The barb: two short segments back from the inner end, in the plane of the next axis.
+    Eigen::Vector3d across = Eigen::Vector3d::Zero();
+    across[(axis + 1) % 3] = 1.0;
+    const double barb = 0.03 * size;
+    PushSegment(overlay, inner, inner + barb * (d + across), color);
+    PushSegment(overlay, inner, inner + barb * (d - across), color);
   }
 }
 

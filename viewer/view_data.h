@@ -36,6 +36,8 @@ struct ViewData {
   Trajectory trajectory;                     // trajectory.txt (empty when missing)
   std::vector<PosedView> keyframes;          // keyframes/ (intrinsics.txt + groundtruth.txt)
   std::vector<LightGlyph> lights;  // lights.json: one per voxel with >= 0.1 % of the top power
+  // lights.json's distant light when it has one (position unused: it is drawn around the scene).
+  std::optional<LightGlyph> distant;
   // One line per missing or unreadable piece, e.g. "texture.mcol: missing (run genscene-texture)".
   std::vector<std::string> missing;
 };
@@ -87,5 +89,10 @@ void AddFrusta(const std::vector<PosedView>& keyframes, double depth, Overlay* o
 // smaller as the cube root of their share of its mean power, so that glyphs stay small however
 // bright the estimate.
 void AddLightGlyphs(const std::vector<LightGlyph>& lights, double scale, Overlay* overlay);
+// The distant light (light from beyond the scan) as arrows coming in from outside `box`: for each
+// direction d_k with a weight, a segment from the centre of the box's side on d_k outwards along
+// d_k, as long as half the box's diagonal times the weight's share of the largest, with a
+// barb at its inner end; coloured by the light's chromaticity.
+void AddDistantGlyph(const LightGlyph& distant, const Eigen::AlignedBox3d& box, Overlay* overlay);
 
 }  // namespace genscene::viewer

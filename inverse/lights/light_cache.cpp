@@ -163,7 +163,7 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
                            const std::vector<SampledPixel>& pixels,
                            const LightEstimationOptions& options, uint64_t seed, double cap_bytes) {
   const RenderOptions paths = options.paths;
-  const int parameters = 6 * grid.VoxelCount();
+  const int parameters = 6 * grid.LightCount();
   const size_t fixed = pixels.size() * (sizeof(CacheRow) + sizeof(size_t) + sizeof(SampledPixel));
   CheckCacheBytes(fixed, pixels.size(), cap_bytes);
   VoxelSplitting prepared = splitting;
@@ -171,7 +171,7 @@ LightCache TraceLightCache(const PathTracer& tracer, const VoxelLightGrid& grid,
   std::atomic<size_t> entries{0};
   std::vector<CacheRow> rows(pixels.size());
   ParallelForChunks(0, pixels.size(), 8, [&](size_t begin, size_t end) {
-    RowAccumulator accumulator(parameters, grid.VoxelCount());
+    RowAccumulator accumulator(parameters, grid.LightCount());
     for (size_t i = begin; i < end; ++i) {
       const SampledPixel& pixel = pixels[i];
       GS_CHECK_LT(static_cast<size_t>(pixel.view), views.size());
@@ -246,7 +246,7 @@ Eigen::Vector3f RenderSampledPixel(const PathTracer& tracer, const VoxelLightGri
             const float w = to.w[i][axis];
             if (w == 0.0f) continue;
             const Eigen::Vector3f c = (to.base[i] * std::abs(w)) * scale;
-            radiance += c.cwiseProduct(grid.intensity[j]) * grid.weights[j][VoxelFace(axis, w)];
+            radiance += c.cwiseProduct(grid.IntensityOf(j)) * grid.WeightsOf(j)[VoxelFace(axis, w)];
           }
         }
       },
@@ -255,13 +255,13 @@ Eigen::Vector3f RenderSampledPixel(const PathTracer& tracer, const VoxelLightGri
 }
 
 std::vector<Eigen::Vector3f> LightCache::Predict(const VoxelLightGrid& grid) const {
-  GS_CHECK_EQ(grid.VoxelCount() * 6, parameters);
+  GS_CHECK_EQ(grid.LightCount() * 6, parameters);
   std::vector<Eigen::Vector3f> out(pixels.size(), Eigen::Vector3f::Zero());
   ParallelFor(0, pixels.size(), [&](size_t i) {
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
     for (size_t e = row_begin[i]; e < row_begin[i + 1]; ++e) {
       const int j = index[e] / 6, k = index[e] % 6;
-      sum += coefficient[e].cwiseProduct(grid.intensity[j]) * grid.weights[j][k];
+      sum += coefficient[e].cwiseProduct(grid.IntensityOf(j)) * grid.WeightsOf(j)[k];
     }
     out[i] = sum;
   });

@@ -19,9 +19,10 @@
 
 namespace genscene::inverse {
 
-// Per sampled pixel, the coefficients of the parameters p = 6 j + k (sorted, RGB), compressed.
+// Per sampled pixel, the coefficients of the parameters p = 6 j + k (sorted, RGB), compressed;
+// light j = VoxelCount() is the grid's distant light when it has one.
 struct LightCache {
-  int parameters = 0;  // 6 x voxels
+  int parameters = 0;  // 6 x lights (VoxelLightGrid::LightCount)
   std::vector<SampledPixel> pixels;
   std::vector<size_t> row_begin;  // pixels + 1 entries into index / coefficient
   std::vector<int32_t> index;

@@ -138,19 +138,19 @@ LightCost::LightCost(const NormalEquations& equations, double penalty_weight,
 }
 
 Eigen::VectorXd LightCost::Pack(const VoxelLightGrid& grid) {
-  Eigen::VectorXd x(9 * grid.VoxelCount());
-  for (int j = 0; j < grid.VoxelCount(); ++j) {
-    x.segment<3>(9 * j) = grid.intensity[j].cast<double>();
-    for (int k = 0; k < 6; ++k) x[9 * j + 3 + k] = grid.weights[j][k];
+  Eigen::VectorXd x(9 * grid.LightCount());
+  for (int j = 0; j < grid.LightCount(); ++j) {
+    x.segment<3>(9 * j) = grid.IntensityOf(j).cast<double>();
+    for (int k = 0; k < 6; ++k) x[9 * j + 3 + k] = grid.WeightsOf(j)[k];
   }
   return x;
 }
 
 void LightCost::Unpack(const Eigen::VectorXd& params, VoxelLightGrid* grid) {
-  GS_CHECK_EQ(params.size(), 9 * grid->VoxelCount());
-  for (int j = 0; j < grid->VoxelCount(); ++j) {
-    grid->intensity[j] = params.segment<3>(9 * j).cast<float>();
-    for (int k = 0; k < 6; ++k) grid->weights[j][k] = static_cast<float>(params[9 * j + 3 + k]);
+  GS_CHECK_EQ(params.size(), 9 * grid->LightCount());
+  for (int j = 0; j < grid->LightCount(); ++j) {
+    grid->IntensityOf(j) = params.segment<3>(9 * j).cast<float>();
+    for (int k = 0; k < 6; ++k) grid->WeightsOf(j)[k] = static_cast<float>(params[9 * j + 3 + k]);
   }
 }
 

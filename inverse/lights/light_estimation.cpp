@@ -79,7 +79,7 @@ class LightEstimator {
         scale_(views.size(), Eigen::Vector3d::Ones()) {
     out_.pixels = pixels_.size();
     out_.lights = MakeVoxelGrid(tracer_.scene(), options.grid, options.boundary_inset,
-                                options.grid_margin, options.softening);
+                                options.grid_margin, options.softening, options.distant);
     out_.lights.active_fraction = options.active_fraction;
     CheckEquationBytes();
   }
@@ -107,6 +107,17 @@ class LightEstimator {
       for (const Eigen::Vector3d& h : scale_) out_.exposure_gains.push_back(h.cwiseInverse());
     }
     out_.train_rmse = ref > 0.0 ? std::sqrt(err / ref) : 0.0;
+    if (out_.lights.distant) {
+      VoxelLightGrid distant_only = out_.lights;
+      for (Eigen::Vector3f& l : distant_only.intensity) l.setZero();
+      const std::vector<Eigen::Vector3f> from_distant = last_.Predict(distant_only);
+      double all = 0.0, part = 0.0;
+      for (size_t i = 0; i < predicted.size(); ++i) {
+        all += Luminance(predicted[i]);
+        part += Luminance(from_distant[i]);
+      }
+      out_.distant_share = all > 0.0 ? std::clamp(part / all, 0.0, 1.0) : 0.0;
+    }
     out_.active_voxels = static_cast<int>(
         out_.lights.ActiveVoxels(options_.active_fraction).size());  // of the result's grid
     out_.seconds = SecondsSince(start);
@@ -166,7 +177,7 @@ class LightEstimator {
   // The coarse rounds over `round_pixels`, from the dark grid, then the moves in a final solve.
   void CoarseRounds(const std::vector<SampledPixel>& round_pixels) {
     out_.lights = MakeVoxelGrid(tracer_.scene(), options_.grid, options_.boundary_inset,
-                                options_.grid_margin, options_.softening);
+                                options_.grid_margin, options_.softening, options_.distant);
     out_.lights.active_fraction = options_.active_fraction;
     std::vector<double> previous_power;
     for (int round = 0; round < options_.rounds; ++round) {
@@ -261,7 +272,7 @@ class LightEstimator {
     RefinementLevel state;
     state.level = level;
     state.fine = MakeVoxelGrid(tracer_.scene(), 2 * out_.lights.dims.x(), options_.boundary_inset,
-                               options_.grid_margin, options_.softening);
+                               options_.grid_margin, options_.softening, options_.distant);
     state.fine.active_fraction = options_.active_fraction;
     state.enabled.assign(static_cast<size_t>(state.fine.VoxelCount()), false);
     bool left_out = false;
@@ -360,9 +371,9 @@ class LightEstimator {
     t = std::chrono::steady_clock::now();
     LightEstimationOptions level_options = options_;
     level_options.penalty_weight = options_.penalty_weight * options_.refine_penalty_scale;
-    for (int j = 0; j < state->fine.VoxelCount(); ++j) {  // every pass starts dark (the relaxation)
-      state->fine.intensity[j].setZero();
-      state->fine.weights[j] = {1, 1, 1, 1, 1, 1};
+    for (int j = 0; j < state->fine.LightCount(); ++j) {  // every pass starts dark (the relaxation)
+      state->fine.IntensityOf(j).setZero();
+      state->fine.WeightsOf(j) = {1, 1, 1, 1, 1, 1};
     }
     r.solve = Solve(level_options, &state->fine);
     r.solve_seconds = SecondsSince(t);
@@ -514,8 +525,7 @@ class LightEstimator {
       for (size_t i = 0; i < eq.used.size(); ++i) {
         const int j = eq.used[i] / 6, k = eq.used[i] % 6;
         x[c][static_cast<Eigen::Index>(i)] =
-            static_cast<double>(grid.intensity[static_cast<size_t>(j)][c]) *
-            grid.weights[static_cast<size_t>(j)][static_cast<size_t>(k)];
+            static_cast<double>(grid.IntensityOf(j)[c]) * grid.WeightsOf(j)[static_cast<size_t>(k)];
       }
     }
     std::vector<Eigen::Vector3d> next(scale_.size(), Eigen::Vector3d::Ones());
@@ -547,6 +557,7 @@ class LightEstimator {
   void TraceRefinementPass(RefinementLevel* state, int pass, double level_equation_bytes,
                            LightRound* r) {
     VoxelSplitting splitting;
+    splitting.distant = pass == 0;  // a growing pass's entries merge into the first pass's
     splitting.enabled = state->enabled;
     for (size_t f = 0; f < state->enabled.size(); ++f)
       splitting.enabled[f] = state->enabled[f] && !state->traced[f];
@@ -596,7 +607,7 @@ Scene WithoutLights(const Scene& scene) {
 }
 
 VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset, double margin,
-                             double softening) {
+                             double softening, bool distant) {
   GS_CHECK(boundary_inset >= 0.0 && boundary_inset <= 0.5);
   GS_CHECK(margin >= 0.0);
   GS_CHECK(softening >= 0.0);
@@ -629,6 +640,7 @@ VoxelLightGrid MakeVoxelGrid(const Scene& scene, int dims, double boundary_inset
   g.weights.assign(static_cast<size_t>(g.VoxelCount()), {1, 1, 1, 1, 1, 1});
   g.cube_size = 0.01 * g.bounds.sizes().minCoeff() / dims;
   g.softening = softening * g.bounds.sizes().minCoeff() / dims;
+  g.distant = distant;
   return g;
 }
 

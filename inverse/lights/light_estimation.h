@@ -73,7 +73,7 @@ namespace genscene::inverse {
 // The lights' softening (VoxelLightGrid::Falloff) is `softening` times the voxels' smallest side.
 VoxelLightGrid MakeVoxelGrid(const render::Scene& scene, int dims,
                              double boundary_inset = LightEstimationOptions().boundary_inset,
-                             double margin = 0.0, double softening = 0.0);
+                             double margin = 0.0, double softening = 0.0, bool distant = false);
 
 struct LightRound {
   int round = 0;
@@ -98,6 +98,9 @@ struct LightEstimate {
   // the model's radiance; geometric mean 1 over the views. Empty without.
   std::vector<Eigen::Vector3d> exposure_gains;
   int active_voxels = 0;
+  // With options.distant: the distant light's share of the predicted radiance of the sampled
+  // pixels (luminance, final cache), in [0, 1].
+  double distant_share = 0.0;
   // Step 7: the joint albedo (layout and labels of JointAlbedoInputs::clusters) when some
   // alternation was kept, and every alternation's figures.
   std::optional<MeshColors> albedo;

@@ -19,6 +19,10 @@ struct LightEstimationOptions {
   // (VoxelLightGrid::softening): a wall next to a voxel centre is not lit without bound, and the
   // model's renders have no fireflies there. 0: point lights.
   double softening = 0.5;
+  // A distant light (VoxelLightGrid::distant: six lobes at infinity) beside the voxels, for light
+  // from beyond the scan that reaches it through openings (a window, the sky, an unscanned lamp):
+  // the paths that leave the mesh after a bounce see it.
+  bool distant = false;
   int pixels_per_view = 3000;  // sampled pixels per training view
   // Camera paths per sampled pixel (spp; box filter over the pixel; even: two independent halves
   // give the normal equations), max_depth (-1: Russian roulette ends a path) and rr_depth.
@@ -95,6 +99,9 @@ struct LightEstimationOptions {
       "outer voxel centres this far inside the bounding box (0.5: cells tile it)");
     v("softening", softening, "voxels",
       "a voxel light's falloff is 1 / (d^2 + e^2), e this share of the voxels' smallest side");
+    v("distant", distant, "",
+      "a distant light (six lobes at infinity) lights the paths that leave the mesh: light from "
+      "beyond the scan");
     v("pixels_per_view", pixels_per_view, "", "random valid pixels sampled per training view");
     paths.VisitPaths(v, "camera paths per sampled pixel (even: two independent halves)");
     v("direct_paths", direct_paths, "",

@@ -42,16 +42,19 @@ void CoordinateDescent(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, const
 // G_c x_c of the current L, lambda (kept from each evaluation for the next iteration).
 class AlternatingSolver {
  public:
+  // `distant_first`: a dark grid starts from the distant light's own best fit (the voxels dark)
+  // instead of the relaxation over every light.
   AlternatingSolver(const NormalEquations& eq, const LightEstimationOptions& options,
-                    const VoxelLightGrid& grid)
+                    const VoxelLightGrid& grid, bool distant_first = false)
       : eq_(eq),
         options_(options),
         cost_(eq, options.penalty_weight, options.penalty_epsilon, options.chroma_weight),
-        voxels_(grid.VoxelCount()),
+        voxels_(grid.LightCount()),
+        grid_voxels_(grid.VoxelCount()),
         energy_(eq.observed_sq[0] + eq.observed_sq[1] + eq.observed_sq[2]),
         n_(static_cast<int>(eq.used.size())) {
     IndexParameters();
-    if (Load(grid)) StartFromRelaxation();
+    if (Load(grid)) StartFromRelaxation(distant_first ? grid_voxels_ : 0);
   }
 
   // Up to `iterations` alternating iterations, until the cost decreases less than the tolerance;
@@ -79,6 +82,7 @@ class AlternatingSolver {
     for (int pass = 0; pass < options_.move_passes; ++pass) {
       bool improved = false;
       for (int j : Strongest()) {
+        if (j >= grid_voxels_) continue;  // the distant light has no neighbours
         const Eigen::Vector3i at(j % dims.x(), j / dims.x() % dims.y(), j / (dims.x() * dims.y()));
         for (int axis = 0; axis < 3; ++axis) {
           for (int step : {-1, 1}) {
@@ -106,8 +110,8 @@ class AlternatingSolver {
       } else {
         light_.row(j).setZero();
       }
-      grid->intensity[j] = light_.row(j).transpose().cast<float>();
-      for (int k = 0; k < 6; ++k) grid->weights[j][k] = static_cast<float>(lambda_(j, k));
+      grid->IntensityOf(j) = light_.row(j).transpose().cast<float>();
+      for (int k = 0; k < 6; ++k) grid->WeightsOf(j)[k] = static_cast<float>(lambda_(j, k));
     }
   }
 
@@ -139,9 +143,10 @@ class AlternatingSolver {
     lambda_.resize(voxels_, 6);
     bool dark = true;
     for (int j = 0; j < voxels_; ++j) {
-      light_.row(j) = grid.intensity[j].cast<double>().transpose();
-      for (int k = 0; k < 6; ++k) lambda_(j, k) = std::clamp<double>(grid.weights[j][k], 0.0, 1.0);
-      dark = dark && grid.intensity[j].maxCoeff() <= 0.0f;
+      light_.row(j) = grid.IntensityOf(j).cast<double>().transpose();
+      for (int k = 0; k < 6; ++k)
+        lambda_(j, k) = std::clamp<double>(grid.WeightsOf(j)[k], 0.0, 1.0);
+      dark = dark && grid.IntensityOf(j).maxCoeff() <= 0.0f;
     }
     return dark;
   }
@@ -151,15 +156,23 @@ class AlternatingSolver {
   //     min_x x^T G_c x - 2 b_c^T x,  x >= 0,
   // from the best uniform lighting, then each voxel's 6 x 3 product matrix X_j (faces x channels)
   // reduced to its best rank-1 non-negative factor X_j ~ lambda_j L_j^T by power iteration.
-  void StartFromRelaxation() {
+  // With `first_light` > 0 only the lights from it on take part (the others stay dark).
+  void StartFromRelaxation(int first_light = 0) {
     const Eigen::Vector3d alpha = lights_internal::UniformFit(eq_);
     Eigen::MatrixXd products = Eigen::MatrixXd::Zero(6 * voxels_, 3);
+    std::vector<int> free;
+    for (int i = 0; i < n_; ++i) {
+      if (voxel_of_[i] >= first_light) free.push_back(i);
+    }
+    const int m = static_cast<int>(free.size());
     for (int c = 0; c < 3; ++c) {
-      Eigen::VectorXd x = Eigen::VectorXd::Constant(n_, alpha[c]);
-      Eigen::VectorXd gx = eq_.gram[c] * x;
-      CoordinateDescent(eq_.gram[c], eq_.rhs[c], Eigen::VectorXd::Zero(n_), 0.0,
+      const Eigen::MatrixXd gram = m == n_ ? eq_.gram[c] : Eigen::MatrixXd(eq_.gram[c](free, free));
+      const Eigen::VectorXd rhs = m == n_ ? eq_.rhs[c] : Eigen::VectorXd(eq_.rhs[c](free));
+      Eigen::VectorXd x = Eigen::VectorXd::Constant(m, alpha[c]);
+      Eigen::VectorXd gx = gram * x;
+      CoordinateDescent(gram, rhs, Eigen::VectorXd::Zero(m), 0.0,
                         std::numeric_limits<double>::infinity(), 20, &x, &gx);
-      for (int i = 0; i < n_; ++i) products(eq_.used[i], c) = x[i];
+      for (int a = 0; a < m; ++a) products(eq_.used[free[a]], c) = x[a];
     }
     for (int j = 0; j < voxels_; ++j) {
       const Eigen::Matrix<double, 6, 3> x = products.middleRows<6>(6 * j);
@@ -386,7 +399,8 @@ class AlternatingSolver {
   const NormalEquations& eq_;
   const LightEstimationOptions& options_;
   const LightCost cost_;
-  const int voxels_;
+  const int voxels_;       // the lights: the voxels, then the distant light when there is one
+  const int grid_voxels_;  // the voxels
   const double energy_;
   const int n_;
   std::vector<int> voxel_of_, face_of_;
@@ -403,17 +417,33 @@ class AlternatingSolver {
 SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions& options,
                         VoxelLightGrid* grid) {
   options.Validate();
-  GS_CHECK_EQ(6 * grid->VoxelCount(), eq.parameters);
-  // 1. The start: the grid's lights, or the convex relaxation when it is dark.
-  AlternatingSolver solver(eq, options, *grid);
-  // 2. The alternating iterations.
-  SolveReport report;
-  const double best = solver.Run(options.max_iterations, &report);
-  // 3. Moves of lit voxels to their neighbours.
-  if (options.penalty_weight > 0.0) solver.Moves(grid->dims, best, &report);
-  // 4. The result.
-  solver.Finish(&report, grid);
-  return report;
+  GS_CHECK_EQ(6 * grid->LightCount(), eq.parameters);
+  // 1. The start: the grid's lights, or the convex relaxation when it is dark. A dark grid with a
+  // distant light is also solved from the distant light's own fit (voxels near the scan's edge
+  // can stand for light from beyond it, a local minimum the relaxation often lands in), and the
+  // lower cost wins.
+  bool dark = true;
+  for (int j = 0; j < grid->LightCount(); ++j)
+    dark = dark && grid->IntensityOf(j).maxCoeff() <= 0.0f;
+  const auto solve = [&](bool distant_first, VoxelLightGrid* out) {
+    AlternatingSolver solver(eq, options, *out, distant_first);
+    // 2. The alternating iterations.
+    SolveReport report;
+    const double best = solver.Run(options.max_iterations, &report);
+    // 3. Moves of lit voxels to their neighbours.
+    if (options.penalty_weight > 0.0) solver.Moves(grid->dims, best, &report);
+    // 4. The result.
+    solver.Finish(&report, out);
+    return report;
+  };
+  if (!(dark && grid->distant)) return solve(false, grid);
+  VoxelLightGrid from_distant = *grid;
+  const SolveReport relaxed = solve(false, grid);
+  SolveReport distant = solve(true, &from_distant);
+  distant.iterations += relaxed.iterations;
+  if (!(distant.cost < relaxed.cost)) return relaxed;
+  *grid = std::move(from_distant);
+  return distant;
 }
 
 }  // namespace genscene::inverse

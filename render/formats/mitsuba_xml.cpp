@@ -15,6 +15,7 @@
 
 #include "core/check.h"
 #include "core/file_util.h"
+#include "core/image_io.h"
 #include "core/ply_io.h"
 #include "render/formats/mesh_sources.h"
 #include "render/formats/mitsuba_xml_internal.h"
@@ -215,6 +216,8 @@ class Importer {
       ParseShape(el);
     } else if (tag == "emitter" && type == "point") {
       ParsePointEmitter(el);
+    } else if (tag == "emitter" && type == "envmap") {
+      ParseEnvmap(el);
     } else if (tag == "emitter" && type == "area") {
       ParseAreaEmitter(el);  // validated here; it enters the scene only through a shape (§3)
     } else if (tag == "bsdf") {
@@ -224,7 +227,7 @@ class Importer {
     } else if (tag == "integrator") {
       ParseIntegrator(el);
     } else if (tag == "emitter") {
-      Fail(el, Format("emitter type '", type, "' is not in the subset (area, point)"));
+      Fail(el, Format("emitter type '", type, "' is not in the subset (area, point, envmap)"));
     } else {
       Fail(el, "this object is not in the subset at the top level");
     }
@@ -302,6 +305,96 @@ class Importer {
     if (radiance.minCoeff() < 0.0)
       Fail(el, Format("radiance (", radiance.transpose(), ") is negative"));
     return radiance.cast<float>();
+  }
+
+  // An envmap (EnvmapDirection) becomes the distant light of the scene's voxel lights: the six
+  // lobes E(w) = L sum_k lambda_k max(0, w . d_k) fitted to its texels (least squares weighted by
+  // solid angle per lobe colour, then the colours' best rank-1 factor L lambda^T). The envmap
+  // genscene writes is such a light and comes back as it was; any other is approximated, with a
+  // warning giving the fit's relative error.
+  void ParseEnvmap(XMLElement* el) {
+    Props p = PropsOf(el);
+    const std::optional<std::string> filename = p.String("filename");
+    const double scale = p.Float("scale").value_or(1.0);
+    const Matrix4d to_world = p.Transform("to_world").value_or(Matrix4d::Identity());
+    if (!p.children().empty()) Fail(p.children()[0], "textures are not in the subset");
+    p.Finish();
+    if (!filename) Fail(el, "missing property 'filename'");
+    if (!(scale >= 0.0)) Fail(el, Format("scale ", scale, " is negative"));
+    if (out_.scene.voxel_lights && out_.scene.voxel_lights->distant)
+      Fail(el, "a second envmap: the subset holds one");
+    const fs::path file = Resolve(*filename, fs::path());
+    CameraResponse linear;
+    linear.kind = CameraResponse::Kind::kLinear;
+    const ImageRgb image = ReadColorImage(file, linear);
+    const Eigen::Matrix3d rotation = to_world.topLeftCorner<3, 3>();
+    Eigen::Matrix<double, 6, 6> gram = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 3> rhs = Eigen::Matrix<double, 6, 3>::Zero();
+    const auto lobes = [&](int i, int j) {
+      const Vector3d w =
+          (rotation * mitsuba_detail::EnvmapDirection(i, j, image.width(), image.height()))
+              .normalized();
+      Eigen::Matrix<double, 6, 1> a;
+      for (int axis = 0; axis < 3; ++axis) {
+        a[2 * axis] = std::max(0.0, w[axis]);
+        a[2 * axis + 1] = std::max(0.0, -w[axis]);
+      }
+      return a;
+    };
+    for (int j = 0; j < image.height(); ++j) {
+      const double weight = std::sin(mitsuba_detail::kPi * (j + 0.5) / image.height());
+      for (int i = 0; i < image.width(); ++i) {
+        const Eigen::Matrix<double, 6, 1> a = lobes(i, j);
+        gram += weight * a * a.transpose();
+        rhs += weight * a * (scale * image(i, j).cast<double>()).transpose();
+      }
+    }
+    Eigen::Matrix<double, 6, 3> colour = gram.ldlt().solve(rhs).cwiseMax(0.0);
+    // The best rank-1 factor colour ~ lambda L^T (power iteration), lambda scaled to a top of 1.
+    Eigen::Matrix<double, 6, 1> lambda = Eigen::Matrix<double, 6, 1>::Ones();
+    Vector3d light = Vector3d::Zero();
+    for (int step = 0; step < 50 && colour.maxCoeff() > 0.0; ++step) {
+      light = colour.transpose() * lambda / lambda.squaredNorm();
+      if (light.squaredNorm() <= 0.0) break;
+      lambda = colour * light / light.squaredNorm();
+    }
+    const double top = lambda.maxCoeff();
+    VoxelLightGrid grid;
+    if (out_.scene.voxel_lights) {
+      grid = *out_.scene.voxel_lights;
+    } else {  // no voxels: one dark voxel
+      grid.bounds = Eigen::AlignedBox3d(Vector3d::Constant(-0.5), Vector3d::Constant(0.5));
+      grid.dims = Eigen::Vector3i::Ones();
+      grid.intensity.assign(1, Eigen::Vector3f::Zero());
+      grid.weights.assign(1, {1, 1, 1, 1, 1, 1});
+    }
+    grid.distant = true;
+    if (top > 0.0 && light.maxCoeff() > 0.0) {
+      grid.distant_intensity = (light * top).cast<float>();
+      for (int k = 0; k < 6; ++k) grid.distant_weights[k] = static_cast<float>(lambda[k] / top);
+    } else {
+      grid.distant_intensity.setZero();
+    }
+    double error = 0.0, norm = 0.0;
+    for (int j = 0; j < image.height(); ++j) {
+      const double weight = std::sin(mitsuba_detail::kPi * (j + 0.5) / image.height());
+      for (int i = 0; i < image.width(); ++i) {
+        const Vector3d w =
+            (rotation * mitsuba_detail::EnvmapDirection(i, j, image.width(), image.height()))
+                .normalized();
+        const Vector3d fitted = grid.DistantRadiance(w.cast<float>()).cast<double>();
+        const Vector3d texel = scale * image(i, j).cast<double>();
+        error += weight * (fitted - texel).squaredNorm();
+        norm += weight * texel.squaredNorm();
+      }
+    }
+    const double relative = norm > 0.0 ? std::sqrt(error / norm) : 0.0;
+    if (relative > 0.01) {
+      out_.warnings.push_back(Format(
+          Where(el), ": envmap ", file.string(), " approximated by six directional lobes (",
+          "relative error ", relative, "); the renderer's distant light holds no finer detail"));
+    }
+    out_.scene.voxel_lights = grid;
   }
 
   void ParsePointEmitter(XMLElement* el) {

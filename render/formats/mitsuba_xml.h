@@ -18,7 +18,11 @@
 //   PLY's vertex or face colours, interpolated barycentrically / constant per face, in [0, 1]
 //   after the scale (see "Mesh colours" below). A shape without BSDF gets Mitsuba's default:
 //   diffuse 0.5, or 0 when it carries an emitter (§3). Emitters: area (one-sided radiance >= 0,
-//   front = counter-clockwise side) and point (`position` or `to_world`, intensity). `twosided` and
+//   front = counter-clockwise side), point (`position` or `to_world`, intensity) and one envmap
+//   (`filename` of a latitude-longitude image, `scale`, `to_world`; Mitsuba's mapping, see
+//   mitsuba_detail::EnvmapDirection), which becomes the voxel lights' distant light: the six
+//   lobes of VoxelLightGrid::distant fitted to its texels, exact for the envmaps the export
+//   writes, else approximated with a warning. `twosided` and
 //   `flip_normals` are not used by any scene in ../shared/data and are rejected.
 // - Sensor: perspective (fov / fov_axis or focal_length, default 50 mm; principal_point_offset_x/y;
 //   near_clip / far_clip; focus_distance accepted and ignored as Mitsuba's pinhole does), hdrfilm
@@ -117,6 +121,9 @@ LoadedScene ImportMitsubaXml(const std::filesystem::path& path,
 //   when settings.hide_emitters is true); otherwise the cubes stay visible, with a warning. The
 //   cubes (side cube_size) still stand where the lights are: hidden, they are black and shadow a
 //   little, which the voxel lights do not;
+// - the voxel lights' distant light (VoxelLightGrid::distant) as an `envmap` emitter reading
+//   <stem>_distant.exr beside the XML (64 x 32 texels of its radiance; hide_emitters hides it
+//   from camera rays, as our renderer does);
 // - views as perspective sensors (x fov, principal point offsets, to_world matrix with the scale
 //   of the camera conversion above for fx != fy) with the settings' film, filter (box when
 //   unset, our renderer's default; Mitsuba's would be Gaussian), sampler and integrator. Views need

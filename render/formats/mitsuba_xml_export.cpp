@@ -15,6 +15,7 @@
 
 #include "core/check.h"
 #include "core/file_util.h"
+#include "core/image_io.h"
 #include "core/parallel.h"
 #include "render/formats/mitsuba_xml.h"
 #include "render/formats/mitsuba_xml_internal.h"
@@ -509,6 +510,21 @@ std::vector<std::string> ExportMitsubaXml(const fs::path& path, const Scene& sce
                "    <transform name=\"to_world\"><matrix value=\"" + RowMajor(to_world) +
                    "\"/></transform>\n",
                RgbReflectance(face.albedo.constant), face.emission);
+  }
+  // The distant light: an envmap beside the XML (EnvmapDirection; world = local frame).
+  if (scene.voxel_lights && scene.voxel_lights->HasDistantLight()) {
+    const VoxelLightGrid& grid = *scene.voxel_lights;
+    ImageRgb env(mitsuba_detail::kEnvmapWidth, mitsuba_detail::kEnvmapHeight);
+    for (int j = 0; j < env.height(); ++j) {
+      for (int i = 0; i < env.width(); ++i) {
+        const Vector3d d = mitsuba_detail::EnvmapDirection(i, j, env.width(), env.height());
+        env(i, j) = grid.DistantRadiance(d.cast<float>());
+      }
+    }
+    const fs::path exr = path.parent_path() / (path.stem().string() + "_distant.exr");
+    WriteExr(exr, env);
+    xml << "  <emitter type=\"envmap\">\n    <string name=\"filename\" value=\""
+        << exr.filename().string() << "\"/>\n  </emitter>\n";
   }
   xml << "</scene>\n";
   WriteTextFileAtomically(path, xml.str());

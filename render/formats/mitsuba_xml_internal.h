@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cmath>
 #include <filesystem>
 #include <functional>
 #include <initializer_list>
@@ -36,6 +37,18 @@ inline Eigen::Matrix4d Affine(const Eigen::Matrix3d& linear, const Eigen::Vector
   m.topRightCorner<3, 1>() = translation;
   return m;
 }
+
+// Mitsuba's envmap: a latitude-longitude image whose texel (u, v) in [0, 1)^2 holds the radiance
+// arriving from the local direction d with u = atan2(d.x, -d.z) / (2 pi) (wrapped into [0, 1)),
+// v = acos(d.y) / pi (+y up, row 0 at the top); `to_world` turns local into world directions.
+// The direction of the texel centre (column i, row j) of a width x height image, local frame.
+inline Eigen::Vector3d EnvmapDirection(int i, int j, int width, int height) {
+  const double phi = 2.0 * kPi * (i + 0.5) / width, theta = kPi * (j + 0.5) / height;
+  return {std::sin(theta) * std::sin(phi), std::cos(theta), -std::sin(theta) * std::cos(phi)};
+}
+// The size of the envmap the export writes for the distant light: its six lobes are smooth
+// (linear between the axis planes), which 64 x 32 texels hold within bilinear interpolation.
+constexpr int kEnvmapWidth = 64, kEnvmapHeight = 32;
 
 // ------------------------------------------------------------------------------------------------
 // Element helpers of the import (mitsuba_xml_elements.cpp). The § numbers are the sections of the

@@ -39,6 +39,41 @@ TEST(LightSet, LightsJsonRoundTrips) {
   EXPECT_EQ(back.softening, g.softening);
   EXPECT_EQ(back.intensity, g.intensity);
   EXPECT_EQ(back.weights, g.weights);
+  EXPECT_FALSE(back.distant);
+  EXPECT_EQ(back.LightCount(), back.VoxelCount());
+
+  // With the distant light: light VoxelCount(), written and read back.
+  VoxelLightGrid d = g;
+  d.distant = true;
+  d.distant_intensity = Eigen::Vector3f(0.5f, 0.25f, 2.0f);
+  d.distant_weights = {0.0f, 0.1f, 0.2f, 0.3f, 1.0f, 0.5f};
+  WriteLightsJson(dir / "distant.json", d);
+  const VoxelLightGrid read = ReadLightsJson(dir / "distant.json");
+  ASSERT_TRUE(read.distant);
+  EXPECT_EQ(read.distant_intensity, d.distant_intensity);
+  EXPECT_EQ(read.distant_weights, d.distant_weights);
+  EXPECT_EQ(read.LightCount(), 25);
+  EXPECT_EQ(read.IntensityOf(24), d.distant_intensity);
+  EXPECT_EQ(read.IntensityOf(5), d.intensity[5]);
+  EXPECT_EQ(read.WeightsOf(24), d.distant_weights);
+}
+
+// E(w) = L_d sum_k lambda_dk max(0, w . d_k): the lobes of the faces w points along, zero
+// without a distant light.
+TEST(LightSet, DistantRadianceIsTheLobesAlongTheDirection) {
+  VoxelLightGrid g = SmallGrid();
+  const Eigen::Vector3f up(0, 0, 1), slant = Eigen::Vector3f(0.6f, -0.8f, 0.0f);
+  EXPECT_EQ(g.DistantRadiance(up), Eigen::Vector3f::Zero());
+  g.distant = true;
+  g.distant_intensity = Eigen::Vector3f(1.0f, 2.0f, 4.0f);
+  g.distant_weights = {0.5f, 0.1f, 0.2f, 0.25f, 1.0f, 0.0f};
+  EXPECT_TRUE((g.DistantRadiance(up) - g.distant_intensity).norm() < 1e-6f);
+  EXPECT_TRUE((g.DistantRadiance(-up)).norm() < 1e-6f);
+  const float lobes = 0.5f * 0.6f + 0.25f * 0.8f;
+  EXPECT_TRUE((g.DistantRadiance(slant) - lobes * g.distant_intensity).norm() < 1e-5f);
+  EXPECT_TRUE(g.HasDistantLight());
+  g.distant_intensity.setZero();
+  EXPECT_FALSE(g.HasDistantLight());
 }
 
 // The falloff 1 / (d^2 + e^2): a point's 1 / d^2 far away, bounded by 1 / e^2 at the centre; a
@@ -78,6 +113,16 @@ TEST(LightSet, PowerCentroidWeighsVoxelCentresByPowerLuminance) {
   EXPECT_TRUE(g.PowerCentroid().array().isNaN().all());
 }
 
+TEST(LightSet, BadDistantLightIsAnError) {
+  VoxelLightGrid g = SmallGrid();
+  g.distant = true;
+  g.distant_intensity = Eigen::Vector3f(1.0f, -1.0f, 0.0f);
+  EXPECT_CONTAINS(test::ErrorOf([&] { g.Validate(); }), "the distant light has intensity");
+  g.distant_intensity = Eigen::Vector3f::Ones();
+  g.distant_weights[3] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_CONTAINS(test::ErrorOf([&] { g.Validate(); }), "the distant light has a directional");
+}
+
 TEST(LightSet, BadLightsJsonIsAnErrorNamingTheFile) {
   test::TempDir dir;
   const auto expect_error = [&](const std::string& text, const std::string& part) {
@@ -102,6 +147,16 @@ TEST(LightSet, BadLightsJsonIsAnErrorNamingTheFile) {
       R"({"genscene_lights": 1, "voxel_lights": {"bounds_min": [0,0,0], "bounds_max": [1,1,1],
       "dims": [2,1,1], "intensity": [[1, 0, 0]], "weights": [[1,1,1,1,1,1]]}})",
       "1 intensities and 1 weight sets for 2 voxels");
+  expect_error(
+      R"({"genscene_lights": 1, "voxel_lights": {"bounds_min": [0,0,0], "bounds_max": [1,1,1],
+      "dims": [1,1,1], "intensity": [[1, 0, 0]], "weights": [[1,1,1,1,1,1]],
+      "distant": {"intensity": [1, 1, 1]}}})",
+      "distant: missing \"weights\"");
+  expect_error(
+      R"({"genscene_lights": 1, "voxel_lights": {"bounds_min": [0,0,0], "bounds_max": [1,1,1],
+      "dims": [1,1,1], "intensity": [[1, 0, 0]], "weights": [[1,1,1,1,1,1]],
+      "distant": {"intensity": [1, 1, 1], "weights": [1,1,1,1,1,1], "sky": 1}}})",
+      "unknown key 'sky'");
   EXPECT_THROW(ReadLightsJson(dir / "missing.json"), Error);
 }
 

@@ -57,8 +57,9 @@ TEST(SparseDual, NormalizedCrossProductMatchesFiniteDifferences) {
 }
 
 // A refined icosphere (radius 0.2, level 1) above a floor, one of three kinds of light.
-// kSoftVoxel: the voxel lights with a softening of 0.25 m (VoxelLightGrid::Falloff).
-enum class LightKind { kPoint, kArea, kVoxel, kSoftVoxel };
+// kSoftVoxel: the voxel lights with a softening of 0.25 m (VoxelLightGrid::Falloff). kDistant:
+// only the voxel grid's distant light (a sky brightest from above), seen by the paths that leave.
+enum class LightKind { kPoint, kArea, kVoxel, kSoftVoxel, kDistant };
 
 Scene SphereOnFloor(LightKind light, bool smooth) {
   Scene scene;
@@ -109,6 +110,19 @@ Scene SphereOnFloor(LightKind light, bool smooth) {
       grid.intensity[14] = Eigen::Vector3f(0.5f, 0.5f, 0.8f);
       grid.weights[14] = {1, 1, 1, 1, 1, 1};
       if (light == LightKind::kSoftVoxel) grid.softening = 0.25;
+      scene.voxel_lights = grid;
+      break;
+    }
+    case LightKind::kDistant: {
+      VoxelLightGrid grid;
+      grid.bounds =
+          Eigen::AlignedBox3d(Eigen::Vector3d(-0.9, -0.9, 0.6), Eigen::Vector3d(0.9, 0.9, 1.2));
+      grid.dims = Eigen::Vector3i(1, 1, 1);
+      grid.intensity.assign(1, Eigen::Vector3f::Zero());
+      grid.weights.assign(1, {1, 1, 1, 1, 1, 1});
+      grid.distant = true;
+      grid.distant_intensity = Eigen::Vector3f(1.2f, 1.0f, 0.8f);
+      grid.distant_weights = {0.3f, 0.1f, 0.2f, 0.1f, 1.0f, 0.0f};
       scene.voxel_lights = grid;
       break;
     }
@@ -250,7 +264,7 @@ TEST_P(DifferentiableTracerGradient, MatchesCentralDifferencesAwayFromVisibility
 }
 
 std::string CaseName(const ::testing::TestParamInfo<Case>& info) {
-  static const char* const kLight[] = {"Point", "Area", "Voxel", "SoftVoxel"};
+  static const char* const kLight[] = {"Point", "Area", "Voxel", "SoftVoxel", "Distant"};
   return std::string(kLight[static_cast<int>(info.param.light)]) +
          (info.param.smooth ? "Smooth" : "Flat") +
          (info.param.max_depth == 2 ? "Direct" : "OneBounce");
@@ -262,7 +276,8 @@ INSTANTIATE_TEST_SUITE_P(
                       Case{LightKind::kPoint, true, 3}, Case{LightKind::kArea, false, 2},
                       Case{LightKind::kArea, true, 2}, Case{LightKind::kArea, true, 3},
                       Case{LightKind::kVoxel, false, 2}, Case{LightKind::kVoxel, true, 3},
-                      Case{LightKind::kSoftVoxel, true, 2}, Case{LightKind::kSoftVoxel, true, 3}),
+                      Case{LightKind::kSoftVoxel, true, 2}, Case{LightKind::kSoftVoxel, true, 3},
+                      Case{LightKind::kDistant, true, 2}, Case{LightKind::kDistant, true, 3}),
     CaseName);
 
 // Hard cases: a smooth fan of `n` triangles around a raised centre vertex

@@ -4,13 +4,16 @@
 // the exported scene rendered by our path tracer against the original.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <random>
 
 #include "core/check.h"
 #include "core/color.h"
 #include "core/file_util.h"
+#include "core/image_io.h"
 #include "core/mesh_colors.h"
 #include "core/view_set.h"
 #include "render/formats/mitsuba_xml.h"
@@ -403,6 +406,51 @@ TEST(MitsubaXmlExport, ExportedRoomRendersLikeTheOriginal) {
   ExpectSameViews({view}, back.views, 1e-12, 1e-12);
   EXPECT_EQ(back.settings.hide_emitters, true);
   CompareRenders(scene, back, view, back.views[0], 0.01);
+}
+
+// The room without its ceiling under a distant light (an envmap beside the XML): the import fits
+// the same six lobes back and the renders agree.
+TEST(MitsubaXmlExport, TheDistantLightGoesOutAsAnEnvmapAndComesBack) {
+  test::TempDir dir;
+  Scene scene = Room();
+  scene.meshes.erase(std::remove_if(scene.meshes.begin(), scene.meshes.end(),
+                                    [](const SceneMesh& m) { return m.name == "ceiling"; }),
+                     scene.meshes.end());
+  VoxelLightGrid& grid = *scene.voxel_lights;
+  grid.distant = true;
+  grid.distant_intensity = Vector3f(2.0f, 1.8f, 1.2f);
+  grid.distant_weights = {0.2f, 0.0f, 0.1f, 0.3f, 1.0f, 0.05f};
+  const PosedView view = RoomView();
+  EXPECT_TRUE(ExportMitsubaXml(dir / "room.xml", scene, {view}).empty());
+  ASSERT_TRUE(fs::exists(dir / "room_distant.exr"));
+  EXPECT_CONTAINS(ReadTextFile(dir / "room.xml"), "<emitter type=\"envmap\">");
+  const LoadedScene back = ImportMitsubaXml(dir / "room.xml");
+  EXPECT_TRUE(back.warnings.empty()) << back.warnings.front();
+  ASSERT_TRUE(back.scene.voxel_lights && back.scene.voxel_lights->distant);
+  const VoxelLightGrid& read = *back.scene.voxel_lights;
+  EXPECT_LT((read.distant_intensity - grid.distant_intensity).norm(), 1e-4f)
+      << read.distant_intensity.transpose();
+  for (int k = 0; k < 6; ++k) EXPECT_NEAR(read.distant_weights[k], grid.distant_weights[k], 1e-5f);
+  CompareRenders(scene, back, view, back.views[0], 0.02);
+
+  // An envmap that is not six lobes (one bright texel) is approximated, with a warning.
+  ImageRgb spot(16, 8, Vector3f::Zero());
+  spot(3, 2) = Vector3f(50.0f, 50.0f, 50.0f);
+  WriteExr(dir / "spot.exr", spot);
+  std::ofstream(dir / "spot.xml") << R"(<scene version="3.0.0">
+  <emitter type="envmap"><string name="filename" value="spot.exr"/></emitter>
+  <shape type="rectangle"/>
+</scene>)";
+  const LoadedScene approximated = ImportMitsubaXml(dir / "spot.xml");
+  ASSERT_EQ(approximated.warnings.size(), 1u);
+  EXPECT_CONTAINS(approximated.warnings[0], "approximated by six directional lobes");
+  ASSERT_TRUE(approximated.scene.voxel_lights);
+  EXPECT_TRUE(approximated.scene.voxel_lights->HasDistantLight());
+  std::ofstream(dir / "bad.xml") << R"(<scene version="3.0.0">
+  <emitter type="envmap"/>
+</scene>)";
+  EXPECT_CONTAINS(test::ErrorOf([&] { ImportMitsubaXml(dir / "bad.xml"); }),
+                  "missing property 'filename'");
 }
 
 TEST(MitsubaXmlExport, CyclesBoxRendersLikeTheOriginal) {

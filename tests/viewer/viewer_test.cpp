@@ -141,6 +141,33 @@ TEST(Overview, FramesTheModelWithTheRecordingsUp) {
 // Glyphs: one octahedron (8 triangles) per lit light, radius growing as the cube root of the
 // power up to `scale` for the strongest, coloured by the power's chromaticity; spokes as long as
 // the directional weights say.
+// The distant light: one arrow (a shaft and a two-segment barb) per weighted direction, from
+// outside the box in to the centre of its side, as long as half the diagonal at the top weight.
+TEST(LightGlyphs, TheDistantLightComesInFromOutsideTheBox) {
+  LightGlyph sky;
+  sky.power = {2.0f, 2.0f, 1.0f};
+  sky.weights = {0, 0, 0, 0.5f, 1.0f, 0};  // from -y (half) and from +z
+  const Eigen::AlignedBox3d box(Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(2, 4, 4));
+  Overlay overlay;
+  AddDistantGlyph(sky, box, &overlay);
+  ASSERT_EQ(overlay.lines.size(), 2u * 3 * 2 * 6);  // 2 arrows of 3 segments
+  const auto point = [&](int vertex) {
+    const float* v = &overlay.lines[static_cast<size_t>(vertex) * 6];
+    return Eigen::Vector3d(v[0], v[1], v[2]);
+  };
+  // -y first: from (1, -1.5, 2) in to the side's centre (1, 0, 2); then +z: from (1, 2, 7).
+  EXPECT_LT((point(0) - Eigen::Vector3d(1, -1.5, 2)).norm(), 1e-6);
+  EXPECT_LT((point(1) - Eigen::Vector3d(1, 0, 2)).norm(), 1e-6);
+  EXPECT_LT((point(6) - Eigen::Vector3d(1, 2, 7)).norm(), 1e-6);
+  EXPECT_LT((point(7) - Eigen::Vector3d(1, 2, 4)).norm(), 1e-6);
+  EXPECT_FLOAT_EQ(overlay.lines[3], 1.0f);  // colour = power / max channel
+  EXPECT_FLOAT_EQ(overlay.lines[5], 0.5f);
+  Overlay none;
+  sky.power.setZero();
+  AddDistantGlyph(sky, box, &none);
+  EXPECT_TRUE(none.lines.empty());
+}
+
 TEST(LightGlyphs, SizeAndSpokesFollowPowerAndWeights) {
   LightGlyph dim, bright;
   dim.position = {0, 0, 1};
