@@ -63,6 +63,7 @@ struct Overrides {
   std::optional<int> max_depth, rounds, refine_levels, refine_coarse_pixels, refine_spp,
       refine_grow, direct_paths, resample_voxels, split_depth;
   std::optional<double> refine_penalty_scale, refine_fraction, refine_reach, grid_margin;
+  bool distant = false;  // the estimate's distant light (--distant)
   bool voxel_truth = false, dump = false, oracle = false, fine_check = false, solver_check = false;
   std::string cycles;  // ../shared/data: section 3 instead
   std::optional<std::string> exposure;
@@ -161,6 +162,7 @@ void ApplyOverrides(LightEstimationOptions* o) {
   set(g_flags.split_depth, &o->split_depth);
   set(g_flags.exposure, &o->exposure);
   set(g_flags.grid_margin, &o->grid_margin);
+  if (g_flags.distant) o->distant = true;
   o->Validate();
 }
 
@@ -596,6 +598,8 @@ void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, i
     std::printf("%-9g %7d %9.4f %9.4f %9.4f %9.4f %22s %9.2f %8.2f\n", weight, e.active_voxels, tr,
                 tr_b, nv, nv_b, c, (centroid - Eigen::Vector3d(0, 0, 0.998)).norm() / voxel,
                 seconds);
+    if (e.lights.distant)
+      std::printf("          distant light: %.3f of the light\n", e.distant_share);
   }
 }
 
@@ -676,6 +680,9 @@ int main(int argc, char** argv) {
       ->group(overrides);
   app.add_option("--grid-margin", g_flags.grid_margin,
                  "share of the scene's size the grid reaches beyond its box")
+      ->group(overrides);
+  app.add_flag("--distant", g_flags.distant,
+               "a distant light (six lobes at infinity) beside the voxels")
       ->group(overrides);
   app.add_option("--exposure", g_flags.exposure,
                  "per-view exposure step: none, gain or white-balance")
