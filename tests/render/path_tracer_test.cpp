@@ -475,19 +475,43 @@ TEST(PathTracer, SameSeedSameImageWithOneAndTwoThreads) {
   const AreaLightSetup setup;
   Scene scene = setup.scene;
   scene.meshes[0].albedo = SurfaceAlbedo::Constant(Eigen::Vector3f(0.9f, 0.5f, 0.3f));
-  const PathTracer tracer(scene);
   PosedView view = LookingDownAt({0.0, -1.0, 1.0}, {0.0, 0.0, 0.3}, 20, 15, 15.0);
   RenderOptions options;
   options.spp = 8;
-  SetThreadCount(1);
-  const RenderOutput one = tracer.Render(view, options, 99);
-  SetThreadCount(2);
-  const RenderOutput two = tracer.Render(view, options, 99);
-  SetThreadCount(0);
-  const RenderOutput other_seed = tracer.Render(view, options, 100);
-  EXPECT_EQ(one.radiance.pixels(), two.radiance.pixels());
-  EXPECT_EQ(one.depth.pixels(), two.depth.pixels());
-  EXPECT_NE(one.radiance.pixels(), other_seed.radiance.pixels());
+  std::vector<float> without_distant;
+  // Without and with a distant light (its own shadow rays and random numbers per vertex).
+  for (bool distant : {false, true}) {
+    if (distant) {
+      VoxelLightGrid grid;
+      grid.bounds =
+          Eigen::AlignedBox3d(Eigen::Vector3d::Constant(-1), Eigen::Vector3d::Constant(1));
+      grid.dims = Eigen::Vector3i::Ones();
+      grid.cube_size = 0.01;
+      grid.intensity = {Eigen::Vector3f::Zero()};
+      grid.weights = {{1, 1, 1, 1, 1, 1}};
+      grid.distant = true;
+      grid.distant_intensity = Eigen::Vector3f(0.5f, 0.6f, 0.7f);
+      grid.distant_weights = {0.2f, 0.2f, 0.2f, 0.2f, 1.0f, 0.0f};
+      scene.voxel_lights = grid;
+    }
+    const PathTracer tracer(scene);
+    SetThreadCount(1);
+    const RenderOutput one = tracer.Render(view, options, 99);
+    SetThreadCount(2);
+    const RenderOutput two = tracer.Render(view, options, 99);
+    SetThreadCount(0);
+    const RenderOutput other_seed = tracer.Render(view, options, 100);
+    EXPECT_EQ(one.radiance.pixels(), two.radiance.pixels()) << "distant " << distant;
+    EXPECT_EQ(one.depth.pixels(), two.depth.pixels()) << "distant " << distant;
+    EXPECT_NE(one.radiance.pixels(), other_seed.radiance.pixels()) << "distant " << distant;
+    std::vector<float> sums;
+    for (const Eigen::Vector3f& p : one.radiance.pixels()) sums.push_back(p.sum());
+    if (!distant) {
+      without_distant = sums;
+    } else {
+      EXPECT_NE(sums, without_distant) << "the distant light changed nothing";
+    }
+  }
 }
 
 // The stream of shadow rays from one vertex (the voxel-light splitting) gives each ray's single-ray
