@@ -64,6 +64,7 @@ struct Overrides {
       refine_grow, direct_paths, resample_voxels, split_depth;
   std::optional<double> refine_penalty_scale, refine_fraction, refine_reach, grid_margin;
   bool distant = false;  // the estimate's distant light (--distant)
+  uint64_t seed = 7;     // the estimate's seed (--seed)
   bool voxel_truth = false, dump = false, oracle = false, fine_check = false, solver_check = false;
   std::string cycles;  // ../shared/data: section 3 instead
   std::optional<std::string> exposure;
@@ -575,7 +576,7 @@ void Cycles(const fs::path& data, const std::vector<double>& weights, int spp, i
     o.paths.spp = spp;
     ApplyOverrides(&o);
     const double t = Now();
-    const LightEstimate e = EstimateLights(scene, train, o, 7);
+    const LightEstimate e = EstimateLights(scene, train, o, g_flags.seed);
     PrintRounds(e);
     const double seconds = Now() - t;
     Scene lit = WithoutLights(scene);
@@ -680,6 +681,10 @@ int main(int argc, char** argv) {
       ->group(overrides);
   app.add_option("--grid-margin", g_flags.grid_margin,
                  "share of the scene's size the grid reaches beyond its box")
+      ->group(overrides);
+  app.add_option("--seed", g_flags.seed,
+                 "the estimate's seed (the spread over seeds is the estimate's own noise)")
+      ->capture_default_str()
       ->group(overrides);
   app.add_flag("--distant", g_flags.distant,
                "a distant light (six lobes at infinity) beside the voxels")
@@ -866,7 +871,7 @@ int main(int argc, char** argv) {
     o.noise_correction = gamma;
     ApplyOverrides(&o);
     t = Now();
-    const LightEstimate e = EstimateLights(replica.scene, replica.train, o, 7);
+    const LightEstimate e = EstimateLights(replica.scene, replica.train, o, g_flags.seed);
     const double seconds = Now() - t;
     PrintRounds(e);
     if (g_flags.dump) {
