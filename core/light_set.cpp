@@ -28,21 +28,13 @@ Eigen::Vector3d VoxelLightGrid::VoxelCenter(int voxel) const {
 }
 
 Eigen::Vector3f VoxelLightGrid::Intensity(int voxel, const Eigen::Vector3d& w) const {
-  const auto& lambda = weights[voxel];
   // Faces facing w: +x when w.x > 0, -x when w.x < 0, and so on.
-  const double sum = lambda[0] * std::max(0.0, w.x()) + lambda[1] * std::max(0.0, -w.x()) +
-                     lambda[2] * std::max(0.0, w.y()) + lambda[3] * std::max(0.0, -w.y()) +
-                     lambda[4] * std::max(0.0, w.z()) + lambda[5] * std::max(0.0, -w.z());
-  return intensity[voxel] * static_cast<float>(sum);
+  return intensity[voxel] * static_cast<float>(LobeSum(weights[voxel], w));
 }
 
 Eigen::Vector3f VoxelLightGrid::DistantRadiance(const Eigen::Vector3f& w) const {
   if (!distant) return Eigen::Vector3f::Zero();
-  const auto& l = distant_weights;
-  const float sum = l[0] * std::max(0.0f, w.x()) + l[1] * std::max(0.0f, -w.x()) +
-                    l[2] * std::max(0.0f, w.y()) + l[3] * std::max(0.0f, -w.y()) +
-                    l[4] * std::max(0.0f, w.z()) + l[5] * std::max(0.0f, -w.z());
-  return distant_intensity * sum;
+  return distant_intensity * LobeSum(distant_weights, w);
 }
 
 float VoxelLightGrid::MaxIntensityLuminance(int voxel) const {

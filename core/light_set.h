@@ -20,6 +20,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <array>
 #include <filesystem>
 #include <nlohmann/json_fwd.hpp>
@@ -55,6 +56,17 @@ namespace genscene {
 // L_d lambda_dk as a voxel is in its own, so light estimation takes it as one more light, index
 // VoxelCount() (LightCount, IntensityOf, WeightsOf). Camera rays that miss the scene do not see it
 // (as hidden emitters); every path that leaves the scene after a bounce does.
+// sum_k lambda_k max(0, w . d_k) (d_k = +x, -x, +y, -y, +z, -z): the share of a six-lobe
+// emitter's intensity along the unit direction w, in w's precision.
+template <typename Vec3>
+typename Vec3::Scalar LobeSum(const std::array<float, 6>& lambda, const Vec3& w) {
+  using S = typename Vec3::Scalar;
+  const S zero(0);
+  return S(lambda[0]) * std::max(zero, w.x()) + S(lambda[1]) * std::max(zero, -w.x()) +
+         S(lambda[2]) * std::max(zero, w.y()) + S(lambda[3]) * std::max(zero, -w.y()) +
+         S(lambda[4]) * std::max(zero, w.z()) + S(lambda[5]) * std::max(zero, -w.z());
+}
+
 struct VoxelLightGrid {
   Eigen::AlignedBox3d bounds;
   Eigen::Vector3i dims = Eigen::Vector3i::Constant(7);

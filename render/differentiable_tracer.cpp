@@ -268,13 +268,12 @@ void DifferentiablePathTracer::DistantLight(const Hit& at, const DualVec3& origi
   // As PathTracer::Radiance: the lattice's directions about the shading normal, each visible
   // one adding E(w) = L_d sum_k lambda_dk max(0, w . d_k), differentiated through w.
   const int rays = path::kDistantRays;
-  const float shift1 = rng.Uniform(), shift2 = rng.Uniform();
+  DualVec3 directions[path::kDistantRays];
+  const int m = path::DistantDirections(at.ns, at.ng, rays, rng, directions);
   const auto& lambda = grid->distant_weights;
   SparseDual sum(0.0);
-  for (int i = 0; i < rays; ++i) {
-    const auto [u1, u2] = path::DistantLatticePoint(i, rays, shift1, shift2);
-    const DualVec3 w = path::SampleCosine(at.ns, u1, u2);
-    if (at.ng.value().dot(w.value()) <= 0.0) continue;
+  for (int i = 0; i < m; ++i) {
+    const DualVec3& w = directions[i];
     ++counts->occluded;
     if (tracer_->Occluded(origin_offset.value().cast<float>(), w.value().cast<float>(), 0.0f,
                           std::numeric_limits<float>::infinity()))

@@ -63,13 +63,14 @@ class DifferentiablePathTracer {
   void UpdateNormals(bool derivatives);
   // The MIS weight of emission met at `hit` by a BSDF sample from `previous` with pdf bsdf_pdf.
   SparseDual EmitterWeight(const Hit& hit, const Hit& previous, const SparseDual& bsdf_pdf) const;
-  // Next-event estimation at `at`: one light drawn as PathTracer::SampleLight draws it (chosen by
-  // `choice_u` when given), its contribution (beta (*) albedo = `beta_albedo`) added to
-  // `radiance` when unblocked.
-  // The distant light at `at` (path::DistantLatticePoint), added to `radiance`.
+  // The distant light at `at` (path::DistantDirections), its contribution (beta (*) albedo =
+  // `beta_albedo`) added to `radiance`.
   void DistantLight(const Hit& at, const DualVec3& origin_offset,
                     const Eigen::Vector3d& beta_albedo, CounterRng& rng, DualRgb* radiance,
                     RayCounts* counts) const;
+  // Next-event estimation at `at`: one light drawn as PathTracer::SampleLight draws it (chosen by
+  // `choice_u` when given), its contribution (beta (*) albedo = `beta_albedo`) added to
+  // `radiance` when unblocked.
   void NextEvent(const Hit& at, const DualVec3& origin_offset, const Eigen::Vector3d& beta_albedo,
                  CounterRng& rng, DualRgb* radiance, RayCounts* counts,
                  double choice_u = -1.0) const;

@@ -8,7 +8,6 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
-#include <utility>
 
 #include "core/rng.h"
 #include "render/path_tracer.h"
@@ -97,19 +96,27 @@ bool ContinuePath(const Vec3& ns, const Vec3& ng, const Rgb& albedo, int depth,
   return true;
 }
 
-// The distant light (VoxelLightGrid::distant) at a path vertex: n cosine-distributed directions,
-// the points (i / n, i phi) of a rank-1 lattice shifted by (shift1, shift2) (uniform random numbers
-// drawn per vertex, so each direction is cosine-distributed and the estimate unbiased), each
-// traced to infinity; with f = albedo / pi, f cos / pdf = albedo, the vertex reflects
-// albedo x mean over the directions of visible x E(w). Every tracer estimates it so: the renders,
-// the light-estimation cache and the differentiable tracer. These are direction i's numbers.
+// The distant light (VoxelLightGrid::distant) at a path vertex: n cosine-distributed directions
+// about the shading normal `ns`, the points (i / n, i phi) of a rank-1 lattice shifted by two
+// uniform numbers drawn here (so each direction is cosine-distributed and the estimate unbiased),
+// each traced to infinity; with f = albedo / pi, f cos / pdf = albedo, the vertex reflects
+// albedo x mean over the n directions of visible x E(w). Every tracer estimates it so: the
+// renders, the light-estimation cache and the differentiable tracer. Writes the directions above
+// the geometric surface (normal `ng`) to `out` (room for n) and returns their count.
 constexpr int kDistantRays = 8;
-inline std::pair<float, float> DistantLatticePoint(int i, int n, float shift1, float shift2) {
-  float u1 = shift1 + static_cast<float>(i) / static_cast<float>(n);
-  float u2 = shift2 + 0.618034f * static_cast<float>(i);
-  u1 -= std::floor(u1);
-  u2 -= std::floor(u2);
-  return {std::min(u1, 0.99999994f), std::min(u2, 0.99999994f)};
+template <typename Vec3>
+int DistantDirections(const Vec3& ns, const Vec3& ng, int n, CounterRng& rng, Vec3* out) {
+  const float shift1 = rng.Uniform(), shift2 = rng.Uniform();
+  int count = 0;
+  for (int i = 0; i < n; ++i) {
+    float u1 = shift1 + static_cast<float>(i) / static_cast<float>(n);
+    float u2 = shift2 + 0.618034f * static_cast<float>(i);
+    u1 -= std::floor(u1);
+    u2 -= std::floor(u2);
+    const Vec3 w = SampleCosine(ns, std::min(u1, 0.99999994f), std::min(u2, 0.99999994f));
+    if (ValueOf(ng).dot(ValueOf(w)) > 0) out[count++] = w;
+  }
+  return count;
 }
 
 // The numbers of a pixel's samples that are stratified over them: the position in the pixel

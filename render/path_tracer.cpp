@@ -267,19 +267,17 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
       }
     }
 
-    // The distant light, by its own shadow rays to infinity (path::DistantLatticePoint).
+    // The distant light, by its own shadow rays to infinity (path::DistantDirections).
     if (distant_) {
       const int rays = path::kDistantRays;
-      const float shift1 = rng.Uniform(), shift2 = rng.Uniform();
+      Eigen::Vector3f directions[path::kDistantRays];
+      const int m = path::DistantDirections(at.ns, at.ng, rays, rng, directions);
       Eigen::Vector3f sum = Eigen::Vector3f::Zero();
-      for (int i = 0; i < rays; ++i) {
-        const auto [u1, u2] = path::DistantLatticePoint(i, rays, shift1, shift2);
-        const Eigen::Vector3f w = path::SampleCosine(at.ns, u1, u2);
-        if (at.ng.dot(w) <= 0.0f) continue;
+      for (int i = 0; i < m; ++i) {
         ++local.occluded;
-        if (tracer_->Occluded(origin_offset, w, 0.0f, std::numeric_limits<float>::infinity()))
-          continue;
-        sum += distant_->DistantRadiance(w);
+        if (!tracer_->Occluded(origin_offset, directions[i], 0.0f,
+                               std::numeric_limits<float>::infinity()))
+          sum += distant_->DistantRadiance(directions[i]);
       }
       radiance += beta.cwiseProduct(albedo).cwiseProduct(sum) / static_cast<float>(rays);
     }
@@ -445,23 +443,15 @@ void PathTracer::VoxelCoefficients(const Eigen::Vector3f& origin, const Eigen::V
     }
     rays.Trace(*tracer_, origin_offset, beta.cwiseProduct(albedo) / static_cast<float>(M_PI), sink,
                &local);
-    // The distant light (light VoxelCount()) as path::DistantLatticePoint says: each unblocked
+    // The distant light (light VoxelCount()) as path::DistantDirections says: each unblocked
     // direction w a connection with base beta albedo / n.
     const bool distant_here = depth > 1 || first_vertex_weight > 0.0f;
     if (grid.distant && splitting.distant && splitting.distant_rays > 0 && distant_here) {
       const int n = splitting.distant_rays;
       const float weight = (depth == 1 ? first_vertex_weight : 1.0f) / static_cast<float>(n);
-      const float shift1 = rng.Uniform(), shift2 = rng.Uniform();
       rays.Reserve(static_cast<size_t>(n));
-      int m = 0;
-      for (int i = 0; i < n; ++i) {
-        const auto [u1, u2] = path::DistantLatticePoint(i, n, shift1, shift2);
-        const Eigen::Vector3f w = path::SampleCosine(at.ns, u1, u2);
-        if (at.ng.dot(w) <= 0.0f) continue;
-        rays.directions[m] = w;
-        rays.t_max[m] = std::numeric_limits<float>::infinity();
-        ++m;
-      }
+      const int m = path::DistantDirections(at.ns, at.ng, n, rng, rays.directions.data());
+      std::fill_n(rays.t_max.begin(), m, std::numeric_limits<float>::infinity());
       if (m > 0) {
         local.occluded += m;
         tracer_->OccludedFrom(origin_offset, rays.directions.data(), rays.t_max.data(), m, 0.0f,
