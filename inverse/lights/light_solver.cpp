@@ -15,6 +15,14 @@ namespace genscene::inverse {
 
 namespace {
 
+// Whether every light of `grid` (the voxels and the distant light) is dark.
+bool Dark(const VoxelLightGrid& grid) {
+  for (int j = 0; j < grid.LightCount(); ++j) {
+    if (!(grid.IntensityOf(j).maxCoeff() <= 0.0f)) return false;
+  }
+  return true;
+}
+
 // min_x x^T H x - 2 g^T x + q^T x over lo <= x <= hi by cyclic coordinate descent; `hx` holds H x
 // on entry and is kept up to date. Coordinates with H_ii <= 0 (no path reaches them) go to lo.
 void CoordinateDescent(const Eigen::MatrixXd& h, const Eigen::VectorXd& g, const Eigen::VectorXd& q,
@@ -141,14 +149,12 @@ class AlternatingSolver {
   bool Load(const VoxelLightGrid& grid) {
     light_.resize(voxels_, 3);
     lambda_.resize(voxels_, 6);
-    bool dark = true;
     for (int j = 0; j < voxels_; ++j) {
       light_.row(j) = grid.IntensityOf(j).cast<double>().transpose();
       for (int k = 0; k < 6; ++k)
         lambda_(j, k) = std::clamp<double>(grid.WeightsOf(j)[k], 0.0, 1.0);
-      dark = dark && grid.IntensityOf(j).maxCoeff() <= 0.0f;
     }
-    return dark;
+    return Dark(grid);
   }
 
   // A dark start begins from the convex relaxation: the products x = L lambda as free
@@ -422,9 +428,7 @@ SolveReport SolveLights(const NormalEquations& eq, const LightEstimationOptions&
   // distant light is also solved from the distant light's own fit (voxels near the scan's edge
   // can stand for light from beyond it, a local minimum the relaxation often lands in), and the
   // lower cost wins.
-  bool dark = true;
-  for (int j = 0; j < grid->LightCount(); ++j)
-    dark = dark && grid->IntensityOf(j).maxCoeff() <= 0.0f;
+  const bool dark = Dark(*grid);
   const auto solve = [&](bool distant_first, VoxelLightGrid* out) {
     AlternatingSolver solver(eq, options, *out, distant_first);
     // 2. The alternating iterations.

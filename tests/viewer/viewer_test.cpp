@@ -138,9 +138,6 @@ TEST(Overview, FramesTheModelWithTheRecordingsUp) {
   EXPECT_GT(std::max(outline.sizes().x() / k.width, outline.sizes().y() / k.height), 0.5);
 }
 
-// Glyphs: one octahedron (8 triangles) per lit light, radius growing as the cube root of the
-// power up to `scale` for the strongest, coloured by the power's chromaticity; spokes as long as
-// the directional weights say.
 // The distant light: one arrow (a shaft and a two-segment barb) per weighted direction, from
 // outside the box in to the centre of its side, as long as half the diagonal at the top weight.
 TEST(LightGlyphs, TheDistantLightComesInFromOutsideTheBox) {
@@ -168,6 +165,9 @@ TEST(LightGlyphs, TheDistantLightComesInFromOutsideTheBox) {
   EXPECT_TRUE(none.lines.empty());
 }
 
+// Glyphs: one octahedron (8 triangles) per lit light, radius growing as the cube root of the
+// power up to `scale` for the strongest, coloured by the power's chromaticity; spokes as long as
+// the directional weights say.
 TEST(LightGlyphs, SizeAndSpokesFollowPowerAndWeights) {
   LightGlyph dim, bright;
   dim.position = {0, 0, 1};
