@@ -1,5 +1,6 @@
 // Render noise of a model against samples per pixel: each view rendered at a high reference spp,
-// then at each spp of a list, for each light selection; relative RMSE against the reference
+// then at each spp of a list, for each light selection (power; unshadowed: by contribution without
+// the visibility cache; contribution: with it); relative RMSE against the reference
 // (sqrt(sum |a - ref|^2 / sum |ref|^2) over the views' pixels) and seconds. The scene is a
 // workspace (its model and keyframe cameras) or a scene file with views. Run by hand:
 //   build/bench/bench_render_noise --scene WS [--views 2] [--spp 16,64,256] [--ref-spp 4096]
@@ -35,7 +36,7 @@ int main(int argc, char** argv) {
   std::string scene_path;
   int views = 2, ref_spp = 4096;
   std::vector<int> spps = {16, 64, 256};
-  std::vector<std::string> selections = {"power", "contribution"};
+  std::vector<std::string> selections = {"power", "unshadowed", "contribution"};
   bool hide_emitters = false;
   int max_depth = -1, light_samples = 1;
   std::string against, filter = "box", write_prefix;
@@ -50,7 +51,10 @@ int main(int argc, char** argv) {
   app.add_option("--views", views, "views rendered (the scene's first ones)");
   app.add_option("--spp", spps, "samples per pixel to measure")->delimiter(',');
   app.add_option("--ref-spp", ref_spp, "samples per pixel of the reference");
-  app.add_option("--selections", selections, "light selections")->delimiter(',');
+  app.add_option("--selections", selections,
+                 "light selections: power, unshadowed (contribution without the visibility "
+                 "cache) or contribution")
+      ->delimiter(',');
   app.add_option("--light-samples", light_samples, "lights sampled per path vertex");
   int exact_lights = RenderOptions().exact_lights;
   app.add_option("--exact-lights", exact_lights,
@@ -114,7 +118,8 @@ int main(int argc, char** argv) {
     }
     std::printf("| light selection | spp | seconds | relative RMSE |\n|---|---:|---:|---:|\n");
     for (const std::string& selection : selections) {
-      options.light_selection = selection;
+      options.light_selection = selection == "unshadowed" ? "contribution" : selection;
+      options.light_visibility = selection != "unshadowed";
       for (int spp : spps) {
         options.spp = spp;
         double err = 0.0, norm = 0.0;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 #include "core/color.h"
@@ -81,17 +82,20 @@ class LightSampler {
   }
   // A light for the shading point p with normal n (facing the incoming ray), chosen by its
   // contribution there (RenderOptions::light_selection "contribution"). The point and voxel
-  // lights with at least 1e-3 of the strongest one's power ("near-field" lights) together keep
-  // their share of the power pmf, but among them the choice follows each light's unshadowed
-  // contribution I(w) max(0, n . wi) falloff(d) at p; the rest (area lights, the faint
-  // voxels) are chosen by power as Choose does. Every light that can contribute keeps a
-  // non-zero probability, so the estimate stays unbiased. `scratch` holds the weights.
+  // lights with at least kNearFieldPower of the strongest one's power, at most kMaxNearField of
+  // them ("near-field" lights), together keep their share of the power pmf, but among them the
+  // choice follows each light's unshadowed contribution I(w) max(0, n . wi) falloff(d) at p; the
+  // rest (area lights, the faintest voxels) are chosen by power as Choose does. Every light that
+  // can contribute keeps a non-zero probability, so the estimate stays unbiased. `scratch` holds
+  // the weights.
   struct Choice {
     size_t entry = 0;
     float pmf = 0.0f;
   };
+  // `visibility`, when given, holds a factor in (0, 1] per near-field light (in LocalPoints()'s
+  // order) that multiplies its weight: how much of it reaches p (LightVisibility).
   Choice ChooseAt(const Eigen::Vector3f& p, const Eigen::Vector3f& n, double u,
-                  std::vector<double>* scratch) const {
+                  std::vector<double>* scratch, const float* visibility = nullptr) const {
     if (local_.empty()) {
       const size_t i = Choose(u);
       return {i, pmf_[i]};
@@ -101,7 +105,7 @@ class LightSampler {
     w.resize(local_.size());
     double total = 0.0;
     for (size_t k = 0; k < local_.size(); ++k) {
-      total += LocalWeight(k, p, n);
+      total += LocalWeight(k, p, n, visibility);
       w[k] = total;
     }
     if (!(total > 0.0)) return ChooseInOrder(u);  // nothing lights p: the near field by power
@@ -120,7 +124,8 @@ class LightSampler {
   // The sum of the exact lights plus the rest's sample over its pmf is unbiased. `scratch` holds
   // the weights.
   void SplitAt(const Eigen::Vector3f& p, const Eigen::Vector3f& n, int count, double u,
-               std::vector<double>* scratch, std::vector<size_t>* exact, Choice* rest) const {
+               std::vector<double>* scratch, std::vector<size_t>* exact, Choice* rest,
+               const float* visibility = nullptr) const {
     exact->clear();
     *rest = Choice{};
     if (local_.empty()) {
@@ -131,7 +136,7 @@ class LightSampler {
     std::vector<double>& w = *scratch;
     w.resize(local_.size());
     double total = 0.0;
-    for (size_t k = 0; k < local_.size(); ++k) total += (w[k] = LocalWeight(k, p, n));
+    for (size_t k = 0; k < local_.size(); ++k) total += (w[k] = LocalWeight(k, p, n, visibility));
     if (!(total > 0.0)) {
       *rest = ChooseInOrder(u);
       return;
@@ -176,6 +181,15 @@ class LightSampler {
     const Choice c = ChooseInOrder(std::max(v, local_share_));
     *rest = {c.entry, static_cast<float>(c.pmf / remaining)};
   }
+  // The positions of the near-field lights, in the order ChooseAt's `visibility` follows.
+  std::vector<Eigen::Vector3f> LocalPoints() const {
+    std::vector<Eigen::Vector3f> points;
+    for (const LocalLight& l : local_lights_) points.push_back(l.point);
+    return points;
+  }
+  static constexpr double kNearFieldPower = 1e-6;
+  static constexpr size_t kMaxNearField = 256;
+
   bool HasTriangles() const {
     for (int first : first_triangle_) {
       if (first >= 0) return true;
@@ -193,8 +207,9 @@ class LightSampler {
 
  private:
   // ChooseAt's weight of near-field light k at p with normal n: its unshadowed contribution's
-  // luminance I(w) cos falloff.
-  double LocalWeight(size_t k, const Eigen::Vector3f& p, const Eigen::Vector3f& n) const {
+  // luminance I(w) cos falloff, times visibility[k] when given.
+  double LocalWeight(size_t k, const Eigen::Vector3f& p, const Eigen::Vector3f& n,
+                     const float* visibility) const {
     const LocalLight& l = local_lights_[k];
     const Eigen::Vector3f to = l.point - p;
     const float d2 = to.squaredNorm();
@@ -209,7 +224,7 @@ class LightSampler {
     // own 1 / d: along / (d^2 (d^2 + e^2)) (or along / d^3 for an isotropic light).
     const float inv_d2 = 1.0f / d2;
     return static_cast<double>(i * along * inv_d2 / (d2 + l.softening2)) *
-           (l.isotropic ? std::sqrt(d2) : 1.0);
+           (l.isotropic ? std::sqrt(d2) : 1.0) * (visibility ? visibility[k] : 1.0f);
   }
 
   // The entry at u of a power cdf whose position k holds entry entry_of(k): the first position
@@ -233,13 +248,27 @@ class LightSampler {
     for (size_t i = 0; i < entries_.size(); ++i) {
       if (entries_[i].kind != Kind::kTriangle) strongest = std::max(strongest, power[i]);
     }
+    // The near-field lights: the kMaxNearField strongest point and voxel lights with at least
+    // kNearFieldPower of the strongest one's power (ties by entry). Faint is not far: a voxel
+    // light of a thousandth of the strongest one's power can outshine it on the wall beside it,
+    // and chosen by power there it would be drawn once in thousands of samples with a weight
+    // in the thousands (salt noise).
+    std::vector<size_t> candidates;
+    for (size_t i = 0; i < entries_.size(); ++i) {
+      if (entries_[i].kind != Kind::kTriangle && strongest > 0.0 &&
+          power[i] >= kNearFieldPower * strongest)
+        candidates.push_back(i);
+    }
+    if (candidates.size() > kMaxNearField) {
+      std::stable_sort(candidates.begin(), candidates.end(),
+                       [&](size_t a, size_t b) { return power[a] > power[b]; });
+      candidates.resize(kMaxNearField);
+    }
+    std::vector<uint8_t> near(entries_.size(), 0);
+    for (size_t i : candidates) near[i] = 1;
     // The power pmf laid out with the near-field lights first: they own u in [0, local_share_).
     std::vector<size_t> local, rest;
-    for (size_t i = 0; i < entries_.size(); ++i) {
-      const bool near_field =
-          entries_[i].kind != Kind::kTriangle && strongest > 0.0 && power[i] >= 1e-3 * strongest;
-      (near_field ? local : rest).push_back(i);
-    }
+    for (size_t i = 0; i < entries_.size(); ++i) (near[i] ? local : rest).push_back(i);
     if (local.empty()) return;
     order_ = local;
     order_.insert(order_.end(), rest.begin(), rest.end());

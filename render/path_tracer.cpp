@@ -9,6 +9,7 @@
 #include "core/options.h"
 #include "core/parallel.h"
 #include "render/light_sampler.h"
+#include "render/light_visibility.h"
 #include "render/path_continuation.h"
 
 namespace genscene::render {
@@ -79,6 +80,15 @@ PathTracer::PathTracer(const Scene& scene) : scene_(scene), tracer_(std::make_un
 
 PathTracer::~PathTracer() = default;
 
+const LightVisibility* PathTracer::Visibility() const {
+  std::call_once(visibility_once_, [this] {
+    const std::vector<Eigen::Vector3f> points = lights_->LocalPoints();
+    if (points.size() > 1)
+      visibility_ = std::make_unique<LightVisibility>(scene_, *tracer_, points);
+  });
+  return visibility_.get();
+}
+
 std::optional<PathTracer::SurfacePoint> PathTracer::Hit(const Eigen::Vector3f& origin,
                                                         const Eigen::Vector3f& direction) const {
   const auto hit = tracer_->Intersect(origin, direction);
@@ -112,7 +122,8 @@ std::optional<PathTracer::SurfacePoint> PathTracer::Hit(const Eigen::Vector3f& o
 
 std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoint& at,
                                                                bool by_power, CounterRng& rng,
-                                                               double choice_u) const {
+                                                               double choice_u,
+                                                               const float* visibility) const {
   if (lights_->empty()) return std::nullopt;
   size_t i = 0;
   float pmf = 0.0f;
@@ -123,7 +134,7 @@ std::optional<PathTracer::LightSample> PathTracer::SampleLight(const SurfacePoin
     pmf = lights_->pmf(i);
   } else {
     thread_local std::vector<double> scratch;
-    const LightSampler::Choice c = lights_->ChooseAt(at.p, at.ns, u, &scratch);
+    const LightSampler::Choice c = lights_->ChooseAt(at.p, at.ns, u, &scratch, visibility);
     i = c.entry;
     pmf = c.pmf;
   }
@@ -199,6 +210,8 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
   float bsdf_pdf = 0.0f;  // solid-angle pdf of the last BSDF sample
   std::optional<SurfacePoint> previous;
   const bool by_power = options.light_selection == "power";
+  const LightVisibility* visibility =
+      !by_power && options.light_visibility ? Visibility() : nullptr;
 
   for (int depth = 1;; ++depth) {  // depth = segments of the path so far, ending at `hit`
     ++local.intersect;
@@ -229,6 +242,7 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
     // each weighted 1 / n; the power heuristic sees n pdf_light against pdf_bsdf. At the first
     // vertex a given first_light_u places the n choices in the n strata of [0, 1).
     const int n = options.light_samples;
+    const float* seen = visibility ? visibility->At(at.p) : nullptr;
     const auto add = [&](const std::optional<LightSample>& light) {
       const float cos_s = light ? at.ns.dot(light->wi) : 0.0f;
       if (!light || cos_s <= 0.0f || at.ng.dot(light->wi) <= 0.0f) return;
@@ -250,7 +264,7 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
         const double drawn = rng.UniformDouble();
         const double u = first_light_u >= 0.0 ? (k + first_light_u) / n : drawn;
         LightSampler::Choice rest;
-        lights_->SplitAt(at.p, at.ns, options.exact_lights, u, &scratch, &exact, &rest);
+        lights_->SplitAt(at.p, at.ns, options.exact_lights, u, &scratch, &exact, &rest, seen);
         if (k == 0) {
           // Each exact light once, with pmf 1 / n against `add`'s division by n.
           for (size_t e : exact) add(EvaluateLight(at, e, 1.0f / n, rng));
@@ -263,7 +277,7 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
         if (depth == 1 && first_light_u >= 0.0) {
           u = (k + first_light_u) / n;
         }
-        add(SampleLight(at, by_power, rng, u));
+        add(SampleLight(at, by_power, rng, u, seen));
       }
     }
 

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -21,6 +22,7 @@
 namespace genscene::render {
 
 class LightSampler;
+class LightVisibility;
 
 struct RenderOptions {
   static constexpr const char* kSection = "render";
@@ -37,7 +39,7 @@ struct RenderOptions {
   bool hide_emitters = false;  // camera rays that hit an emitter return black
   // Next-event estimation's choice among the lights: "contribution" (point and voxel lights by
   // their unshadowed contribution at the shading point, LightSampler::ChooseAt) or "power" (by
-  // power alone, as the differentiable tracer of vertex refinement always chooses).
+  // power alone). The differentiable tracer of vertex refinement chooses as this one does.
   std::string light_selection = "contribution";
   // Lights sampled per path vertex (next-event estimation), combined with the BSDF's hits on area
   // lights by the power heuristic over both counts.
@@ -46,6 +48,11 @@ struct RenderOptions {
   // vertex the lights with this many largest unshadowed contributions there are taken each with
   // a shadow ray, and one of the others is sampled (per light sample); 0: every light sampled.
   int exact_lights = 4;
+  // With light_selection "contribution": each point and voxel light's weight is also multiplied
+  // by how much of it reaches the shading point's surroundings (LightVisibility, a cache of shadow
+  // rays from the surfaces built on first use), so that bright lights behind walls are rarely
+  // chosen where they are blocked. Changes only the noise, never the expected image.
+  bool light_visibility = true;
 
   // The stages that trace paths hold their path settings as one RenderOptions and list them under
   // these keys, saying in `spp_help` what one of their samples is.
@@ -77,6 +84,9 @@ struct RenderOptions {
     v("exact_lights", exact_lights, "",
       "at the first vertex, the lights of this many largest contributions each get a shadow ray "
       "(point and voxel lights; 0: all sampled)");
+    v("light_visibility", light_visibility, "",
+      "contribution selection also weighs each light by how much of it reaches the surface there "
+      "(a cache of shadow rays from the surfaces)");
   }
   void Validate() const;
 };
@@ -189,8 +199,13 @@ class PathTracer {
   // One light sample for next-event estimation at `at`, chosen by power alone or by its
   // contribution there (RenderOptions::light_selection). `choice_u` in [0, 1) chooses the light
   // when given (rng's draw for it is then discarded).
+  // `visibility`: the near-field lights' factors at `at` (LightVisibility::At), or nullptr.
   std::optional<LightSample> SampleLight(const SurfacePoint& at, bool by_power, CounterRng& rng,
-                                         double choice_u = -1.0) const;
+                                         double choice_u = -1.0,
+                                         const float* visibility = nullptr) const;
+  // The near-field lights' visibility cache, built on first use (nullptr: fewer than two
+  // near-field lights, nothing to choose between).
+  const LightVisibility* Visibility() const;
   // The sample of light entry i (chosen with probability pmf) at `at`.
   std::optional<LightSample> EvaluateLight(const SurfacePoint& at, size_t i, float pmf,
                                            CounterRng& rng) const;
@@ -202,6 +217,8 @@ class PathTracer {
   std::unique_ptr<LightSampler> lights_;
   bool has_area_lights_ = false;
   const VoxelLightGrid* distant_ = nullptr;  // the scene's voxel lights when they have one
+  mutable std::once_flag visibility_once_;
+  mutable std::unique_ptr<LightVisibility> visibility_;
 };
 
 // Two independent renders of a view with half the paths each (random numbers keyed by seed_a and

@@ -12,6 +12,7 @@
 #include "core/rng.h"
 #include "core/synthetic.h"
 #include "render/light_sampler.h"
+#include "render/light_visibility.h"
 #include "render/ray_tracer.h"
 
 namespace genscene::render {
@@ -185,6 +186,129 @@ TEST(PathTracer, LightsChosenByContributionAreUnbiasedAndLessNoisy) {
   EXPECT_LT(error[1], 0.25 * error[0]) << "variance by contribution against by power";
 }
 
+// A light ten thousand times fainter than the room's main light, two centimetres above the
+// floor: under it, it gives as much light as the main one. Chosen by power it would be drawn
+// once in ten thousand samples there with a weight of ten thousand (salt noise); it is among the
+// lights chosen by contribution, so the render is as clean as with the main light alone.
+TEST(PathTracer, AFaintLightBesideASurfaceIsChosenByItsContribution) {
+  const Eigen::Vector3f albedo(0.5f, 0.5f, 0.5f);
+  Scene scene;
+  scene.meshes.push_back(Square(40.0, 0.0, true, albedo));
+  scene.point_lights.push_back({Eigen::Vector3d(0, 0, 2), Eigen::Vector3f::Constant(10.0f)});
+  scene.point_lights.push_back({Eigen::Vector3d(0.1, 0, 0.02), Eigen::Vector3f::Constant(1e-3f)});
+  const PathTracer tracer(scene);
+  const PosedView view = LookingDownAt({0.1, -0.05, 2.0}, {0.1, 0.0, 0.0}, 24, 24, 200.0);
+  RenderOptions options;
+  options.filter = "center";
+  options.spp = 16;
+  options.max_depth = 2;
+  options.exact_lights = 0;  // every light sampled: the choice itself is tested
+  double error[2] = {0, 0}, mean[2] = {0, 0}, expected_mean = 0.0;
+  for (int mode = 0; mode < 2; ++mode) {
+    options.light_selection = mode == 0 ? "power" : "contribution";
+    const RenderOutput out = tracer.Render(view, options, 5);
+    for (int v = 0; v < 24; ++v) {
+      for (int u = 0; u < 24; ++u) {
+        const double expected = DirectFromPointLights(scene, albedo[0], PointAt(view, out, u, v));
+        const double got = out.radiance(u, v)[0];
+        error[mode] += (got - expected) * (got - expected);
+        mean[mode] += got / (24 * 24);
+        if (mode == 0) expected_mean += expected / (24 * 24);
+      }
+    }
+  }
+  std::printf(
+      "[ closed   ] faint light 2 cm above the floor, 16 spp: RMS error by power %.5f, by "
+      "contribution %.5f; means %.5f %.5f vs %.5f\n",
+      std::sqrt(error[0] / 576), std::sqrt(error[1] / 576), mean[0], mean[1], expected_mean);
+  EXPECT_NEAR(mean[1], expected_mean, 0.01 * expected_mean);
+  EXPECT_LT(error[1], 1e-3 * error[0]) << "squared error by contribution against by power";
+}
+
+// A bright light behind a wall and a dim one in front of it, over a floor seen only in front of
+// the wall: by unshadowed contribution the bright light takes most samples there and every one
+// is blocked, while the dim light that does reach the floor is drawn rarely. The visibility
+// cache (RenderOptions::light_visibility) lowers the blocked light's weight: the mean stays the
+// exact direct light of the dim one, the noise falls.
+TEST(PathTracer, ALightBehindAWallIsRarelyChosenWhereItIsBlocked) {
+  const Eigen::Vector3f albedo(0.5f, 0.5f, 0.5f);
+  Scene scene;
+  scene.meshes.push_back(Square(8.0, 0.0, true, albedo));
+  SceneMesh wall;  // the plane x = 0, 4 m wide and 2 m high
+  wall.mesh.vertices = {{0, -2, 0}, {0, 2, 0}, {0, 2, 2}, {0, -2, 2}};
+  wall.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
+  wall.albedo = SurfaceAlbedo::Constant(albedo);
+  scene.meshes.push_back(wall);
+  scene.point_lights.push_back({Eigen::Vector3d(-0.4, 0, 0.5), Eigen::Vector3f::Constant(20.0f)});
+  scene.point_lights.push_back({Eigen::Vector3d(1.0, 0, 1.0), Eigen::Vector3f::Constant(1.0f)});
+  const PathTracer tracer(scene);
+  // The floor from x = 0.6 to 1.4 only.
+  const PosedView view = LookingDownAt({1.0, -0.05, 2.0}, {1.0, 0.0, 0.0}, 24, 24, 60.0);
+  RenderOptions options;
+  options.filter = "center";
+  options.spp = 16;
+  options.max_depth = 2;
+  options.exact_lights = 0;
+  double error[2] = {0, 0}, mean[2] = {0, 0}, expected_mean = 0.0;
+  for (int mode = 0; mode < 2; ++mode) {
+    options.light_visibility = mode == 1;
+    const RenderOutput out = tracer.Render(view, options, 5);
+    for (int v = 0; v < 24; ++v) {
+      for (int u = 0; u < 24; ++u) {
+        const Eigen::Vector3d p = PointAt(view, out, u, v);
+        ASSERT_GT(p.x(), 0.5) << "the view sees only the floor in front of the wall";
+        const Eigen::Vector3d to = scene.point_lights[1].position - p;
+        const double expected =
+            albedo[0] / M_PI * scene.point_lights[1].intensity[0] * to.z() / std::pow(to.norm(), 3);
+        const double got = out.radiance(u, v)[0];
+        error[mode] += (got - expected) * (got - expected);
+        mean[mode] += got / (24 * 24);
+        if (mode == 0) expected_mean += expected / (24 * 24);
+      }
+    }
+  }
+  std::printf(
+      "[ closed   ] light behind a wall, 16 spp: RMS error without the visibility cache %.5f, "
+      "with it %.5f; means %.5f %.5f vs %.5f\n",
+      std::sqrt(error[0] / 576), std::sqrt(error[1] / 576), mean[0], mean[1], expected_mean);
+  for (int k = 0; k < 2; ++k) {
+    EXPECT_NEAR(mean[k], expected_mean, 4.0 * std::sqrt(error[k] / 576) / std::sqrt(576.0)) << k;
+  }
+  EXPECT_LT(error[1], 0.3 * error[0]) << "squared error with the cache against without";
+}
+
+// LightVisibility on a floor split by a wall: in front of the wall the light behind it has the
+// floor's factor and the light in front of it 1; a cell that the wall passes through sees both
+// lights from some of its points; a point off the surfaces has no cell.
+TEST(LightVisibility, HoldsTheShareOfEachLightThatReachesTheSurface) {
+  Scene scene;
+  scene.meshes.push_back(Square(8.0, 0.0, true, Eigen::Vector3f::Constant(0.5f)));
+  SceneMesh wall;
+  wall.mesh.vertices = {{0, -2, 0}, {0, 2, 0}, {0, 2, 2}, {0, -2, 2}};
+  wall.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
+  wall.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.5f));
+  scene.meshes.push_back(wall);
+  RayTracer tracer;
+  for (const SceneMesh& m : scene.meshes) tracer.AddMesh(m.mesh);
+  tracer.Commit();
+  const std::vector<Eigen::Vector3f> lights = {{-0.4f, 0.0f, 0.5f}, {1.0f, 0.0f, 1.0f}};
+  LightVisibilityOptions options;
+  const LightVisibility visibility(scene, tracer, lights, options);
+  EXPECT_GT(visibility.cells(), 100u);
+  for (const Eigen::Vector3f& p :
+       {Eigen::Vector3f(1.0f, 0.3f, 0.0f), Eigen::Vector3f(2.5f, -1.0f, 0.0f)}) {
+    const float* f = visibility.At(p);
+    ASSERT_NE(f, nullptr);
+    EXPECT_FLOAT_EQ(f[0], options.floor) << p.transpose();
+    EXPECT_FLOAT_EQ(f[1], 1.0f) << p.transpose();
+  }
+  const float* behind = visibility.At(Eigen::Vector3f(-1.0f, 0.3f, 0.0f));
+  ASSERT_NE(behind, nullptr);
+  EXPECT_FLOAT_EQ(behind[0], 1.0f);
+  EXPECT_FLOAT_EQ(behind[1], options.floor);
+  EXPECT_EQ(visibility.At(Eigen::Vector3f(1.0f, 0.0f, 1.5f)), nullptr);
+}
+
 // LightSampler::SplitAt: the strongest near-field lights taken exactly plus one of the others
 // over its renormalised probability is, averaged over u, exactly the sum of every light's
 // unshadowed contribution (here of 12 voxel lights and a faint point light at a floor point);
@@ -242,7 +366,9 @@ TEST(LightSampler, TheSplitIntoExactAndSampledLightsIsUnbiased) {
           if (taken) weakest_exact = std::min(weakest_exact, each[i]);
           if (!taken) strongest_other = std::max(strongest_other, each[i]);
         }
-        if (!exact.empty()) EXPECT_GE(weakest_exact, strongest_other * 0.999) << count;
+        if (!exact.empty()) {
+          EXPECT_GE(weakest_exact, strongest_other * 0.999) << count;
+        }
       }
     }
     EXPECT_NEAR(exact_sum + sum, all, 1e-3 * all) << count << " exact lights";
