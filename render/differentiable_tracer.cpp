@@ -6,6 +6,7 @@
 
 #include "core/check.h"
 #include "render/light_sampler.h"
+#include "render/light_visibility.h"
 #include "render/path_continuation.h"
 
 namespace genscene::render {
@@ -77,6 +78,7 @@ DifferentiablePathTracer::DifferentiablePathTracer(const Scene& scene,
   }
   tracer_->Commit();
   lights_ = std::make_unique<LightSampler>(scene_);
+  has_area_lights_ = lights_->HasTriangles();
   UpdateNormals(true);
 }
 
@@ -195,15 +197,50 @@ SparseDual DifferentiablePathTracer::EmitterWeight(const Hit& hit, const Hit& pr
   return PowerHeuristic(bsdf_pdf, light_pdf);
 }
 
+const LightVisibility* DifferentiablePathTracer::Visibility() const {
+  std::call_once(visibility_once_, [this] {
+    const std::vector<Eigen::Vector3f> points = lights_->LocalPoints();
+    if (points.size() > 1)
+      visibility_ = std::make_unique<LightVisibility>(scene_, *tracer_, points);
+  });
+  return visibility_.get();
+}
+
 void DifferentiablePathTracer::NextEvent(const Hit& at, const DualVec3& origin_offset,
                                          const Eigen::Vector3d& beta_albedo, CounterRng& rng,
                                          DualRgb* radiance, RayCounts* counts,
-                                         double choice_u) const {
+                                         const LightChoice& choice, double choice_u) const {
   if (lights_->empty()) return;
-  // The random numbers are drawn as PathTracer::SampleLight draws them.
+  // The random numbers are drawn as PathTracer::Radiance draws them for one light sample. The
+  // choice's probabilities are taken at the hit's value and held constant: the estimator f / pmf
+  // of the chosen light is differentiated through f only, whose expectation over the choice is
+  // the derivative of the sum over the lights.
   const double drawn = rng.UniformDouble();
-  const size_t i = lights_->Choose(choice_u >= 0.0 ? choice_u : drawn);
-  const float pmf = lights_->pmf(i);
+  const double u = choice_u >= 0.0 ? choice_u : drawn;
+  if (!choice.by_contribution) {
+    const size_t i = lights_->Choose(u);
+    Light(at, origin_offset, beta_albedo, i, lights_->pmf(i), rng, radiance, counts);
+    return;
+  }
+  const Eigen::Vector3f p = at.p.value().cast<float>(), n = at.ns.value().cast<float>();
+  const float* seen = choice.visibility ? choice.visibility->At(p) : nullptr;
+  thread_local std::vector<double> scratch;
+  if (choice.exact > 0) {
+    thread_local std::vector<size_t> exact;
+    LightSampler::Choice rest;
+    lights_->SplitAt(p, n, choice.exact, u, &scratch, &exact, &rest, seen);
+    for (size_t e : exact) Light(at, origin_offset, beta_albedo, e, 1.0f, rng, radiance, counts);
+    if (rest.pmf > 0.0f)
+      Light(at, origin_offset, beta_albedo, rest.entry, rest.pmf, rng, radiance, counts);
+    return;
+  }
+  const LightSampler::Choice c = lights_->ChooseAt(p, n, u, &scratch, seen);
+  Light(at, origin_offset, beta_albedo, c.entry, c.pmf, rng, radiance, counts);
+}
+
+void DifferentiablePathTracer::Light(const Hit& at, const DualVec3& origin_offset,
+                                     const Eigen::Vector3d& beta_albedo, size_t i, float pmf,
+                                     CounterRng& rng, DualRgb* radiance, RayCounts* counts) const {
   const LightSampler::Entry& e = lights_->entry(i);
   const float u1 = rng.Uniform(), u2 = rng.Uniform();
   Eigen::Vector3d light_point = Eigen::Vector3d::Zero(), rgb = Eigen::Vector3d::Zero();
@@ -302,6 +339,9 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
   DualVec3 ray_o(origin), ray_d(Eigen::Vector3d(direction.normalized()));
   SparseDual bsdf_pdf;
   std::optional<Hit> previous;
+  LightChoice choice;
+  choice.by_contribution = options.light_selection == "contribution";
+  choice.visibility = choice.by_contribution && options.light_visibility ? Visibility() : nullptr;
 
   for (int depth = 1;; ++depth) {
     ++local.intersect;
@@ -329,7 +369,12 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
     Hit at = std::move(*hit);
     if (at.ng.value().dot(ray_d.value()) > 0.0) at.ng = -at.ng, at.ns = -at.ns;
     const DualVec3 origin_offset = at.p + OffsetScale(at.p.value()) * at.ng;
-    NextEvent(at, origin_offset, beta.cwiseProduct(albedo), rng, &radiance, &local,
+    // As PathTracer::Radiance: by contribution the first vertex takes the strongest lights
+    // exactly (without area lights).
+    choice.exact = depth == 1 && choice.by_contribution && !has_area_lights_
+                       ? std::max(options.exact_lights, 0)
+                       : 0;
+    NextEvent(at, origin_offset, beta.cwiseProduct(albedo), rng, &radiance, &local, choice,
               depth == 1 ? first_light_u : -1.0);
     DistantLight(at, origin_offset, beta.cwiseProduct(albedo), rng, &radiance, &local);
 

@@ -8,14 +8,19 @@
 // normals, area-weighted vertex normals (through every vertex of the one-ring), cosines, 1 / r^2,
 // the MIS weights and the sampled bounce directions follow. What is not: visibility (which
 // triangle a ray hits, whether a shadow ray is blocked) and the albedo's dependence on where on a
-// face the hit lands (albedo is taken at the hit as a constant). With fixed random numbers the
-// estimator is a smooth function of the vertices between visibility changes, and the derivatives
-// are exact there.
+// face the hit lands (albedo is taken at the hit as a constant), nor the light choice: lights are
+// chosen as the path tracer chooses them (RenderOptions::light_selection; by contribution the
+// strongest taken exactly at the first vertex), with the choice's probabilities taken at the
+// hit's value and held constant, which keeps the derivatives unbiased. With fixed random numbers
+// and power selection (or a single light) the estimator is a smooth function of the vertices
+// between visibility changes, and the derivatives are exact there; by contribution the chosen
+// light can change as the vertices move, and only the expected derivative is exact.
 #pragma once
 
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <vector>
 
 #include "render/path_tracer.h"
@@ -68,12 +73,24 @@ class DifferentiablePathTracer {
   void DistantLight(const Hit& at, const DualVec3& origin_offset,
                     const Eigen::Vector3d& beta_albedo, CounterRng& rng, DualRgb* radiance,
                     RayCounts* counts) const;
-  // Next-event estimation at `at`: one light drawn as PathTracer::SampleLight draws it (chosen by
-  // `choice_u` when given), its contribution (beta (*) albedo = `beta_albedo`) added to
-  // `radiance` when unblocked.
+  // How a path's vertices choose their lights (RenderOptions::light_selection, exact_lights,
+  // light_visibility), as PathTracer::Radiance chooses them.
+  struct LightChoice {
+    bool by_contribution = false;
+    int exact = 0;  // this vertex: the lights of this many largest contributions taken exactly
+    const LightVisibility* visibility = nullptr;
+  };
+  // Next-event estimation at `at` with one light sample, drawn as PathTracer::Radiance draws it
+  // (chosen by `choice_u` when given), the contributions (beta (*) albedo = `beta_albedo`) of the
+  // lights taken added to `radiance` when unblocked.
   void NextEvent(const Hit& at, const DualVec3& origin_offset, const Eigen::Vector3d& beta_albedo,
-                 CounterRng& rng, DualRgb* radiance, RayCounts* counts,
+                 CounterRng& rng, DualRgb* radiance, RayCounts* counts, const LightChoice& choice,
                  double choice_u = -1.0) const;
+  // Light entry i, chosen with probability pmf, at `at` (as PathTracer::EvaluateLight draws it).
+  void Light(const Hit& at, const DualVec3& origin_offset, const Eigen::Vector3d& beta_albedo,
+             size_t i, float pmf, CounterRng& rng, DualRgb* radiance, RayCounts* counts) const;
+  // The near-field lights' visibility cache, built on first use (nullptr: fewer than two).
+  const LightVisibility* Visibility() const;
 
   Scene scene_;
   std::unique_ptr<RayTracer> tracer_;
@@ -84,6 +101,9 @@ class DifferentiablePathTracer {
   std::vector<std::vector<DualVec3>> dual_normals_;      // per smooth refined mesh: unit normals
   std::vector<std::vector<Eigen::Vector3d>> normals_;    // per smooth mesh: unit normal values
   bool normal_derivatives_ = true;                       // dual_normals_ match the positions
+  bool has_area_lights_ = false;
+  mutable std::once_flag visibility_once_;
+  mutable std::unique_ptr<LightVisibility> visibility_;
 };
 
 }  // namespace genscene::render
