@@ -45,23 +45,28 @@ std::vector<int> ChooseMeshes(const Scene& scene, const std::vector<std::string>
   return refined;
 }
 
-// The meshes as one mesh (vertices in order), normals area-weighted, with the vertex colours of
-// the meshes when every one has them.
-TriangleMesh JoinMeshes(const std::vector<TriangleMesh>& meshes) {
+// The meshes as one mesh (vertices in order), with the vertex colours of the meshes when every one
+// has them; with `keep_normals` and every mesh carrying vertex normals, those, else area-weighted
+// ones.
+TriangleMesh JoinMeshes(const std::vector<TriangleMesh>& meshes, bool keep_normals) {
   TriangleMesh out;
-  bool colored = true;
-  for (const TriangleMesh& mesh : meshes)
+  bool colored = true, with_normals = keep_normals;
+  for (const TriangleMesh& mesh : meshes) {
     colored = colored && mesh.vertex_colors.size() == mesh.vertices.size();
+    with_normals = with_normals && mesh.normals.size() == mesh.vertices.size();
+  }
   for (const TriangleMesh& mesh : meshes) {
     const int offset = static_cast<int>(out.vertices.size());
     out.vertices.insert(out.vertices.end(), mesh.vertices.begin(), mesh.vertices.end());
     if (colored)
       out.vertex_colors.insert(out.vertex_colors.end(), mesh.vertex_colors.begin(),
                                mesh.vertex_colors.end());
+    if (with_normals)
+      out.normals.insert(out.normals.end(), mesh.normals.begin(), mesh.normals.end());
     for (const Eigen::Vector3i& f : mesh.faces)
       out.faces.push_back(f + Eigen::Vector3i::Constant(offset));
   }
-  out.ComputeVertexNormals();
+  if (!with_normals) out.ComputeVertexNormals();
   return out;
 }
 
@@ -169,7 +174,7 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
   const std::vector<int> refined = ChooseMeshes(scene, in.refine, &out.refined);
   std::vector<TriangleMesh> start_meshes;
   for (int m : refined) start_meshes.push_back(scene.meshes[m].mesh);
-  const TriangleMesh start = JoinMeshes(start_meshes);
+  const TriangleMesh start = JoinMeshes(start_meshes, true);
 
   out.vertices = static_cast<int>(start.vertices.size());
   std::optional<Eigen::VectorXd> truth;  // in the order of the joined refined meshes
@@ -238,7 +243,7 @@ RefineSummary RefineWorkspace(const RefineInputs& in, const RefineOptions& optio
           ws.RefinedMesh().filename().string()));
     }
   }
-  TriangleMesh final_mesh = out.kept_unrefined ? start : JoinMeshes(out.result.meshes);
+  TriangleMesh final_mesh = out.kept_unrefined ? start : JoinMeshes(out.result.meshes, false);
   // The refined mesh keeps the colours of the mesh it started from.
   if (final_mesh.vertices.size() == start.vertices.size())
     final_mesh.vertex_colors = start.vertex_colors;

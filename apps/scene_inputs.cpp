@@ -37,6 +37,9 @@ Scene LoadGeometry(const GeometryInputs& in, const Workspace& ws,
                                  ": no albedo given and no colours in the PLY; assuming grey 0.5"));
     }
   }
+  // Per-vertex normals in the PLY (meshing's TSDF gradients, the refined mesh's) shade it smoothly,
+  // as MeshLab and Blender show it.
+  m.smooth_shading = m.mesh.normals.size() == m.mesh.vertices.size();
   Scene scene;
   scene.meshes.push_back(std::move(m));
   return scene;

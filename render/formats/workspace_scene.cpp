@@ -39,6 +39,7 @@ LoadedScene LoadWorkspaceScene(const fs::path& folder) {
     out.warnings.push_back(Format(ws.Albedo().string(),
                                   ": no albedo (run genscene-albedo); using the mesh's colours"));
   }
+  m.smooth_shading = m.mesh.normals.size() == m.mesh.vertices.size();  // as the PLY's normals say
   out.scene.meshes.push_back(std::move(m));
   if (fs::exists(ws.Lights())) {
     out.scene.voxel_lights = ReadLightsJson(ws.Lights());

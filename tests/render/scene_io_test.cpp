@@ -10,6 +10,7 @@
 #include "core/check.h"
 #include "core/ply_io.h"
 #include "render/formats/mesh_sources.h"
+#include "render/formats/workspace_scene.h"
 #include "tests/test_util.h"
 
 namespace genscene::render {
@@ -314,6 +315,26 @@ TEST(MeshSources, AngleWeightedNormalsAtACubeCorner) {
   }
   const std::vector<Vector3f> n = AngleWeightedNormals(m);
   EXPECT_TRUE(n[0].isApprox(Vector3f(1, 1, 1).normalized(), 1e-6f)) << n[0].transpose();
+}
+
+// A workspace's mesh is shaded by the vertex normals its PLY carries (meshing writes the TSDF's
+// gradients), and flat without them.
+TEST(WorkspaceScene, APlyWithVertexNormalsIsShadedSmoothly) {
+  for (const bool with_normals : {true, false}) {
+    test::TempDir dir;
+    TriangleMesh mesh;
+    mesh.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    mesh.faces = {{0, 1, 2}};
+    if (with_normals) mesh.normals = {{0, 0, 1}, {0, 0.6f, 0.8f}, {0.6f, 0, 0.8f}};
+    WritePly(dir / "mesh.ply", mesh);
+    const LoadedScene loaded = LoadSceneOrWorkspace(dir.path());
+    ASSERT_EQ(loaded.scene.meshes.size(), 1u);
+    EXPECT_EQ(loaded.scene.meshes[0].smooth_shading, with_normals);
+    if (with_normals) {
+      ASSERT_EQ(loaded.scene.meshes[0].mesh.normals.size(), 3u);
+      EXPECT_TRUE(loaded.scene.meshes[0].mesh.normals[1].isApprox(Vector3f(0, 0.6f, 0.8f), 1e-6f));
+    }
+  }
 }
 
 }  // namespace
