@@ -197,15 +197,6 @@ SparseDual DifferentiablePathTracer::EmitterWeight(const Hit& hit, const Hit& pr
   return PowerHeuristic(bsdf_pdf, light_pdf);
 }
 
-const LightVisibility* DifferentiablePathTracer::Visibility() const {
-  std::call_once(visibility_once_, [this] {
-    const std::vector<Eigen::Vector3f> points = lights_->LocalPoints();
-    if (points.size() > 1)
-      visibility_ = std::make_unique<LightVisibility>(scene_, *tracer_, points);
-  });
-  return visibility_.get();
-}
-
 void DifferentiablePathTracer::NextEvent(const Hit& at, const DualVec3& origin_offset,
                                          const Eigen::Vector3d& beta_albedo, CounterRng& rng,
                                          DualRgb* radiance, RayCounts* counts,
@@ -341,7 +332,9 @@ DualRgb DifferentiablePathTracer::Radiance(const Eigen::Vector3d& origin,
   std::optional<Hit> previous;
   LightChoice choice;
   choice.by_contribution = options.light_selection == "contribution";
-  choice.visibility = choice.by_contribution && options.light_visibility ? Visibility() : nullptr;
+  choice.visibility = choice.by_contribution && options.light_visibility
+                          ? visibility_.Get(scene_, *tracer_, *lights_)
+                          : nullptr;
 
   for (int depth = 1;; ++depth) {
     ++local.intersect;

@@ -20,7 +20,6 @@
 #include <array>
 #include <cstdint>
 #include <memory>
-#include <mutex>
 #include <vector>
 
 #include "render/path_tracer.h"
@@ -89,8 +88,6 @@ class DifferentiablePathTracer {
   // Light entry i, chosen with probability pmf, at `at` (as PathTracer::EvaluateLight draws it).
   void Light(const Hit& at, const DualVec3& origin_offset, const Eigen::Vector3d& beta_albedo,
              size_t i, float pmf, CounterRng& rng, DualRgb* radiance, RayCounts* counts) const;
-  // The near-field lights' visibility cache, built on first use (nullptr: fewer than two).
-  const LightVisibility* Visibility() const;
 
   Scene scene_;
   std::unique_ptr<RayTracer> tracer_;
@@ -102,8 +99,7 @@ class DifferentiablePathTracer {
   std::vector<std::vector<Eigen::Vector3d>> normals_;    // per smooth mesh: unit normal values
   bool normal_derivatives_ = true;                       // dual_normals_ match the positions
   bool has_area_lights_ = false;
-  mutable std::once_flag visibility_once_;
-  mutable std::unique_ptr<LightVisibility> visibility_;
+  LazyLightVisibility visibility_;  // for light choice by contribution
 };
 
 }  // namespace genscene::render

@@ -98,4 +98,13 @@ LightVisibility::LightVisibility(const Scene& scene, const RayTracer& tracer,
   for (auto& [key, index] : cells_) index *= lights_;
 }
 
+const LightVisibility* LazyLightVisibility::Get(const Scene& scene, const RayTracer& tracer,
+                                                const LightSampler& lights) const {
+  std::call_once(once_, [&] {
+    const std::vector<Eigen::Vector3f> points = lights.LocalPoints();
+    if (points.size() > 1) cache_ = std::make_unique<LightVisibility>(scene, tracer, points);
+  });
+  return cache_.get();
+}
+
 }  // namespace genscene::render

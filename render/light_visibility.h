@@ -15,6 +15,8 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <unordered_map>
 #include <vector>
 
@@ -22,6 +24,7 @@
 
 namespace genscene::render {
 
+class LightSampler;
 class RayTracer;
 
 struct LightVisibilityOptions {
@@ -64,6 +67,19 @@ class LightVisibility {
   double inverse_cell_ = 1.0;
   std::unordered_map<uint64_t, size_t> cells_;  // cell key -> offset of its factors
   std::vector<float> factors_;
+};
+
+// A tracer's LightVisibility for its light sampler's near-field lights, built on the first Get
+// (thread-safe: the renders' workers may ask at once); nullptr when there are fewer than two,
+// nothing to choose between. The path tracer and the differentiable tracer each hold one.
+class LazyLightVisibility {
+ public:
+  const LightVisibility* Get(const Scene& scene, const RayTracer& tracer,
+                             const LightSampler& lights) const;
+
+ private:
+  mutable std::once_flag once_;
+  mutable std::unique_ptr<LightVisibility> cache_;
 };
 
 }  // namespace genscene::render

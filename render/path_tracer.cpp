@@ -80,15 +80,6 @@ PathTracer::PathTracer(const Scene& scene) : scene_(scene), tracer_(std::make_un
 
 PathTracer::~PathTracer() = default;
 
-const LightVisibility* PathTracer::Visibility() const {
-  std::call_once(visibility_once_, [this] {
-    const std::vector<Eigen::Vector3f> points = lights_->LocalPoints();
-    if (points.size() > 1)
-      visibility_ = std::make_unique<LightVisibility>(scene_, *tracer_, points);
-  });
-  return visibility_.get();
-}
-
 std::optional<PathTracer::SurfacePoint> PathTracer::Hit(const Eigen::Vector3f& origin,
                                                         const Eigen::Vector3f& direction) const {
   const auto hit = tracer_->Intersect(origin, direction);
@@ -211,7 +202,7 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
   std::optional<SurfacePoint> previous;
   const bool by_power = options.light_selection == "power";
   const LightVisibility* visibility =
-      !by_power && options.light_visibility ? Visibility() : nullptr;
+      !by_power && options.light_visibility ? visibility_.Get(scene_, *tracer_, *lights_) : nullptr;
 
   for (int depth = 1;; ++depth) {  // depth = segments of the path so far, ending at `hit`
     ++local.intersect;

@@ -9,20 +9,19 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
-#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "core/image.h"
 #include "core/rng.h"
+#include "render/light_visibility.h"
 #include "render/ray_tracer.h"
 #include "render/scene.h"
 
 namespace genscene::render {
 
 class LightSampler;
-class LightVisibility;
 
 struct RenderOptions {
   static constexpr const char* kSection = "render";
@@ -203,9 +202,6 @@ class PathTracer {
   std::optional<LightSample> SampleLight(const SurfacePoint& at, bool by_power, CounterRng& rng,
                                          double choice_u = -1.0,
                                          const float* visibility = nullptr) const;
-  // The near-field lights' visibility cache, built on first use (nullptr: fewer than two
-  // near-field lights, nothing to choose between).
-  const LightVisibility* Visibility() const;
   // The sample of light entry i (chosen with probability pmf) at `at`.
   std::optional<LightSample> EvaluateLight(const SurfacePoint& at, size_t i, float pmf,
                                            CounterRng& rng) const;
@@ -217,8 +213,7 @@ class PathTracer {
   std::unique_ptr<LightSampler> lights_;
   bool has_area_lights_ = false;
   const VoxelLightGrid* distant_ = nullptr;  // the scene's voxel lights when they have one
-  mutable std::once_flag visibility_once_;
-  mutable std::unique_ptr<LightVisibility> visibility_;
+  LazyLightVisibility visibility_;           // for light choice by contribution
 };
 
 // Two independent renders of a view with half the paths each (random numbers keyed by seed_a and

@@ -149,6 +149,32 @@ double DirectFromPointLights(const Scene& scene, double albedo, const Eigen::Vec
   return expected;
 }
 
+// A render (channel 0) against the exact direct light `exact(p)` at the point each pixel sees.
+struct AgainstExact {
+  double squared = 0.0;        // sum over the pixels of (render - exact)^2
+  double mean = 0.0;           // mean render
+  double expected_mean = 0.0;  // mean exact value
+  int pixels = 0;
+  double Rms() const { return std::sqrt(squared / pixels); }
+};
+template <typename Exact>
+AgainstExact RenderAgainstExact(const PathTracer& tracer, const PosedView& view,
+                                const RenderOptions& options, uint64_t seed, const Exact& exact) {
+  const RenderOutput out = tracer.Render(view, options, seed);
+  AgainstExact r;
+  r.pixels = view.intrinsics.width * view.intrinsics.height;
+  for (int v = 0; v < view.intrinsics.height; ++v) {
+    for (int u = 0; u < view.intrinsics.width; ++u) {
+      const double expected = exact(PointAt(view, out, u, v));
+      const double got = out.radiance(u, v)[0];
+      r.squared += (got - expected) * (got - expected);
+      r.mean += got / r.pixels;
+      r.expected_mean += expected / r.pixels;
+    }
+  }
+  return r;
+}
+
 // Many point lights over a plane, one below it and one far fainter than the rest: next-event
 // estimation that chooses the light by its contribution at the shading point stays unbiased (the
 // exact sum of the lights' direct light) and is far less noisy than choosing by power alone (with
@@ -164,26 +190,20 @@ TEST(PathTracer, LightsChosenByContributionAreUnbiasedAndLessNoisy) {
   options.filter = "center";
   options.spp = 16;
   options.max_depth = 2;
-  double error[2] = {0, 0}, mean[2] = {0, 0}, expected_mean = 0.0;
+  const auto exact = [&](const Eigen::Vector3d& p) {
+    return DirectFromPointLights(scene, albedo[0], p);
+  };
+  AgainstExact by[2];
   for (int mode = 0; mode < 2; ++mode) {
     options.light_selection = mode == 0 ? "power" : "contribution";
-    const RenderOutput out = tracer.Render(view, options, 11);
-    for (int v = 0; v < 24; ++v) {
-      for (int u = 0; u < 32; ++u) {
-        const double expected = DirectFromPointLights(scene, albedo[0], PointAt(view, out, u, v));
-        const double got = out.radiance(u, v)[0];
-        error[mode] += (got - expected) * (got - expected);
-        mean[mode] += got / (32 * 24);
-        if (mode == 0) expected_mean += expected / (32 * 24);
-      }
-    }
+    by[mode] = RenderAgainstExact(tracer, view, options, 11, exact);
   }
   std::printf(
       "[ closed   ] 26 point lights, 16 spp: RMS error by power %.5f, by contribution %.5f; "
       "means %.5f %.5f vs %.5f\n",
-      std::sqrt(error[0] / 768), std::sqrt(error[1] / 768), mean[0], mean[1], expected_mean);
-  EXPECT_NEAR(mean[1], expected_mean, 0.01 * expected_mean);
-  EXPECT_LT(error[1], 0.25 * error[0]) << "variance by contribution against by power";
+      by[0].Rms(), by[1].Rms(), by[0].mean, by[1].mean, by[0].expected_mean);
+  EXPECT_NEAR(by[1].mean, by[1].expected_mean, 0.01 * by[1].expected_mean);
+  EXPECT_LT(by[1].squared, 0.25 * by[0].squared) << "variance by contribution against by power";
 }
 
 // A light ten thousand times fainter than the room's main light, two centimetres above the
@@ -203,26 +223,21 @@ TEST(PathTracer, AFaintLightBesideASurfaceIsChosenByItsContribution) {
   options.spp = 16;
   options.max_depth = 2;
   options.exact_lights = 0;  // every light sampled: the choice itself is tested
-  double error[2] = {0, 0}, mean[2] = {0, 0}, expected_mean = 0.0;
+  const auto exact = [&](const Eigen::Vector3d& p) {
+    return DirectFromPointLights(scene, albedo[0], p);
+  };
+  AgainstExact by[2];
   for (int mode = 0; mode < 2; ++mode) {
     options.light_selection = mode == 0 ? "power" : "contribution";
-    const RenderOutput out = tracer.Render(view, options, 5);
-    for (int v = 0; v < 24; ++v) {
-      for (int u = 0; u < 24; ++u) {
-        const double expected = DirectFromPointLights(scene, albedo[0], PointAt(view, out, u, v));
-        const double got = out.radiance(u, v)[0];
-        error[mode] += (got - expected) * (got - expected);
-        mean[mode] += got / (24 * 24);
-        if (mode == 0) expected_mean += expected / (24 * 24);
-      }
-    }
+    by[mode] = RenderAgainstExact(tracer, view, options, 5, exact);
   }
   std::printf(
       "[ closed   ] faint light 2 cm above the floor, 16 spp: RMS error by power %.5f, by "
       "contribution %.5f; means %.5f %.5f vs %.5f\n",
-      std::sqrt(error[0] / 576), std::sqrt(error[1] / 576), mean[0], mean[1], expected_mean);
-  EXPECT_NEAR(mean[1], expected_mean, 0.01 * expected_mean);
-  EXPECT_LT(error[1], 1e-3 * error[0]) << "squared error by contribution against by power";
+      by[0].Rms(), by[1].Rms(), by[0].mean, by[1].mean, by[0].expected_mean);
+  EXPECT_NEAR(by[1].mean, by[1].expected_mean, 0.01 * by[1].expected_mean);
+  EXPECT_LT(by[1].squared, 1e-3 * by[0].squared)
+      << "squared error by contribution against by power";
 }
 
 // A bright light behind a wall and a dim one in front of it, over a floor seen only in front of
@@ -249,32 +264,29 @@ TEST(PathTracer, ALightBehindAWallIsRarelyChosenWhereItIsBlocked) {
   options.spp = 16;
   options.max_depth = 2;
   options.exact_lights = 0;
-  double error[2] = {0, 0}, mean[2] = {0, 0}, expected_mean = 0.0;
+  int behind = 0;  // pixels that see anything but the floor in front of the wall
+  const auto exact = [&](const Eigen::Vector3d& p) {  // the dim light's alone
+    behind += !(p.x() > 0.5);
+    const Eigen::Vector3d to = scene.point_lights[1].position - p;
+    return albedo[0] / M_PI * scene.point_lights[1].intensity[0] * to.z() / std::pow(to.norm(), 3);
+  };
+  AgainstExact with[2];
   for (int mode = 0; mode < 2; ++mode) {
     options.light_visibility = mode == 1;
-    const RenderOutput out = tracer.Render(view, options, 5);
-    for (int v = 0; v < 24; ++v) {
-      for (int u = 0; u < 24; ++u) {
-        const Eigen::Vector3d p = PointAt(view, out, u, v);
-        ASSERT_GT(p.x(), 0.5) << "the view sees only the floor in front of the wall";
-        const Eigen::Vector3d to = scene.point_lights[1].position - p;
-        const double expected =
-            albedo[0] / M_PI * scene.point_lights[1].intensity[0] * to.z() / std::pow(to.norm(), 3);
-        const double got = out.radiance(u, v)[0];
-        error[mode] += (got - expected) * (got - expected);
-        mean[mode] += got / (24 * 24);
-        if (mode == 0) expected_mean += expected / (24 * 24);
-      }
-    }
+    with[mode] = RenderAgainstExact(tracer, view, options, 5, exact);
   }
+  ASSERT_EQ(behind, 0) << "the view sees only the floor in front of the wall";
   std::printf(
       "[ closed   ] light behind a wall, 16 spp: RMS error without the visibility cache %.5f, "
       "with it %.5f; means %.5f %.5f vs %.5f\n",
-      std::sqrt(error[0] / 576), std::sqrt(error[1] / 576), mean[0], mean[1], expected_mean);
+      with[0].Rms(), with[1].Rms(), with[0].mean, with[1].mean, with[0].expected_mean);
   for (int k = 0; k < 2; ++k) {
-    EXPECT_NEAR(mean[k], expected_mean, 4.0 * std::sqrt(error[k] / 576) / std::sqrt(576.0)) << k;
+    EXPECT_NEAR(with[k].mean, with[k].expected_mean,
+                4.0 * with[k].Rms() / std::sqrt(static_cast<double>(with[k].pixels)))
+        << k;
   }
-  EXPECT_LT(error[1], 0.3 * error[0]) << "squared error with the cache against without";
+  EXPECT_LT(with[1].squared, 0.3 * with[0].squared)
+      << "squared error with the cache against without";
 }
 
 // LightVisibility on a floor split by a wall: in front of the wall the light behind it has the
