@@ -58,6 +58,7 @@ ChainOptions RunChainOptions() {
   ChainOptions o;
   o.fusion.preprocess.max_depth = 4.0;
   o.meshing.min_component_triangles = 200;
+  o.meshing.denoise_iterations = 10;
   o.meshing.decimate_max_error = 0.002;
   o.refine.iterations = 3;
   o.refine.paths.spp = 16;
@@ -67,6 +68,7 @@ ChainOptions RunChainOptions() {
 
 ChainOptions DemoChainOptions() {
   ChainOptions o;
+  o.meshing.denoise_iterations = 10;
   o.meshing.decimate_max_error = 0.003;
   o.lights.grid = 5;
   o.lights.pixels_per_view = 1500;

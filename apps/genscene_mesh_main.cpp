@@ -47,15 +47,16 @@ int main(int argc, char** argv) {
       std::printf(" (removed %zu small components, %zu triangles)", s.removed_components,
                   s.removed_component_triangles);
     }
+    if (options.denoise_iterations > 0)
+      std::printf(" (denoising moved vertices %.2f mm on average)", 1e3 * s.denoise_mean_offset);
     if (options.decimate_max_error > 0)
       std::printf(" (decimation removed %zu triangles)", s.decimated_triangles);
     std::printf(
         "\ngenscene-mesh: %.3f s (classify %.3f, scan %.3f, vertices %.3f, triangles %.3f, "
-        "clean-up %.3f, "
-        "decimate %.3f) on %d threads -> %s\n",
+        "clean-up %.3f, denoise %.3f, decimate %.3f) on %d threads -> %s\n",
         s.seconds_total, s.seconds_classify, s.seconds_scan, s.seconds_vertices,
-        s.seconds_triangles, s.seconds_cleanup, s.seconds_decimate, ThreadCount(),
-        ws.Mesh().string().c_str());
+        s.seconds_triangles, s.seconds_cleanup, s.seconds_denoise, s.seconds_decimate,
+        ThreadCount(), ws.Mesh().string().c_str());
     return 0;
   });
 }

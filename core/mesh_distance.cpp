@@ -105,6 +105,28 @@ SurfaceError MeasureSurfaceError(const TriangleMesh& mesh, const TriangleMesh& t
     e.mean = sum / e.points;
     e.rms = std::sqrt(squares / e.points);
   }
+  static const double kBary[4][3] = {{4.0 / 6, 1.0 / 6, 1.0 / 6},
+                                     {1.0 / 6, 4.0 / 6, 1.0 / 6},
+                                     {1.0 / 6, 1.0 / 6, 4.0 / 6},
+                                     {1.0 / 3, 1.0 / 3, 1.0 / 3}};
+  double area_sum = 0.0, area_squares = 0.0, area = 0.0;
+  for (size_t f = 0; f < mesh.faces.size(); ++f) {
+    const Eigen::Vector3i& face = mesh.faces[f];
+    const double a = 0.5 * mesh.FaceNormalScaled(f).cast<double>().norm();
+    for (const auto& b : kBary) {
+      const Eigen::Vector3d p = b[0] * mesh.vertices[face[0]].cast<double>() +
+                                b[1] * mesh.vertices[face[1]].cast<double>() +
+                                b[2] * mesh.vertices[face[2]].cast<double>();
+      const double d = distance.Distance(p);
+      area_sum += a * d;
+      area_squares += a * d * d;
+      area += a;
+    }
+  }
+  if (area > 0.0) {
+    e.area_mean = area_sum / area;
+    e.area_rms = std::sqrt(area_squares / area);
+  }
   return e;
 }
 

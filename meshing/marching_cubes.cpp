@@ -16,6 +16,9 @@ void MeshingOptions::Validate() const {
   RequireRange("iso_level", iso_level, -10.0, 10.0);
   RequireRange("min_weight", min_weight, 0.0, 1e9);
   RequireRange("min_component_triangles", min_component_triangles, 0, INT_MAX);
+  RequireRange("denoise_iterations", denoise_iterations, 0, 1000);
+  RequireRange("denoise_angle", denoise_angle, 1.0, 180.0);
+  RequireRange("denoise_max_offset", denoise_max_offset, 0.0, 100.0);
   RequireRange("decimate_max_error", decimate_max_error, 0.0, 10.0);
 }
 
@@ -371,6 +374,13 @@ MeshingResult ExtractMesh(const TsdfVolume& volume, const MeshingOptions& option
     stats.removed_component_triangles = removal.triangles;
   }
   stats.seconds_cleanup = SecondsSince(t0);
+  t0 = Clock::now();
+  if (options.denoise_iterations > 0) {
+    const DenoiseStats denoised = Denoise(&mesh, options.denoise_iterations, options.denoise_angle,
+                                          options.denoise_max_offset * volume.voxel_size());
+    stats.denoise_mean_offset = denoised.mean_offset;
+  }
+  stats.seconds_denoise = SecondsSince(t0);
   t0 = Clock::now();
   if (options.decimate_max_error > 0.0) {
     const size_t before = mesh.faces.size();

@@ -42,6 +42,9 @@ struct MeshingOptions {
   double iso_level = 0.0;           // metres; the surface is sdf = iso_level
   double min_weight = 0.0;          // a voxel counts as observed when weight > 0 and weight >= this
   int min_component_triangles = 0;  // remove connected components with fewer triangles (0 = off)
+  int denoise_iterations = 0;       // feature-preserving denoising passes (0 = off)
+  double denoise_angle = 15.0;      // degrees; creases sharper than about this are kept
+  double denoise_max_offset = 0.5;  // voxels; no vertex moves further
   double decimate_max_error = 0.0;  // metres; simplify within this Hausdorff bound (0 = off)
 
   static constexpr const char* kSection = "meshing";
@@ -52,6 +55,13 @@ struct MeshingOptions {
       "voxels with a smaller fusion weight count as unobserved (no triangles)");
     v("min_component_triangles", min_component_triangles, "triangles",
       "remove connected components with fewer triangles (0 = keep all)");
+    v("denoise_iterations", denoise_iterations, "",
+      "feature-preserving denoising (bilateral normal filter, then vertices fitted to the "
+      "normals): passes, 0 = off");
+    v("denoise_angle", denoise_angle, "deg",
+      "denoising keeps creases sharper than about this angle");
+    v("denoise_max_offset", denoise_max_offset, "voxels",
+      "denoising moves no vertex further than this from marching cubes' position");
     v("decimate_max_error", decimate_max_error, "m",
       "simplify (OpenMesh quadric decimater) while every removed point stays this close (0 = off)");
   }
@@ -73,6 +83,8 @@ struct MeshingStats {
   double seconds_vertices = 0.0;  // edge classification + vertex generation
   double seconds_triangles = 0.0;
   double seconds_cleanup = 0.0;  // small components
+  double seconds_denoise = 0.0;
+  double denoise_mean_offset = 0.0;  // metres, mean distance denoising moved a vertex
   double seconds_decimate = 0.0;
   double seconds_total = 0.0;
 };

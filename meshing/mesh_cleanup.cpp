@@ -5,10 +5,13 @@
 #include <OpenMesh/Tools/Decimater/ModHausdorffT.hh>
 #include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
 #include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
+#include <algorithm>
+#include <cmath>
 #include <numeric>
 
 #include "core/check.h"
 #include "core/disjoint_sets.h"
+#include "core/parallel.h"
 
 namespace genscene::meshing {
 
@@ -69,6 +72,137 @@ ComponentRemoval RemoveSmallComponents(TriangleMesh* mesh, int min_triangles) {
   }
   if (removal.triangles > 0) KeepFaces(mesh, keep);
   return removal;
+}
+
+DenoiseStats Denoise(TriangleMesh* mesh, int iterations, double feature_angle_degrees,
+                     double max_offset) {
+  GS_CHECK_GE(iterations, 0);
+  GS_CHECK(feature_angle_degrees > 0.0 && feature_angle_degrees <= 180.0);
+  GS_CHECK_GE(max_offset, 0.0);
+  DenoiseStats stats;
+  const size_t nv = mesh->vertices.size(), nf = mesh->faces.size();
+  if (iterations == 0 || nf == 0) return stats;
+
+  // Faces around each vertex (compressed rows, faces in increasing order).
+  std::vector<size_t> vertex_start(nv + 1, 0);
+  for (const Eigen::Vector3i& face : mesh->faces) {
+    for (int j = 0; j < 3; ++j) ++vertex_start[face[j] + 1];
+  }
+  std::partial_sum(vertex_start.begin(), vertex_start.end(), vertex_start.begin());
+  std::vector<int> vertex_faces(vertex_start.back());
+  {
+    std::vector<size_t> fill(vertex_start.begin(), vertex_start.end() - 1);
+    for (size_t f = 0; f < nf; ++f) {
+      for (int j = 0; j < 3; ++j) vertex_faces[fill[mesh->faces[f][j]]++] = static_cast<int>(f);
+    }
+  }
+  // Faces sharing a vertex with each face, itself included.
+  std::vector<std::vector<int>> neighbours(nf);
+  ParallelFor(0, nf, [&](size_t f) {
+    std::vector<int>& list = neighbours[f];
+    for (int j = 0; j < 3; ++j) {
+      const int v = mesh->faces[f][j];
+      list.insert(list.end(), vertex_faces.begin() + vertex_start[v],
+                  vertex_faces.begin() + vertex_start[v + 1]);
+    }
+    std::sort(list.begin(), list.end());
+    list.erase(std::unique(list.begin(), list.end()), list.end());
+  });
+
+  std::vector<Eigen::Vector3d> normal(nf), centroid(nf);
+  std::vector<double> area(nf);
+  const auto position = [&](int v) { return mesh->vertices[v].cast<double>(); };
+  for (size_t f = 0; f < nf; ++f) {
+    const Eigen::Vector3i& face = mesh->faces[f];
+    const Eigen::Vector3d scaled =
+        (position(face[1]) - position(face[0])).cross(position(face[2]) - position(face[0]));
+    area[f] = 0.5 * scaled.norm();
+    normal[f] = area[f] > 0.0 ? Eigen::Vector3d(scaled / (2.0 * area[f])) : Eigen::Vector3d::Zero();
+    centroid[f] = (position(face[0]) + position(face[1]) + position(face[2])) / 3.0;
+  }
+  double distance_sum = 0.0;
+  size_t pairs = 0;
+  for (size_t f = 0; f < nf; ++f) {
+    for (const int g : neighbours[f]) {
+      if (static_cast<size_t>(g) == f) continue;
+      distance_sum += (centroid[f] - centroid[g]).norm();
+      ++pairs;
+    }
+  }
+  if (pairs == 0 || distance_sum <= 0.0) return stats;
+  const double sigma_c = distance_sum / static_cast<double>(pairs);
+  const double sigma_s = 2.0 * std::sin(0.5 * feature_angle_degrees * M_PI / 180.0);
+  const double inv_c = 1.0 / (2.0 * sigma_c * sigma_c), inv_s = 1.0 / (2.0 * sigma_s * sigma_s);
+
+  // Normal passes. Faces without area keep a zero normal and weigh nothing.
+  std::vector<Eigen::Vector3d> filtered(nf);
+  for (int it = 0; it < iterations; ++it) {
+    ParallelFor(0, nf, [&](size_t f) {
+      if (area[f] <= 0.0) {
+        filtered[f] = normal[f];
+        return;
+      }
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (const int g : neighbours[f]) {
+        if (area[g] <= 0.0) continue;
+        const double wc = std::exp(-(centroid[f] - centroid[g]).squaredNorm() * inv_c);
+        const double ws = std::exp(-(normal[f] - normal[g]).squaredNorm() * inv_s);
+        sum += area[g] * wc * ws * normal[g];
+      }
+      const double norm = sum.norm();
+      filtered[f] = norm > 0.0 ? Eigen::Vector3d(sum / norm) : normal[f];
+    });
+    normal.swap(filtered);
+  }
+
+  // Vertex passes toward the planes of the filtered normals through the current centroids.
+  const std::vector<Eigen::Vector3f> start = mesh->vertices;
+  std::vector<Eigen::Vector3d> x(nv), next(nv);
+  for (size_t v = 0; v < nv; ++v) x[v] = start[v].cast<double>();
+  for (int it = 0; it < 2 * iterations; ++it) {
+    ParallelFor(0, nf, [&](size_t f) {
+      const Eigen::Vector3i& face = mesh->faces[f];
+      centroid[f] = (x[face[0]] + x[face[1]] + x[face[2]]) / 3.0;
+    });
+    ParallelFor(0, nv, [&](size_t v) {
+      Eigen::Vector3d step = Eigen::Vector3d::Zero();
+      int count = 0;
+      for (size_t k = vertex_start[v]; k < vertex_start[v + 1]; ++k) {
+        const int f = vertex_faces[k];
+        if (area[f] <= 0.0) continue;
+        step += normal[f] * normal[f].dot(centroid[f] - x[v]);
+        ++count;
+      }
+      Eigen::Vector3d p = count > 0 ? Eigen::Vector3d(x[v] + step / count) : x[v];
+      const Eigen::Vector3d offset = p - start[v].cast<double>();
+      const double length = offset.norm();
+      if (length > max_offset) p = start[v].cast<double>() + offset * (max_offset / length);
+      next[v] = p;
+    });
+    x.swap(next);
+  }
+
+  // Positions, and vertex normals from the filtered face normals.
+  std::vector<Eigen::Vector3f> normals(nv, Eigen::Vector3f::Zero());
+  for (size_t v = 0; v < nv; ++v) {
+    mesh->vertices[v] = x[v].cast<float>();
+    const double offset = (x[v] - start[v].cast<double>()).norm();
+    stats.mean_offset += offset;
+    stats.max_offset = std::max(stats.max_offset, offset);
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (size_t k = vertex_start[v]; k < vertex_start[v + 1]; ++k) {
+      const int f = vertex_faces[k];
+      sum += area[f] * normal[f];
+    }
+    if (sum.norm() > 0.0) {
+      normals[v] = sum.normalized().cast<float>();
+    } else if (!mesh->normals.empty()) {
+      normals[v] = mesh->normals[v];
+    }
+  }
+  stats.mean_offset /= static_cast<double>(std::max<size_t>(nv, 1));
+  mesh->normals = std::move(normals);
+  return stats;
 }
 
 void Decimate(TriangleMesh* mesh, double max_error) {

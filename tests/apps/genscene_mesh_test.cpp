@@ -46,6 +46,7 @@ TEST(GensceneMesh, MeshesTheWorkspaceVolume) {
   const auto help = RunCommand(AppPath("genscene-mesh") + " --help");
   EXPECT_EQ(help.exit_code, 0);
   for (const char* flag : {"--iso-level", "--min-weight", "--min-component-triangles",
+                           "--denoise-iterations", "--denoise-angle", "--denoise-max-offset",
                            "--decimate-max-error", "--threads", "--config"}) {
     EXPECT_CONTAINS(help.output, flag);
   }

@@ -48,6 +48,20 @@ TEST(MeshDistance, SurfaceErrorOfAShiftedMesh) {
   EXPECT_EQ(e.points, grid.vertices.size());
   EXPECT_NEAR(e.mean, 0.003, 1e-6);
   EXPECT_NEAR(e.rms, 0.003, 1e-6);
+  EXPECT_NEAR(e.area_mean, 0.003, 1e-6);
+  EXPECT_NEAR(e.area_rms, 0.003, 1e-6);
+  // A sliver 2 cm above the grid adds three far vertices but almost no area: the vertex figures
+  // move, the surface's hardly.
+  TriangleMesh sliver = shifted;
+  const int base = static_cast<int>(sliver.vertices.size());
+  sliver.vertices.push_back({0.5f, 0.5f, 0.02f});
+  sliver.vertices.push_back({0.51f, 0.5f, 0.02f});
+  sliver.vertices.push_back({0.5f, 0.51f, 0.02f});
+  sliver.faces.push_back({base, base + 1, base + 2});
+  const SurfaceError with_sliver = MeasureSurfaceError(sliver, grid);
+  const double n_grid = static_cast<double>(grid.vertices.size());
+  EXPECT_NEAR(with_sliver.mean, (n_grid * 0.003 + 3 * 0.02) / (n_grid + 3), 1e-6);
+  EXPECT_NEAR(with_sliver.area_mean, 0.003 + 0.017 * 5e-5, 1e-6);
   const TriangleMesh empty;
   EXPECT_THROW({ MeshDistance d(empty, 0.1); }, Error);
 }
