@@ -120,16 +120,18 @@ AlbedoSummary AlbedoWorkspace(const std::filesystem::path& mesh_path_in,
          {"dark", c.dark}});
   }
   const auto& s = result.stats;
-  const std::string report = json({{"summary",
-                                    {{"clusters", result.clusters.size()},
-                                     {"chroma_classes", s.chroma_classes},
-                                     {"pieces", s.pieces},
-                                     {"boundary_edges", s.boundary_edges},
-                                     {"shading_jump_rms", s.shading_jump_rms}}},
-                                   {"clusters", clusters},
-                                   {"options", OptionsToJson(options)}})
-                                 .dump(1) +
-                             "\n";
+  const std::string report =
+      json({{"summary",
+             {{"clusters", result.clusters.size()},
+              {"chroma_classes", s.chroma_classes},
+              {"pieces", s.pieces},
+              {"boundary_edges", s.boundary_edges},
+              {"shading_jump_rms", s.shading_jump_rms},
+              {"white_balance", {s.white_balance.x(), s.white_balance.y(), s.white_balance.z()}}}},
+            {"clusters", clusters},
+            {"options", OptionsToJson(options)}})
+          .dump(1) +
+      "\n";
   WriteMeshColors(ws.Albedo(), result.albedo);
   WritePly(ws.AlbedoPly(), result.albedo.ToSubdividedMesh(mesh));
   WriteTextFileAtomically(ws.AlbedoJson(), report);
@@ -140,6 +142,10 @@ std::string ToString(const AlbedoSummary& a) {
   std::string out = Format(a.clusters.size(), " clusters from ", a.stats.chroma_classes,
                            " chromaticity classes, ", a.stats.pieces, " pieces, shading jump RMS ",
                            a.stats.shading_jump_rms);
+  if (a.stats.white_balance != Eigen::Vector3f::Ones()) {
+    const Eigen::Vector3f& w = a.stats.white_balance;
+    out += Format(", white balance x(", w.x(), ", ", w.y(), ", ", w.z(), ")");
+  }
   for (size_t c = 0; c < std::min<size_t>(a.clusters.size(), 6); ++c) {
     const auto& k = a.clusters[c];
     out += Format("; #", k.id, " (", k.albedo.x(), ", ", k.albedo.y(), ", ", k.albedo.z(), ") x",

@@ -12,6 +12,11 @@
 
 namespace genscene::texturing {
 
+namespace {
+constexpr double kMinEdgeConfidence = 0.01;  // boundary edges less sure than this are left out
+constexpr double kNeutralShare = 0.1;        // white balance: modes with this share at least
+}  // namespace
+
 void AlbedoOptions::Validate() const {
   RequireRange("chroma_bandwidth", chroma_bandwidth, 1e-3, 0.5);
   RequireRange("min_mode_fraction", min_mode_fraction, 0.0, 0.5);
@@ -20,6 +25,7 @@ void AlbedoOptions::Validate() const {
   RequireRange("merge_tolerance", merge_tolerance, 0.0, 10.0);
   RequireRange("max_albedo", max_albedo, 1e-3, 1.0);
   RequireRange("prior_weight", prior_weight, 0.0, 1e6);
+  RequireRange("neutral_distance", neutral_distance, 0.0, 1.0);
 }
 
 namespace {
@@ -110,7 +116,7 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
   if (!view_counts.empty() && view_counts.size() != n) {
     throw Error(Format("albedo: ", view_counts.size(), " view counts for ", n, " texels"));
   }
-  const std::vector<Eigen::Vector3f>& color = texture.colors();
+  std::vector<Eigen::Vector3f> color = texture.colors();  // white-balanced below
   std::vector<uint8_t> observed(n, 1);
   size_t n_observed = n;
   if (!view_counts.empty()) {
@@ -121,23 +127,63 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
 
   // 1. Chromaticity classes.
   std::vector<float> lum(n);
-  std::vector<float> observed_lum;
-  for (size_t s = 0; s < n; ++s) {
-    lum[s] = std::max(0.0f, Luminance(color[s]));
-    if (observed[s]) observed_lum.push_back(lum[s]);
-  }
-  const size_t half = observed_lum.size() / 2;
-  std::nth_element(observed_lum.begin(), observed_lum.begin() + half, observed_lum.end());
-  const float dark_level = static_cast<float>(o.dark_fraction) * observed_lum[half];
   std::vector<Eigen::Vector2d> chroma(n);
   std::vector<uint8_t> dark(n), votes(n);
-  for (size_t s = 0; s < n; ++s) {
-    dark[s] = lum[s] <= dark_level || color[s].minCoeff() < 0.0f;
-    chroma[s] = Chroma(color[s].cwiseMax(0.0f));
-    votes[s] = observed[s] && !dark[s];
+  std::vector<Eigen::Vector2d> modes;
+  const auto find_modes = [&] {
+    std::vector<float> observed_lum;
+    for (size_t s = 0; s < n; ++s) {
+      lum[s] = std::max(0.0f, Luminance(color[s]));
+      if (observed[s]) observed_lum.push_back(lum[s]);
+    }
+    const size_t half = observed_lum.size() / 2;
+    std::nth_element(observed_lum.begin(), observed_lum.begin() + half, observed_lum.end());
+    const float dark_level = static_cast<float>(o.dark_fraction) * observed_lum[half];
+    for (size_t s = 0; s < n; ++s) {
+      dark[s] = lum[s] <= dark_level || color[s].minCoeff() < 0.0f;
+      chroma[s] = Chroma(color[s].cwiseMax(0.0f));
+      votes[s] = observed[s] && !dark[s];
+    }
+    modes = ChromaModes(chroma, votes, o.chroma_bandwidth, o.min_mode_fraction);
+  };
+  const auto nearest_mode = [&](size_t s) {
+    int best = 0;
+    for (int m = 1; m < static_cast<int>(modes.size()); ++m) {
+      if ((chroma[s] - modes[m]).squaredNorm() < (chroma[s] - modes[best]).squaredNorm()) best = m;
+    }
+    return best;
+  };
+  find_modes();
+  // White balance: the mode nearest to neutral among those holding at least kNeutralShare of the
+  // voting texels is taken as a white or grey surface when within neutral_distance of neutral.
+  // Its tint is the light's: every texel's colour is divided by it per channel, and the modes
+  // are found again (under a tinted light, colours crowd toward the light's chromaticity).
+  AlbedoResult result;
+  if (o.neutral_distance > 0.0) {
+    std::vector<size_t> class_votes(modes.size(), 0);
+    size_t voting = 0;
+    for (size_t s = 0; s < n; ++s) {
+      if (!votes[s]) continue;
+      ++class_votes[nearest_mode(s)];
+      ++voting;
+    }
+    const Eigen::Vector2d neutral(1.0 / 3.0, 1.0 / 3.0);
+    int nearest = -1;
+    for (size_t k = 0; k < modes.size(); ++k) {
+      if (static_cast<double>(class_votes[k]) < kNeutralShare * static_cast<double>(voting))
+        continue;
+      if (nearest < 0 || (modes[k] - neutral).norm() < (modes[nearest] - neutral).norm())
+        nearest = static_cast<int>(k);
+    }
+    if (nearest >= 0 && (modes[nearest] - neutral).norm() <= o.neutral_distance) {
+      const Eigen::Vector2d& m = modes[nearest];
+      const Eigen::Vector3f tint =
+          3.0f * Eigen::Vector3f(m.x(), m.y(), std::max(1e-3, 1.0 - m.x() - m.y()));
+      result.stats.white_balance = tint.cwiseInverse();
+      for (Eigen::Vector3f& c : color) c = c.cwiseQuotient(tint);
+      find_modes();
+    }
   }
-  const std::vector<Eigen::Vector2d> modes =
-      ChromaModes(chroma, votes, o.chroma_bandwidth, o.min_mode_fraction);
   const int dark_class = static_cast<int>(modes.size());
   std::vector<int> klass(n);
   bool any_dark = false;
@@ -147,11 +193,7 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
       any_dark = true;
       continue;
     }
-    int best = 0;
-    for (int m = 1; m < static_cast<int>(modes.size()); ++m) {
-      if ((chroma[s] - modes[m]).squaredNorm() < (chroma[s] - modes[best]).squaredNorm()) best = m;
-    }
-    klass[s] = best;
+    klass[s] = nearest_mode(s);
   }
 
   // 2. Connected pieces of one class; small pieces join their strongest neighbour.
@@ -249,15 +291,34 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
   };
   struct Boundary {
     int p, q;
-    double target;
+    double target, weight;
+  };
+  // A texel whose chromaticity is far from its class's mode (a white wall pink from the red wall
+  // beside it, or a texel that mixes both walls where the keyframes disagree by a pixel) says
+  // little about its piece's shading: its luminance is the other surface's. Each edge weighs the
+  // product of its texels' closeness to their modes, exp(-d^2 / 2 h^2) (h: chroma_bandwidth), and
+  // an edge under kMinEdgeConfidence is left out. Near-black texels have no confidence: their
+  // chromaticity is noise and their luminance sits at the sensor's floor, where a log ratio is
+  // noise too (on TUM fr1/desk they pulled whole walls toward black). Two pieces joined by no
+  // edge left are held together by nothing but the gauge: each keeps its own mean observed
+  // luminance.
+  const double inv_h2 = 1.0 / (2.0 * o.chroma_bandwidth * o.chroma_bandwidth);
+  const auto confidence = [&](size_t s) {
+    if (klass[s] >= dark_class) return 0.0;
+    return std::exp(-(chroma[s] - modes[klass[s]]).squaredNorm() * inv_h2);
   };
   std::vector<Boundary> boundaries;
   for (const auto& [a, b] : pairs) {
     const int p = static_cast<int>(piece_of[a]), q = static_cast<int>(piece_of[b]);
     if (p == q || !observed[a] || !observed[b]) continue;
     const double la = std::log(std::max(1e-9f, lum[a])), lb = std::log(std::max(1e-9f, lum[b]));
-    boundaries.push_back({p, q, (la - log_mean[p]) - (lb - log_mean[q])});
-    add_difference(p, q, boundaries.back().target, 1.0);
+    boundaries.push_back(
+        {p, q, (la - log_mean[p]) - (lb - log_mean[q]), confidence(a) * confidence(b)});
+    if (boundaries.back().weight < kMinEdgeConfidence) {
+      boundaries.back().weight = 0.0;
+    } else {
+      add_difference(p, q, boundaries.back().target, boundaries.back().weight);
+    }
   }
   for (int p = 0; p < n_pieces; ++p) {
     const int c = anchor[piece_class[p]];
@@ -276,18 +337,21 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
   for (int p = 0; p < n_pieces; ++p) weighted += x[p] * static_cast<double>(texels[p]);
   x.array() -= weighted / static_cast<double>(n);
 
-  AlbedoResult result;
   AlbedoStats& stats = result.stats;
   stats.chroma_classes = static_cast<int>(modes.size()) + (any_dark ? 1 : 0);
   stats.pieces = n_pieces;
   stats.boundary_edges = boundaries.size();
-  double sq = 0.0;
-  for (const Boundary& b : boundaries) sq += std::pow(x[b.p] - x[b.q] - b.target, 2);
-  stats.shading_jump_rms = boundaries.empty() ? 0.0 : std::sqrt(sq / boundaries.size());
+  double sq = 0.0, weights = 0.0;
+  for (const Boundary& b : boundaries) {
+    sq += b.weight * std::pow(x[b.p] - x[b.q] - b.target, 2);
+    weights += b.weight;
+  }
+  stats.shading_jump_rms = weights <= 0.0 ? 0.0 : std::sqrt(sq / weights);
 
-  // Gauge: the 95th percentile (over texels) of the largest albedo channel is max_albedo.
   std::vector<Eigen::Vector3d> piece_albedo(n_pieces);
   for (int p = 0; p < n_pieces; ++p) piece_albedo[p] = std::exp(x[p]) * mean[p];
+
+  // Gauge: the 95th percentile (over texels) of the largest albedo channel is max_albedo.
   std::vector<std::pair<double, size_t>> by_max;
   for (int p = 0; p < n_pieces; ++p) by_max.emplace_back(piece_albedo[p].maxCoeff(), texels[p]);
   std::sort(by_max.begin(), by_max.end());

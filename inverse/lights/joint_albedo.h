@@ -22,8 +22,8 @@
 //  3. the gauge: albedo x light is unchanged by a per-channel scale at the first bounce, not at
 //     the interreflections. The updates keep the clustering's gauge (its global scale, the
 //     95th percentile of the largest channel at albedo max_albedo, and its colour split: the
-//     chromaticity of the observed colour modes, so that the lights start white and a coloured
-//     illuminant's cast stays in the albedo); only texels move against it. An explicit
+//     chromaticity of the colour modes after the clustering's white balance, which gives a
+//     coloured illuminant's cast to the lights); only texels move against it. An explicit
 //     per-channel gauge step (the 95th percentile of every channel at 0.9, "white patch") was
 //     tried and dropped: the cache's first-bounce rescaling cannot follow it through the
 //     interreflections (demo novel views 0.10 against 0.043 without it).

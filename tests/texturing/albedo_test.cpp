@@ -5,6 +5,8 @@
 
 #include <map>
 
+#include "core/check.h"
+#include "core/color.h"
 #include "core/frame_source.h"
 #include "core/ply_io.h"
 #include "tests/test_util.h"
@@ -21,6 +23,10 @@ struct CboxFigures {
   int clusters = 0;           // clusters holding >= 0.5 % of the observed texels
   int distinct_albedos = 0;   // in the ground truth of the faces the keyframes see
   double worst_chroma = 0.0;  // largest |chromaticity - truth| over those clusters and channels
+  // The same over the main cluster of each true albedo (the one holding most of its texels).
+  double worst_main_chroma = 0.0;
+  // Mean over the observed texels of the largest |chromaticity - their face's truth|.
+  double texel_chroma = 0.0;
   double mislabelled = 0.0;  // fraction of observed texels in a cluster standing for another albedo
 };
 
@@ -88,16 +94,40 @@ CboxFigures RunCbox(const std::filesystem::path& data, const std::string& views)
               << (ChromaOf(c.albedo) - ChromaOf(truth)).cwiseAbs().maxCoeff() << ")\n";
     fig.worst_chroma = std::max(fig.worst_chroma, err);
   }
-  // Texels whose cluster stands for another albedo than their own face's.
+  // Texels whose cluster stands for another albedo than their own face's; per true albedo, the
+  // cluster holding most of its texels; and every texel's own chromaticity error.
   size_t wrong = 0;
+  std::map<std::tuple<float, float, float>, std::map<int, size_t>> clusters_of_truth;
+  double chroma_sum = 0.0;
   for (size_t s = 0; s < texture.texture.SampleCount(); ++s) {
     if (texture.texture.labels()[s] == 0) continue;
     int f;
     double b1, b2;
     texture.texture.SampleFacePoint(s, &f, &b1, &b2);
-    wrong += (cluster_truth[albedo.albedo.labels()[s]] - mesh.face_colors[f]).norm() > 1e-6f;
+    const Eigen::Vector3f& t = mesh.face_colors[f];
+    const int label = albedo.albedo.labels()[s];
+    wrong += (cluster_truth[label] - t).norm() > 1e-6f;
+    ++clusters_of_truth[std::make_tuple(t.x(), t.y(), t.z())][label];
+    chroma_sum += (ChromaOf(albedo.clusters[label].albedo.cwiseProduct(balance)) - ChromaOf(t))
+                      .cwiseAbs()
+                      .maxCoeff();
   }
   fig.mislabelled = static_cast<double>(wrong) / static_cast<double>(observed);
+  fig.texel_chroma = chroma_sum / static_cast<double>(observed);
+  for (const auto& [key, counts] : clusters_of_truth) {
+    if (truth_seen[key] < 0.005 * observed) continue;
+    const auto main =
+        std::max_element(counts.begin(), counts.end(),
+                         [](const auto& a, const auto& b) { return a.second < b.second; });
+    const Eigen::Vector3f truth(std::get<0>(key), std::get<1>(key), std::get<2>(key));
+    fig.worst_main_chroma = std::max<double>(
+        fig.worst_main_chroma,
+        (ChromaOf(albedo.clusters[main->first].albedo.cwiseProduct(balance)) - ChromaOf(truth))
+            .cwiseAbs()
+            .maxCoeff());
+  }
+  std::cout << views << ": worst chromaticity error of a true albedo's main cluster "
+            << fig.worst_main_chroma << ", mean over the texels " << fig.texel_chroma << "\n";
   std::cout << views << ": " << 100.0 * fig.mislabelled
             << " % of the observed texels in a cluster of another albedo\n";
   std::cout << views << ": " << fig.clusters << " clusters for " << fig.distinct_albedos
@@ -111,14 +141,78 @@ TEST(Albedo, CyclesCornellBoxClustersIntoItsAlbedos) {
   GS_REQUIRE_SHARED_DATA(data);
   const CboxFigures fig = RunCbox(data, "train");
   EXPECT_EQ(fig.distinct_albedos, 3);
-  EXPECT_LE(std::abs(fig.clusters - fig.distinct_albedos), 1);
-  EXPECT_LE(fig.worst_chroma, 0.02);
-  // Regression guard, not an acceptance figure: 16 % today. The blocks' sides that face the red
-  // and green walls get no direct light, only light from those walls, and are as saturated as
-  // the walls themselves (tall block side: chromaticity (0.80, 0.13) vs the red wall's (0.89,
-  // 0.07)); chromaticity alone cannot tell them apart. Light estimation and refinement, which
-  // divide by the path-traced irradiance, are where this gets fixed.
-  EXPECT_LT(fig.mislabelled, 0.2);
+  // The blocks' sides that face the red and green walls get no direct light, only light from
+  // those walls, and are nearly as saturated as the walls themselves (tall block side:
+  // chromaticity (0.80, 0.13) against the red wall's (0.89, 0.07)). Chromaticity classes of
+  // radius 0.05 keep them apart from the walls, in clusters of their own (5 for the 3 albedos;
+  // at radius 0.1 they were in the walls' clusters, 16 % of the observed texels mislabelled):
+  // their albedo is still the bleeding's colour, which light estimation's joint albedo, dividing
+  // by the path-traced irradiance, corrects once it is not tied to the wall's cluster.
+  EXPECT_LE(fig.clusters, 2 * fig.distinct_albedos);
+  EXPECT_LT(fig.mislabelled, 0.08);         // 4.6 % (radius 0.1: 16 %)
+  EXPECT_LT(fig.texel_chroma, 0.075);       // 0.070 (radius 0.1: 0.077)
+  EXPECT_LE(fig.worst_main_chroma, 0.025);  // 0.020 (radius 0.1: 0.018)
+}
+
+// A flat wall, white (0.7 grey) for x < 0 and red for x > 0, under a warm light whose brightness
+// changes gently along x. Across a band `band` metres wide at the border the colours blend
+// linearly, as keyframes that disagree by a pixel or two blend them in the texture.
+MeshColors TwoColourWall(const Eigen::Vector3f& light, double band) {
+  TriangleMesh mesh;
+  const int nx = 40, ny = 20;
+  for (int j = 0; j <= ny; ++j) {
+    for (int i = 0; i <= nx; ++i)
+      mesh.vertices.emplace_back(-1.0f + 2.0f * i / nx, 1.0f * j / ny, 0);
+  }
+  for (int j = 0; j < ny; ++j) {
+    for (int i = 0; i < nx; ++i) {
+      const int a = j * (nx + 1) + i, b = a + 1, c = a + nx + 1, d = c + 1;
+      mesh.faces.emplace_back(a, b, d);
+      mesh.faces.emplace_back(a, d, c);
+    }
+  }
+  MeshColors texture(mesh, std::vector<int>(mesh.faces.size(), 8));
+  const Eigen::Vector3f white(0.7f, 0.7f, 0.7f), red(0.63f, 0.065f, 0.05f);
+  for (size_t s = 0; s < texture.SampleCount(); ++s) {
+    int f;
+    double b1, b2;
+    texture.SampleFacePoint(s, &f, &b1, &b2);
+    const Eigen::Vector3i& face = mesh.faces[f];
+    const double x = (1 - b1 - b2) * mesh.vertices[face[0]].x() + b1 * mesh.vertices[face[1]].x() +
+                     b2 * mesh.vertices[face[2]].x();
+    const float t = static_cast<float>(std::clamp(x / band + 0.5, 0.0, 1.0));  // red share
+    const float shading = static_cast<float>(0.6 + 0.05 * x);
+    texture.colors()[s] = shading * ((1 - t) * white + t * red).cwiseProduct(light);
+  }
+  return texture;
+}
+
+TEST(Albedo, AWarmLightsTintGoesToTheLightAndABlendedBorderDoesNotScaleTheRedWall) {
+  const Eigen::Vector3f warm(1.0f, 0.8f, 0.6f);
+  const MeshColors texture = TwoColourWall(warm, 0.04);
+  const AlbedoResult result = EstimateAlbedo(texture, {}, AlbedoOptions());
+  ASSERT_GE(result.clusters.size(), 2u);
+  const AlbedoCluster &white = result.clusters[0], &red = result.clusters[1];
+  std::printf("white balance %s; white %s, red %s\n",
+              Format(result.stats.white_balance.transpose()).c_str(),
+              Format(white.albedo.transpose()).c_str(), Format(red.albedo.transpose()).c_str());
+  // The white balance takes the light's tint out: the white wall is grey, the red wall has the
+  // red paint's chromaticity.
+  const Eigen::Vector3f grey = Eigen::Vector3f::Constant(1.0f / 3);
+  EXPECT_LT((white.chromaticity - grey).cwiseAbs().maxCoeff(), 0.01f);
+  EXPECT_LT((red.chromaticity - ChromaOf({0.63f, 0.065f, 0.05f})).cwiseAbs().maxCoeff(), 0.02f);
+  // The blended band's edges are left out: the walls keep their observed luminance ratio (the
+  // paints' 0.263 x the light's 1.1 on the red half), not the band's (about 3x that).
+  const double ratio = Luminance(red.albedo) / Luminance(white.albedo);
+  EXPECT_NEAR(ratio, 0.263 * 1.08, 0.263 * 0.15);
+  EXPECT_LT(Luminance(red.albedo), Luminance(white.albedo));
+
+  // Without the white balance the light's tint stays in the albedo.
+  AlbedoOptions options;
+  options.neutral_distance = 0.0;
+  const AlbedoResult tinted = EstimateAlbedo(texture, {}, options);
+  EXPECT_EQ(tinted.stats.white_balance, Eigen::Vector3f::Ones());
+  EXPECT_LT((tinted.clusters[0].chromaticity - ChromaOf(warm)).cwiseAbs().maxCoeff(), 0.01f);
 }
 
 TEST(Albedo, BadInputsAreClearErrors) {
