@@ -397,13 +397,13 @@ TEST(MarchingCubes, DecimationStaysWithinItsErrorBound) {
 TsdfVolume NoisyBox(const AnalyticVolumeSpec& spec, const ShapeCase& box, double amplitude) {
   return MakeAnalyticVolume(spec, [&](const Eigen::Vector3d& p) {
     const Eigen::Vector3i g = (p / spec.voxel_size).array().round().cast<int>();
-    uint32_t h = static_cast<uint32_t>(g.x() * 73856093) ^ static_cast<uint32_t>(g.y() * 19349663) ^
-                 static_cast<uint32_t>(g.z() * 83492791);
+    const Eigen::Matrix<uint32_t, 3, 1> u = g.cast<uint32_t>();  // wraps, as a hash should
+    uint32_t h = u.x() * 73856093u ^ u.y() * 19349663u ^ u.z() * 83492791u;
     h ^= h >> 13;
     h *= 0x5bd1e995u;
     h ^= h >> 15;
-    const double u = (h & 0xffffff) / double(0xffffff) * 2.0 - 1.0;
-    return box.sdf(p) + amplitude * spec.voxel_size * u;
+    const double noise = (h & 0xffffff) / double(0xffffff) * 2.0 - 1.0;
+    return box.sdf(p) + amplitude * spec.voxel_size * noise;
   });
 }
 
