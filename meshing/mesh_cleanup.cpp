@@ -111,6 +111,7 @@ DenoiseStats Denoise(TriangleMesh* mesh, int iterations, double feature_angle_de
 
   std::vector<Eigen::Vector3d> normal(nf), centroid(nf);
   std::vector<double> area(nf);
+  // In double (TriangleMesh::FaceNormalScaled is float): the passes below accumulate in double.
   const auto position = [&](int v) { return mesh->vertices[v].cast<double>(); };
   for (size_t f = 0; f < nf; ++f) {
     const Eigen::Vector3i& face = mesh->faces[f];
@@ -186,9 +187,7 @@ DenoiseStats Denoise(TriangleMesh* mesh, int iterations, double feature_angle_de
   std::vector<Eigen::Vector3f> normals(nv, Eigen::Vector3f::Zero());
   for (size_t v = 0; v < nv; ++v) {
     mesh->vertices[v] = x[v].cast<float>();
-    const double offset = (x[v] - start[v].cast<double>()).norm();
-    stats.mean_offset += offset;
-    stats.max_offset = std::max(stats.max_offset, offset);
+    stats.mean_offset += (x[v] - start[v].cast<double>()).norm();
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (size_t k = vertex_start[v]; k < vertex_start[v + 1]; ++k) {
       const int f = vertex_faces[k];

@@ -20,7 +20,6 @@ ComponentRemoval RemoveSmallComponents(TriangleMesh* mesh, int min_triangles);
 
 struct DenoiseStats {
   double mean_offset = 0.0;  // metres, mean distance a vertex moved
-  double max_offset = 0.0;   // metres, the largest (at most max_offset)
 };
 
 // Feature-preserving denoising: bilateral filtering of the face normals (Zheng et al. 2011,

@@ -312,13 +312,10 @@ AlbedoResult EstimateAlbedo(const MeshColors& texture, const std::vector<int32_t
     const int p = static_cast<int>(piece_of[a]), q = static_cast<int>(piece_of[b]);
     if (p == q || !observed[a] || !observed[b]) continue;
     const double la = std::log(std::max(1e-9f, lum[a])), lb = std::log(std::max(1e-9f, lum[b]));
-    boundaries.push_back(
-        {p, q, (la - log_mean[p]) - (lb - log_mean[q]), confidence(a) * confidence(b)});
-    if (boundaries.back().weight < kMinEdgeConfidence) {
-      boundaries.back().weight = 0.0;
-    } else {
-      add_difference(p, q, boundaries.back().target, boundaries.back().weight);
-    }
+    const double weight = confidence(a) * confidence(b);
+    if (weight < kMinEdgeConfidence) continue;
+    boundaries.push_back({p, q, (la - log_mean[p]) - (lb - log_mean[q]), weight});
+    add_difference(p, q, boundaries.back().target, weight);
   }
   for (int p = 0; p < n_pieces; ++p) {
     const int c = anchor[piece_class[p]];

@@ -88,9 +88,9 @@ struct AlbedoCluster {
 };
 
 struct AlbedoStats {
-  int chroma_classes = 0;  // chromaticity modes (+1 when there are dark texels)
-  int pieces = 0;          // connected pieces after merging small ones
-  size_t boundary_edges = 0;
+  int chroma_classes = 0;         // chromaticity modes (+1 when there are dark texels)
+  int pieces = 0;                 // connected pieces after merging small ones
+  size_t boundary_edges = 0;      // texel edges across piece boundaries that the solve uses
   double shading_jump_rms = 0.0;  // weighted RMS of the boundary residuals (log units)
   // The per-channel factor the albedo was white-balanced by before the gauge (1, 1, 1: none); the
   // lights take up the tint it took out.
