@@ -51,6 +51,17 @@ FuseSummary FuseSequence(const std::string& input, const SourceOptions& source_o
                 << "): relocalised against the keyframe at t = " << *r.relocalised_against
                 << std::defaultfloat << " (" << r.features.inliers << " feature inliers)\n";
     }
+    if (r.loop_closure) {
+      const fusion::LoopClosureEvent& e = *r.loop_closure;
+      std::cerr << "\nframe " << r.index << " (t = " << std::fixed << r.timestamp
+                << "): loop closed against the frame at t = " << e.against_timestamp
+                << std::defaultfloat << " (" << e.feature_inliers << " feature inliers; "
+                << 100.0 * e.discrepancy_translation << " cm, " << e.discrepancy_degrees
+                << " deg off); frames moved up to " << 100.0 * e.largest_move << " cm"
+                << (r.reintegrated > 0 ? Format(", ", r.reintegrated, " integrated again")
+                                       : std::string())
+                << "\n";
+    }
     std::cerr << "\rfusing: " << summary.frames;
     if (total) std::cerr << "/" << total;
     std::cerr << " frames, " << summary.frames / std::max(summary.seconds, 1e-9) << " fps, "

@@ -7,17 +7,23 @@
 // of all its blocks beside it (out of every frustum, as the rest of a room scanned before is):
 // only the blocks of chunks in the frustum are visited, so the two times should agree.
 //
-// --scale N: a long scan instead of folders: N frames of 640x480 of the analytic room of
-// core/synthetic.h (exact depth with Kinect-v1 noise, AddKinectDepthNoise), hand-held around the
-// room at 0.9 degrees a frame (a turn in 400 frames), rendered one at a time (untimed) and tracked
-// and fused with the defaults; every 100 frames a row of fps over those frames, blocks, the
-// volume's megabytes, the process's peak memory and the ATE so far.
+// --scale N: a long scan instead of folders: N frames of the analytic living room of
+// core/synthetic.h (5 x 4 x 2.6 m, its surfaces tiled with random brightness of --texture m,
+// default 0.15, 0 = plain; exact depth bent by --depth-bias K (AddRadialDepthBias, default 0),
+// then Kinect-v1 noise, AddKinectDepthNoise), --width pixels wide (default 640, 4:3), the camera
+// walking a circle of --radius m (default 0.4) looking out at the walls, one turn every
+// --per-turn frames (default 400, 0.9 degrees a frame; MakeRoomLoopTrajectory), rendered one at
+// a time (untimed) and tracked and fused with the defaults (--no-loop-closure: without loop
+// closure; --color-weight W: icp_color_weight); a line for each loop closed; every 100 frames a row
+// of fps over those frames, blocks, the volume's megabytes, the process's peak memory, the ATE so
+// far and the drift (the last pose against the truth, both relative to the first).
 #include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <map>
@@ -27,6 +33,7 @@
 
 #include "core/frame_source.h"
 #include "core/parallel.h"
+#include "core/se3.h"
 #include "core/synthetic.h"
 #include "core/trajectory_metrics.h"
 #include "fusion/kinect_fusion.h"
@@ -38,8 +45,10 @@ namespace {
 constexpr const char* kUsage =
     "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] "
     "[--allocation-stride N]"
-    " [--weighting noise|uniform] [--copies N]\n"
-    "       bench_fusion --scale N [--threads N]\n";
+    " [--weighting noise|uniform] [--copies N] [--color-weight W] [--no-loop-closure]\n"
+    "       bench_fusion --scale N [--texture M] [--width W] [--per-turn N]\n"
+    "         [--radius M] [--depth-bias K] [--color-weight W] [--no-loop-closure]\n"
+    "         [--threads N]\n";
 
 double PeakMegabytes() {
   rusage usage{};
@@ -48,16 +57,24 @@ double PeakMegabytes() {
 }
 
 // The long scan of --scale (see the top of the file).
-void LongScan(int frames) {
-  const SyntheticScene room = MakeCornellScene();
-  const CameraIntrinsics k = CameraIntrinsics::Centered(640, 480, 525.0);
-  const Trajectory truth =
-      MakeHandheldTrajectory(Eigen::Vector3d(0.0, 0.0, 0.6), 0.7, 1.1, 0.9 * frames, frames, 11);
+void LongScan(int frames, double texture, int width, int per_turn, bool loop_closure, double radius,
+              double depth_bias, double color_weight) {
+  SyntheticScene room = MakeLivingRoomScene();
+  room.texture_tile = texture;
+  const int height = width * 3 / 4;
+  const CameraIntrinsics k = CameraIntrinsics::Centered(width, height, 525.0 * width / 640.0);
+  const Trajectory truth = MakeRoomLoopTrajectory(
+      Eigen::Vector3d::Zero(), radius, 1.5, static_cast<double>(frames) / per_turn, frames, 11);
   fusion::FusionOptions options;
+  options.loop.enabled = loop_closure;
+  if (color_weight >= 0.0) options.icp.color_weight = color_weight;
   options.Validate();
   fusion::KinectFusion kf(options, k);
-  std::printf("long scan of the analytic room, %d frames of %dx%d, Kinect noise, threads %d\n",
-              frames, k.width, k.height, ThreadCount());
+  std::printf(
+      "long scan of the analytic living room, %d frames of %dx%d, Kinect noise, radial depth bias "
+      "%g, texture tiles %g m, a %g m circle every %d frames, loop closure %s, threads %d\n",
+      frames, k.width, k.height, depth_bias, texture, radius, per_turn, loop_closure ? "on" : "off",
+      ThreadCount());
   std::printf("%7s | %8s %8s | %8s %9s %9s | %8s | %s\n", "frames", "fps", "worst ms", "blocks",
               "volume MB", "peak MB", "ATE cm", "statuses");
   double seconds = 0.0, worst = 0.0;
@@ -66,6 +83,7 @@ void LongScan(int frames) {
   for (int i = 0; i < frames; ++i) {
     const StampedPose& p = truth.poses()[static_cast<size_t>(i)];
     RgbdFrame frame = RenderSyntheticFrame(room, k, p.world_from_camera, p.timestamp);
+    if (depth_bias != 0.0) AddRadialDepthBias(frame.depth, k, depth_bias);
     AddKinectDepthNoise(frame.depth, 5, static_cast<uint64_t>(i));
     frame.world_from_camera.reset();  // tracked, not given
     const fusion::FrameReport r = kf.ProcessFrame(frame);
@@ -73,6 +91,15 @@ void LongScan(int frames) {
     worst = std::max(worst, r.seconds());
     ++window;
     ++statuses[fusion::ToString(r.status)];
+    if (r.loop_closure) {
+      const fusion::LoopClosureEvent& e = *r.loop_closure;
+      std::printf(
+          "  frame %d: loop closed against t = %.3f (%d feature inliers, ICP %.2f / %.2f mm): "
+          "discrepancy %.2f cm %.2f deg, frames moved up to %.2f cm, %zu re-integrated, %.0f ms\n",
+          i, e.against_timestamp, e.feature_inliers, e.icp_inlier_ratio, 1e3 * e.icp_rms,
+          100.0 * e.discrepancy_translation, e.discrepancy_degrees, 100.0 * e.largest_move,
+          r.reintegrated, 1e3 * r.seconds_loop);
+    }
     if ((i + 1) % 100 == 0 || i + 1 == frames) {
       Trajectory so_far;
       for (int j = 0; j <= i; ++j)
@@ -82,7 +109,18 @@ void LongScan(int frames) {
         ate = ComputeAte(kf.trajectory(), so_far).rmse;
       } catch (const std::exception&) {
       }
-      std::string counts;
+      // Drift: the last tracked pose against the truth, both relative to the first frame.
+      double drift = std::nan("");
+      if (!kf.trajectory().poses().empty()) {
+        const StampedPose& last = kf.trajectory().poses().back();
+        for (int j = 0; j <= i; ++j) {
+          if (truth.poses()[j].timestamp != last.timestamp) continue;
+          const Eigen::Isometry3d rel =
+              truth.poses()[0].world_from_camera.inverse() * truth.poses()[j].world_from_camera;
+          drift = (rel.translation() - last.world_from_camera.translation()).norm();
+        }
+      }
+      std::string counts = "drift " + std::to_string(100.0 * drift) + " cm ";
       for (const auto& [name, n] : statuses) counts += name + " " + std::to_string(n) + " ";
       std::printf("%7d | %8.1f %8.1f | %8zu %9.1f %9.0f | %8.3f | %s\n", i + 1, window / seconds,
                   1e3 * worst, kf.volume().num_blocks(), kf.volume().allocated_bytes() / 1e6,
@@ -155,6 +193,13 @@ int Run(int argc, char** argv) {
   std::string weighting = fusion::FusionOptions().weighting;
   int copies = 3;
   int scale = 0;
+  double texture = 0.15;
+  int width = 640;
+  int per_turn = 400;
+  bool loop_closure = true;
+  double radius = 0.4;
+  double depth_bias = 0.0;
+  double color_weight = -1.0;  // the default
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
       std::printf(
@@ -178,13 +223,27 @@ int Run(int argc, char** argv) {
       threads = std::atoi(argv[++i]);
     } else if (std::strcmp(argv[i], "--scale") == 0 && i + 1 < argc) {
       scale = std::atoi(argv[++i]);
+    } else if (std::strcmp(argv[i], "--texture") == 0 && i + 1 < argc) {
+      texture = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--color-weight") == 0 && i + 1 < argc) {
+      color_weight = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--depth-bias") == 0 && i + 1 < argc) {
+      depth_bias = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--radius") == 0 && i + 1 < argc) {
+      radius = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--no-loop-closure") == 0) {
+      loop_closure = false;
+    } else if (std::strcmp(argv[i], "--per-turn") == 0 && i + 1 < argc) {
+      per_turn = std::atoi(argv[++i]);
+    } else if (std::strcmp(argv[i], "--width") == 0 && i + 1 < argc) {
+      width = std::atoi(argv[++i]);
     } else {
       folders.push_back(argv[i]);
     }
   }
   if (scale > 0) {
     SetThreadCount(threads);
-    LongScan(scale);
+    LongScan(scale, texture, width, per_turn, loop_closure, radius, depth_bias, color_weight);
     return 0;
   }
   if (folders.empty()) {
@@ -194,14 +253,17 @@ int Run(int argc, char** argv) {
   SetThreadCount(threads);
   std::printf(
       "threads %d, model raycast at 1/%d resolution, allocation stride %d (0 = width / 160), %s "
-      "weights\n",
-      ThreadCount(), model_subsample, allocation_stride, weighting.c_str());
-  std::printf("%-28s %9s %7s | %8s %8s %8s %8s %8s | %9s | %8s %9s\n", "sequence", "size", "frames",
-              "prep ms", "track ms", "integ ms", "ray ms", "fps", "ATE cm", "integ fps", "blocks");
+      "weights, colour weight %g, loop closure %s\n",
+      ThreadCount(), model_subsample, allocation_stride, weighting.c_str(),
+      color_weight >= 0.0 ? color_weight : fusion::IcpOptions().color_weight,
+      loop_closure ? "on" : "off");
+  std::printf("%-28s %9s %7s | %8s %8s %8s %8s %8s %8s | %9s | %8s %9s\n", "sequence", "size",
+              "frames", "prep ms", "track ms", "integ ms", "ray ms", "loop ms", "fps", "ATE cm",
+              "integ fps", "blocks");
   for (const std::string& folder : folders) {
     auto source = OpenFrameSource(folder, SourceOptions());
     const std::vector<RgbdFrame> frames = ReadAllFrames(*source);  // decoding is not timed
-    double totals[2][4] = {};
+    double totals[2][5] = {};
     double ate = 0.0;
     std::optional<TsdfVolume> volume;
     Trajectory trajectory;
@@ -212,6 +274,8 @@ int Run(int argc, char** argv) {
       options.model_subsample = model_subsample;
       options.allocation_stride = allocation_stride;
       options.weighting = weighting;
+      options.loop.enabled = loop_closure;
+      if (color_weight >= 0.0) options.icp.color_weight = color_weight;
       options.Validate();
       fusion::KinectFusion kf(options, source->Intrinsics());
       for (const RgbdFrame& f : frames) {
@@ -220,6 +284,7 @@ int Run(int argc, char** argv) {
         totals[mode][1] += r.seconds_track;
         totals[mode][2] += r.seconds_integrate;
         totals[mode][3] += r.seconds_raycast;
+        totals[mode][4] += r.seconds_loop;
       }
       if (mode == 0) {
         ate = ComputeAte(kf.trajectory(), source->KnownPoses()).rmse;
@@ -229,15 +294,17 @@ int Run(int argc, char** argv) {
       }
     }
     const double n = static_cast<double>(frames.size());
-    const double per_frame = (totals[0][0] + totals[0][1] + totals[0][2] + totals[0][3]) / n;
+    const double per_frame =
+        (totals[0][0] + totals[0][1] + totals[0][2] + totals[0][3] + totals[0][4]) / n;
     char size[32];
     std::snprintf(size, sizeof(size), "%dx%d", source->Intrinsics().width,
                   source->Intrinsics().height);
-    std::printf("%-28s %9s %7zu | %8.2f %8.2f %8.2f %8.2f %8.1f | %9.3f | %8.1f %9zu\n",
+    std::printf("%-28s %9s %7zu | %8.2f %8.2f %8.2f %8.2f %8.2f %8.1f | %9.3f | %8.1f %9zu\n",
                 folder.substr(folder.size() > 28 ? folder.size() - 28 : 0).c_str(), size,
                 frames.size(), 1e3 * totals[0][0] / n, 1e3 * totals[0][1] / n,
-                1e3 * totals[0][2] / n, 1e3 * totals[0][3] / n, 1.0 / per_frame, 100.0 * ate,
-                n / totals[1][2], volume ? volume->num_blocks() : size_t{0});
+                1e3 * totals[0][2] / n, 1e3 * totals[0][3] / n, 1e3 * totals[0][4] / n,
+                1.0 / per_frame, 100.0 * ate, n / totals[1][2],
+                volume ? volume->num_blocks() : size_t{0});
     if (copies > 0 && volume && volume->num_blocks() > 0) {
       TimeRaycastAgainstVolumeSize(*volume, trajectory, source->Intrinsics(), icp_options, copies,
                                    per_frame);

@@ -49,6 +49,20 @@ Eigen::Vector3f SyntheticScene::Box::AlbedoAt(const Eigen::Vector3d& p) const {
   return albedo + (albedo2 - albedo) * static_cast<float>(t);
 }
 
+float SyntheticScene::TextureAt(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const {
+  if (!(texture_tile > 0.0)) return 1.0f;
+  // Tiles in the surface's plane: the coordinate along the normal is taken out, so that a wall
+  // lying on a tile boundary does not flip between two tiles with its rounding.
+  const Eigen::Vector3d q = p - n * n.dot(p);
+  auto tile = [&](double size, uint64_t stream) {
+    const Eigen::Vector3d c = (q / size).array().floor();
+    uint64_t h = Mix64(texture_seed ^ stream);
+    for (int i = 0; i < 3; ++i) h = Mix64(h ^ static_cast<uint64_t>(static_cast<int64_t>(c[i])));
+    return static_cast<float>(h >> 40) * (1.0f / 16777216.0f);
+  };
+  return (0.15f + 0.85f * tile(texture_tile, 1)) * (0.6f + 0.4f * tile(texture_tile / 3.0, 2));
+}
+
 std::optional<SyntheticScene::Hit> SyntheticScene::Intersect(const Eigen::Vector3d& o,
                                                              const Eigen::Vector3d& d,
                                                              double t_min) const {
@@ -86,6 +100,7 @@ std::optional<SyntheticScene::Hit> SyntheticScene::Intersect(const Eigen::Vector
       }
     }
   }
+  if (best && texture_tile > 0.0) best->albedo *= TextureAt(o + best->t * d, best->normal);
   return best;
 }
 
@@ -186,6 +201,44 @@ SyntheticScene MakeCornellScene() {
   return scene;
 }
 
+SyntheticScene MakeLivingRoomScene() {
+  SyntheticScene room;
+  const Eigen::Vector3f wall(0.78f, 0.76f, 0.72f), floor(0.35f, 0.3f, 0.27f),
+      wood(0.45f, 0.3f, 0.18f);
+  room.room = SyntheticScene::Room{};
+  room.room->bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-2.5, -2.0, 0.0), Eigen::Vector3d(2.5, 2.0, 2.6));
+  room.room->albedo = {wall,  Eigen::Vector3f(0.55f, 0.65f, 0.75f), wall, wall,
+                       floor, Eigen::Vector3f::Constant(0.85f)};
+  // Table: top and four legs.
+  room.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(-0.6, -0.4, 0.72), Eigen::Vector3d(0.6, 0.4, 0.76)),
+       wood});
+  for (double x : {-0.55, 0.5}) {
+    for (double y : {-0.35, 0.3}) {
+      room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(x, y, 0.0),
+                                                Eigen::Vector3d(x + 0.05, y + 0.05, 0.72)),
+                            wood});
+    }
+  }
+  // Sofa against the +y wall, cabinet against the -x wall.
+  const Eigen::Vector3f fabric(0.2f, 0.3f, 0.55f);
+  room.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(-1.2, 1.2, 0.0), Eigen::Vector3d(1.2, 2.0, 0.45)),
+       fabric});
+  room.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(-1.2, 1.7, 0.45), Eigen::Vector3d(1.2, 2.0, 0.9)),
+       fabric});
+  room.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(-2.5, -1.0, 0.0), Eigen::Vector3d(-2.0, 0.2, 1.0)),
+       wood});
+  room.spheres.push_back(
+      {Eigen::Vector3d(0.9, -1.0, 0.2), 0.2, Eigen::Vector3f(0.8f, 0.2f, 0.15f)});
+  room.light_position = Eigen::Vector3d(0.0, 0.0, 2.5);
+  room.ambient = 0.35;
+  return room;
+}
+
 RgbdFrame RenderSyntheticFrame(const SyntheticScene& scene, const CameraIntrinsics& intrinsics,
                                const Eigen::Isometry3d& world_from_camera, double timestamp) {
   intrinsics.Validate("synthetic camera");
@@ -260,6 +313,43 @@ Trajectory MakeHandheldTrajectory(const Eigen::Vector3d& target, double radius, 
     out.Add(p.timestamp, LookAt(eye, look));
   }
   return out;
+}
+
+Trajectory MakeRoomLoopTrajectory(const Eigen::Vector3d& center, double radius, double height,
+                                  double turns, int frames, uint64_t seed) {
+  GS_CHECK_GT(frames, 1);
+  CounterRng rng(seed, 0x1009);  // phases of the sway
+  double phase[5];
+  for (double& p : phase) p = 2.0 * M_PI * rng.UniformDouble();
+  Trajectory out;
+  for (int i = 0; i < frames; ++i) {
+    const double s = static_cast<double>(i) / (frames - 1);  // 0 .. 1
+    const double angle = 2.0 * M_PI * turns * s;
+    // Whole numbers of cycles per turn, so that every turn ends where it began.
+    auto wave = [&](int k, double cycles) {
+      return std::sin(2.0 * M_PI * cycles * turns * s + phase[k]);
+    };
+    const Eigen::Vector3d out_dir(std::cos(angle), std::sin(angle), 0.0);
+    const Eigen::Vector3d eye = center + radius * out_dir +
+                                Eigen::Vector3d(0.05 * wave(0, 3.0), 0.05 * wave(1, 2.0),
+                                                height - center.z() + 0.05 * wave(2, 4.0));
+    const double down = (25.0 + 5.0 * wave(3, 3.0)) * M_PI / 180.0;
+    const double yaw = angle + 0.2 * wave(4, 2.0);
+    const Eigen::Vector3d look(std::cos(yaw) * std::cos(down), std::sin(yaw) * std::cos(down),
+                               -std::sin(down));
+    out.Add(i / 30.0, LookAt(eye, eye + look));
+  }
+  return out;
+}
+
+void AddRadialDepthBias(ImageDepth& depth, const CameraIntrinsics& intrinsics, double k) {
+  GS_CHECK(depth.SameSize(intrinsics.width, intrinsics.height));
+  for (int v = 0; v < depth.height(); ++v) {
+    for (int u = 0; u < depth.width(); ++u) {
+      const double x = (u - intrinsics.cx) / intrinsics.cx, y = (v - intrinsics.cy) / intrinsics.cx;
+      depth(u, v) *= static_cast<float>(1.0 + k * (x * x + y * y));
+    }
+  }
 }
 
 void AddKinectDepthNoise(ImageDepth& depth, uint64_t seed, uint64_t frame_index) {

@@ -42,6 +42,14 @@ struct SyntheticScene {
   std::vector<Sphere> spheres;
   Eigen::Vector3d light_position{0.0, 0.0, 1.9};  // world, meters
   double ambient = 0.25;                          // fraction of unshadowed ambient light
+  // Optional texture on every surface, so that colour features have corners to find (posters,
+  // tiles, wood grain in a real room): with texture_tile > 0 m the albedo is scaled by a
+  // brightness drawn per square tile of that size in the surface's plane, in [0.15, 1], times one
+  // per tile a third that size, in [0.6, 1] (tiles keyed by texture_seed). 0 = plain albedo.
+  double texture_tile = 0.0;
+  uint64_t texture_seed = 1;
+  // The texture's factor at surface point p with normal n (1 without texture).
+  float TextureAt(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const;
 
   struct Hit {
     double t = 0.0;  // ray parameter: point = origin + t * direction
@@ -60,6 +68,12 @@ struct SyntheticScene {
 // A Cornell-box-like room 2 m wide (x in [-1, 1], y in [-1, 1], z in [0, 2]): red left wall (-x),
 // green right wall (+x), white elsewhere, a white box and a sphere on the floor. z is up.
 SyntheticScene MakeCornellScene();
+
+// A 5 x 4 x 2.6 m living room (x in [-2.5, 2.5], y in [-2, 2], z up): off-white walls (the
+// +x wall blue-grey), a grey floor, a white ceiling, a table, a sofa against the +y wall, a
+// cabinet against the -x wall and a red ball; lit from (0, 0, 2.5). render::MakeRoomScene is its
+// path-traced version.
+SyntheticScene MakeLivingRoomScene();
 
 // A striped wall (x in [-1.5, 1.5], y in [1, 1.05], z in [0, 2]; albedo varying smoothly between
 // (0.1, 0.3, 0.8) and (0.9, 0.7, 0.2) with a 0.5 m period) and a red box 0.4 m in front of it,
@@ -81,12 +95,24 @@ Trajectory MakeOrbitTrajectory(const Eigen::Vector3d& target, double radius, dou
 Trajectory MakeHandheldTrajectory(const Eigen::Vector3d& target, double radius, double height,
                                   double arc_degrees, int frames, uint64_t seed);
 
+// A camera walked `turns` times around a circle of `radius` about `center` at `height`, looking
+// outwards at the walls and 15 degrees down, swaying by up to 5 cm and a few degrees; every whole
+// turn ends where it began (a loop for loop closure). Time stamps 1/30 s apart.
+Trajectory MakeRoomLoopTrajectory(const Eigen::Vector3d& center, double radius, double height,
+                                  double turns, int frames, uint64_t seed);
+
 // Pose of a camera at `eye` looking at `target` with world up +z (OpenCV camera axes).
 Eigen::Isometry3d LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target);
 
 }  // namespace genscene
 
 namespace genscene {
+
+// A structured-light sensor's depth distortion: depth scaled by 1 + k r^2, r the distance from
+// the principal point over cx (1 at the left and right borders). Such sensors' depth errors grow
+// towards the image's borders (Herrera et al. 2012, Teichman et al. 2013); a scan through a
+// room bends its walls and tracking drifts. Zero depth stays zero.
+void AddRadialDepthBias(ImageDepth& depth, const CameraIntrinsics& intrinsics, double k);
 
 // Kinect-v1-like depth degradation, in this order:
 //  1. dropouts at depth edges: a pixel whose 4-neighbour is invalid or more than 5 % nearer or

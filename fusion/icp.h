@@ -39,6 +39,14 @@ struct IcpOptions {
   double max_rms_residual = 0.02;  // m; above = lost
   double max_translation = 0.3;    // m between consecutive frames; above = lost (a jump)
   double max_rotation = 30.0;      // degrees between consecutive frames; above = lost
+  // The photometric term (when both frames have colour): each live pixel's brightness against
+  // that of the frame the model was raycast from, where its point lands there (Steinbruecker et
+  // al. 2011; ElasticFusion and Open3D's hybrid odometry add it to point-to-plane ICP likewise),
+  // in metres per unit of brightness: the residual and its derivative are scaled by it to sit
+  // beside the point-to-plane residual in metres. It fixes the directions a wall or a floor
+  // leaves free to the geometry where the surface has texture. 0 = geometry only.
+  double color_weight = 0.1;
+  double color_huber = 0.05;  // brightness; Huber threshold of the photometric residual
 
   void Validate() const;
 };
@@ -49,6 +57,8 @@ struct IcpReport {
   size_t inliers = 0;         // of which with an accepted correspondence (last iteration)
   double inlier_ratio = 0.0;  // inliers / valid_pixels
   double rms_residual = 0.0;  // m, point-to-plane, over the inliers
+  size_t color_pixels = 0;    // pixels with a photometric residual (last pass, full resolution)
+  double color_rms = 0.0;     // their RMS brightness difference
   double condition = 0.0;     // largest / smallest eigenvalue of J^T J (rotation scaled to metres)
   int constrained_directions = 0;  // of 6
   bool degenerate = false;         // some direction was unconstrained
@@ -57,8 +67,15 @@ struct IcpReport {
 // Refines `model_from_live` (the live camera in the frame of the camera the model was raycast
 // from; start: the motion prediction, e.g. identity) in place. `model` is the raycast at full
 // resolution with intrinsics `model_intrinsics`; `live` the live frame's pyramid (level 0 finest).
+// With `live_intensity` and `model_intensity` (BuildIntensityPyramid of the live frame and of the
+// frame whose pose the model was raycast at, as many levels as `live`) and color_weight > 0, the
+// photometric term joins the point-to-plane one at every level, on the pixels whose point has a
+// model correspondence within 3 Huber thresholds (a point the model frame saw, not one hidden
+// from it).
 IcpReport TrackFrameToModel(const std::vector<PyramidLevel>& live, const RaycastResult& model,
                             const CameraIntrinsics& model_intrinsics, const IcpOptions& options,
-                            Eigen::Isometry3d* model_from_live);
+                            Eigen::Isometry3d* model_from_live,
+                            const std::vector<IntensityLevel>* live_intensity = nullptr,
+                            const std::vector<IntensityLevel>* model_intensity = nullptr);
 
 }  // namespace genscene::fusion

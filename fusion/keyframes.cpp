@@ -158,4 +158,14 @@ void KeyframeSelector::Commit() {
   window_left_ = 0;
 }
 
+void KeyframeSelector::Repose(
+    const std::function<std::optional<Eigen::Isometry3d>(double)>& pose_of) {
+  auto repose = [&](RgbdFrame& f) {
+    if (auto moved = pose_of(f.timestamp)) f.world_from_camera = *moved;
+  };
+  for (RgbdFrame& f : keyframes_) repose(f);
+  if (best_) repose(*best_);
+  for (Candidate& c : candidates_) repose(c.frame);
+}
+
 }  // namespace genscene::fusion

@@ -12,6 +12,7 @@
 #pragma once
 
 #include <Eigen/Geometry>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -44,6 +45,9 @@ class KeyframeSelector {
   // Closes an open window and tops the keyframes up to min_keyframes (end of the sequence).
   void Finish();
 
+  // Moves every frame held (keyframes, the open window's best, the top-up candidates) to
+  // pose_of(its time stamp) where that gives a pose (a closed loop moved the trajectory).
+  void Repose(const std::function<std::optional<Eigen::Isometry3d>(double)>& pose_of);
   // In the order of the recording.
   const std::vector<RgbdFrame>& keyframes() const { return keyframes_; }
   std::vector<double> sharpness() const { return sharpness_; }

@@ -97,6 +97,9 @@ KinectFusion::KinectFusion(const FusionOptions& options, const CameraIntrinsics&
   model_intrinsics_ = intrinsics_.Scaled(1.0 / options_.model_subsample);
   integration_.allocation_stride = options_.AllocationStride(intrinsics_.width);
   integration_.noise_weights = options_.weighting == "noise";
+  if (options_.loop.enabled && options_.tracking != "known")
+    loops_.emplace(options_.loop, intrinsics_, options_.preprocess, options_.icp,
+                   options_.features);
 }
 
 FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
@@ -132,6 +135,7 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   }
 
   Eigen::Isometry3d pose;
+  std::vector<IntensityLevel> live_intensity;  // for the photometric term (tracked frames)
   if (options_.tracking == "known") {
     if (!frame.world_from_camera) {
       throw Error(Format("frame ", report.index, " (t = ", frame.timestamp,
@@ -149,15 +153,20 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     report.seconds_preprocess = SecondsSince(start);
   } else {
     const std::vector<PyramidLevel> pyramid = BuildPyramid(depth, k, options_.preprocess);
+    if (options_.icp.color_weight > 0.0)
+      live_intensity = BuildIntensityPyramid(frame.color, options_.preprocess.levels);
     report.seconds_preprocess = SecondsSince(start);
     start = std::chrono::steady_clock::now();
     // Predict no motion since the last pose: the last fused frame's, or a held-out frame's after it
     // (with a held-out frame between them, two frames' motion would start from the identity).
+    // Not the last frame's motion repeated (constant velocity): in a direction the scene
+    // constrains weakly ICP keeps the prediction, the next prediction doubles it, and tracking
+    // ran away (the path-traced room: lost from frame 39 on).
     Eigen::Isometry3d model_from_live =
         held_out_pose_ ? Eigen::Isometry3d(last_good_.inverse() * *held_out_pose_)
                        : Eigen::Isometry3d::Identity();
-    report.icp =
-        TrackFrameToModel(pyramid, model_, model_intrinsics_, options_.icp, &model_from_live);
+    report.icp = TrackFrameToModel(pyramid, model_, model_intrinsics_, options_.icp,
+                                   &model_from_live, &live_intensity, &model_intensity_);
     report.seconds_track = SecondsSince(start);
     const double moved = model_from_live.translation().norm();
     const double turned = RotationAngle(model_from_live) * 180.0 / M_PI;
@@ -201,8 +210,10 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
       // The next frame tracks from this pose: against the model as seen from here.
       UpdateModel(pose, &report);
       last_good_ = pose;
+      model_intensity_ = std::move(live_intensity);
       held_out_pose_.reset();
       trajectory_.Add(frame.timestamp, pose);
+      if (loops_) loops_->Anchor(frame.timestamp, pose);
       return finish(report);
     }
     report.status = FrameStatus::kTracked;
@@ -228,15 +239,59 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     }
   }
   last_good_ = pose;
+  if (options_.tracking != "known" && options_.icp.color_weight > 0.0) {
+    // The first frame's pyramid is made here (no tracking built it).
+    model_intensity_ = live_intensity.empty()
+                           ? BuildIntensityPyramid(frame.color, options_.preprocess.levels)
+                           : std::move(live_intensity);
+  }
   held_out_pose_.reset();
   report.world_from_camera = pose;
   trajectory_.Add(frame.timestamp, pose);
+  if (loops_) {
+    start = std::chrono::steady_clock::now();
+    report.loop_closure = loops_->AddFused(frame.timestamp, pose, depth, frame.color);
+    if (report.loop_closure) {
+      ApplyLoopClosure(&report);
+      pose = *report.world_from_camera;
+    }
+    report.seconds_loop = SecondsSince(start);
+  }
   RgbdFrame posed = frame;
   posed.depth = depth;
   posed.world_from_camera = pose;
   posed.intrinsics = intrinsics_;
   keyframe_selector_.Offer(posed);
   return finish(report);
+}
+
+void KinectFusion::ApplyLoopClosure(FrameReport* report) {
+  std::vector<StampedPose> poses = trajectory_.poses();
+  for (StampedPose& p : poses) {
+    if (auto moved = loops_->PoseOf(p.timestamp)) p.world_from_camera = *moved;
+  }
+  trajectory_ = Trajectory(std::move(poses));
+  const auto pose_of = [&](double t) { return loops_->PoseOf(t); };
+  keyframe_selector_.Repose(pose_of);
+  for (RgbdFrame& f : held_out_) {
+    if (auto moved = pose_of(f.timestamp)) f.world_from_camera = *moved;
+  }
+  if (last_fused_.world_from_camera) {
+    if (auto moved = pose_of(last_fused_.timestamp)) last_fused_.world_from_camera = *moved;
+  }
+  last_good_ = *pose_of(report->timestamp);
+  report->world_from_camera = last_good_;
+  if (report->loop_closure->largest_move >= options_.loop.min_correction) {
+    // The volume again from every fused frame at its corrected pose.
+    const FrameStore& store = loops_->frames();
+    volume_ = TsdfVolume(volume_.params());
+    for (size_t i = 0; i < store.size(); ++i) {
+      IntegrateFrame(volume_, store.Depth(i), store.Color(i), intrinsics_,
+                     *pose_of(store.timestamp(i)), integration_);
+    }
+    report->reintegrated = store.size();
+  }
+  UpdateModel(last_good_, report);
 }
 
 void KinectFusion::UpdateModel(const Eigen::Isometry3d& pose, FrameReport* report) {
@@ -343,6 +398,7 @@ FrameReport KinectFusion::HoldOut(const RgbdFrame& frame, const ImageDepth& dept
   report.status = FrameStatus::kHeldOut;
   report.world_from_camera = pose;
   held_out_pose_ = pose;
+  if (loops_) loops_->Anchor(frame.timestamp, pose);
   if (held_out_.size() < static_cast<size_t>(FusionOptions::kMaxHeldOut) && !frame.color.empty()) {
     RgbdFrame kept = frame;
     kept.depth = depth;
@@ -390,6 +446,24 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
               {"ms_integrate", 1e3 * r.seconds_integrate},
               {"ms_raycast", 1e3 * r.seconds_raycast}};
     if (!r.reason.empty()) j["reason"] = r.reason;
+    j["colour_pixels"] = r.icp.color_pixels;
+    j["colour_rms"] = r.icp.color_rms;
+    j["ms_loop"] = 1e3 * r.seconds_loop;
+    if (r.loop_closure) {
+      const LoopClosureEvent& e = *r.loop_closure;
+      j["loop_closure"] = {{"against_t", e.against_timestamp},
+                           {"feature_inliers", e.feature_inliers},
+                           {"icp_inlier_ratio", e.icp_inlier_ratio},
+                           {"icp_rms_m", e.icp_rms},
+                           {"discrepancy_m", e.discrepancy_translation},
+                           {"discrepancy_deg", e.discrepancy_degrees},
+                           {"largest_move_m", e.largest_move},
+                           {"largest_turn_deg", e.largest_turn_degrees},
+                           {"graph_iterations", e.graph.iterations},
+                           {"graph_initial_cost", e.graph.initial_cost},
+                           {"graph_final_cost", e.graph.final_cost},
+                           {"reintegrated_frames", r.reintegrated}};
+    }
     frames.push_back(j);
   }
   const TsdfVolume& volume = fusion.volume();
@@ -403,6 +477,14 @@ void SaveFusionOutputs(const KinectFusion& fusion, const Workspace& workspace,
                   {"keyframes", fusion.keyframes().size()},
                   {"held_out", fusion.held_out().size()}};
   if (camera_frames_skipped) summary["camera_frames_skipped"] = *camera_frames_skipped;
+  if (const LoopClosure* loops = fusion.loop_closure()) {
+    summary["loop_closure"] = {{"graph_nodes", loops->graph().NodeCount()},
+                               {"graph_edges", loops->graph().edges().size()},
+                               {"loops_closed", loops->events().size()},
+                               {"frames_kept", loops->frames().size()},
+                               {"frames_kept_megabytes", loops->frames().bytes() / 1e6},
+                               {"stopped_at_frame_memory", !loops->storing()}};
+  }
   if (ate) {
     summary["ate"] = {{"pairs", ate->pairs},
                       {"rmse_m", ate->rmse},

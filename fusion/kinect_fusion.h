@@ -29,6 +29,7 @@
 #include "fusion/icp.h"
 #include "fusion/integrate.h"
 #include "fusion/keyframes.h"
+#include "fusion/loop_closure.h"
 #include "fusion/preprocess.h"
 #include "fusion/raycast.h"
 
@@ -75,6 +76,7 @@ struct FusionOptions {
   bool feature_tracking = true;
   PreprocessOptions preprocess;
   IcpOptions icp;
+  LoopClosureOptions loop;
   FeatureAlignOptions features;
   KeyframeOptions keyframes;
 
@@ -110,6 +112,11 @@ struct FusionOptions {
     v("icp_huber_delta", icp.huber_delta, "m", "Huber threshold of the point-to-plane residual");
     v("icp_min_step", icp.min_step, "m or rad",
       "a resolution level stops iterating when a pose update is smaller");
+    v("icp_color_weight", icp.color_weight, "m",
+      "weight of the photometric term beside point-to-plane ICP, per unit of brightness "
+      "(0 = geometry only)");
+    v("icp_color_huber", icp.color_huber, "",
+      "Huber threshold of the photometric residual (brightness in [0, 1])");
     v("degenerate_eigen_ratio", icp.degenerate_eigen_ratio, "",
       "eigenvalue ratio below which a pose direction counts as unconstrained");
     v("min_inlier_ratio", icp.min_inlier_ratio, "", "tracking is lost below this inlier fraction");
@@ -122,6 +129,24 @@ struct FusionOptions {
     v("feature_max", features.max_features, "", "ORB keypoints per image for feature tracking");
     v("feature_min_inliers", features.min_inliers, "",
       "feature matches consistent with one pose needed to start ICP from it");
+    v("loop_closure", loop.enabled, "",
+      "find revisits (features between pose-graph nodes, verified by ICP), optimise the pose "
+      "graph and re-integrate the volume at the corrected poses (tracking = icp only)");
+    v("loop_node_translation", loop.node_translation, "m",
+      "camera motion that places a new pose-graph node");
+    v("loop_node_rotation", loop.node_rotation, "deg",
+      "camera rotation that places a new pose-graph node");
+    v("loop_min_separation", loop.min_separation, "frames",
+      "a node is matched only against nodes at least this many fused frames older");
+    v("loop_search_radius", loop.search_radius, "m",
+      "old nodes within this distance of a new node are loop candidates");
+    v("loop_search_angle", loop.search_angle, "deg",
+      "old nodes viewing within this angle of a new node are loop candidates");
+    v("loop_max_candidates", loop.max_candidates, "", "loop candidates tried per new node");
+    v("loop_min_correction", loop.min_correction, "m",
+      "a closed loop moving no frame farther leaves the volume as it is (no re-integration)");
+    v("loop_frame_memory", loop.frame_memory, "MB",
+      "memory for the fused frames kept for re-integration; beyond it loop closure stops");
     v("keyframe_translation", keyframes.translation, "m",
       "camera motion that makes a new keyframe due");
     v("keyframe_rotation", keyframes.rotation, "deg",
@@ -165,14 +190,19 @@ struct FrameReport {
   // none: the camera was relocalised.
   std::optional<double> relocalised_against;
   IntegrationStats integration;
+  // A loop closed at this frame (loop_closure.h), and the fused frames re-integrated for it.
+  std::optional<LoopClosureEvent> loop_closure;
+  size_t reintegrated = 0;
   // The model raycast's pass over the volume: chunks tested against the frustum, blocks of the
   // chunks inside it projected (0 when no model was raycast).
   size_t raycast_chunks = 0, raycast_blocks = 0;
   std::optional<Eigen::Isometry3d> world_from_camera;  // the estimate (none when lost/blank)
   double seconds_preprocess = 0.0, seconds_track = 0.0, seconds_integrate = 0.0,
          seconds_raycast = 0.0;
+  // Pose-graph upkeep: frame kept, node features, loop search and optimisation, re-integration.
+  double seconds_loop = 0.0;
   double seconds() const {
-    return seconds_preprocess + seconds_track + seconds_integrate + seconds_raycast;
+    return seconds_preprocess + seconds_track + seconds_integrate + seconds_raycast + seconds_loop;
   }
 };
 
@@ -194,6 +224,9 @@ class KinectFusion {
   const std::vector<RgbdFrame>& held_out() const { return held_out_; }
   const CameraIntrinsics& intrinsics() const { return intrinsics_; }
   const FusionOptions& options() const { return options_; }
+  // The pose graph, its loop closures and the frames kept (null with loop_closure off or
+  // tracking = known).
+  const LoopClosure* loop_closure() const { return loops_ ? &*loops_ : nullptr; }
   // The model as seen from the last good pose, which ICP tracks against; empty before the first
   // frame and with tracking = known (no raycast is made then).
   const RaycastResult& model() const { return model_; }
@@ -206,6 +239,9 @@ class KinectFusion {
   // Records a held-out frame at `pose` (kept while fewer than kMaxHeldOut are) and its report.
   FrameReport HoldOut(const RgbdFrame& frame, const ImageDepth& depth,
                       const Eigen::Isometry3d& pose, FrameReport report);
+  // After a closed loop: every pose from the graph (trajectory, keyframes, held-out frames, the
+  // last good pose) and, when a frame moved by min_correction or more, the volume re-integrated.
+  void ApplyLoopClosure(FrameReport* report);
   // The model raycast at `pose` for tracking.
   RaycastResult RaycastModel(const Eigen::Isometry3d& pose) const;
   // model_ = the model raycast at `pose`, its time and its pass over the volume in `report`.
@@ -231,6 +267,9 @@ class KinectFusion {
   bool started_ = false;
   Eigen::Isometry3d last_good_ = Eigen::Isometry3d::Identity();  // pose the model was raycast at
   RaycastResult model_;
+  // The brightness pyramid of the frame at last_good_ (the photometric term's reference; empty
+  // without colour or with color_weight 0).
+  std::vector<IntensityLevel> model_intensity_;
   CameraIntrinsics
       model_intrinsics_;            // the model's raycast camera (intrinsics at 1/model_subsample)
   IntegrationOptions integration_;  // allocation stride (resolved by the image width) and weights
@@ -243,6 +282,7 @@ class KinectFusion {
   // The keyframes' features, by time stamp, detected when a lost frame first needs them.
   mutable std::map<double, FeatureFrame> keyframe_features_;
   mutable size_t relocalise_next_ = 0;  // the keyframe a lost frame tries first, newest = 0
+  std::optional<LoopClosure> loops_;
 };
 
 // Writes the stage's outputs into the workspace, each atomically: trajectory.txt (TUM),

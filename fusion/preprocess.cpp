@@ -1,8 +1,10 @@
 #include "fusion/preprocess.h"
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
+#include "core/color.h"
 #include "core/options.h"
 #include "core/parallel.h"
 
@@ -189,6 +191,61 @@ std::vector<PyramidLevel> BuildPyramid(const ImageDepth& masked_depth,
     level.normals = ComputeNormalMap(level.vertices);
   }
   return levels;
+}
+
+std::vector<IntensityLevel> BuildIntensityPyramid(const ImageRgb& color, int levels) {
+  std::vector<IntensityLevel> out;
+  if (color.empty()) return out;
+  out.resize(static_cast<size_t>(levels));
+  const int w0 = color.width(), h0 = color.height();
+  out[0].intensity = ImageGray(w0, h0, 0.0f);
+  ParallelFor(0, static_cast<size_t>(h0), [&](size_t v) {
+    for (int u = 0; u < w0; ++u) {
+      const float l = Luminance(color(u, static_cast<int>(v)));
+      out[0].intensity(u, static_cast<int>(v)) =
+          std::isfinite(l) ? LinearToSrgb(std::clamp(l, 0.0f, 1.0f)) : 0.0f;
+    }
+  });
+  for (size_t l = 1; l < out.size(); ++l) {
+    const ImageGray& fine = out[l - 1].intensity;
+    const int w = fine.width() / 2, h = fine.height() / 2;
+    out[l].intensity = ImageGray(w, h, 0.0f);
+    for (int v = 0; v < h; ++v) {
+      for (int u = 0; u < w; ++u) {
+        out[l].intensity(u, v) = 0.25f * (fine(2 * u, 2 * v) + fine(2 * u + 1, 2 * v) +
+                                          fine(2 * u, 2 * v + 1) + fine(2 * u + 1, 2 * v + 1));
+      }
+    }
+  }
+  for (IntensityLevel& level : out) {
+    const ImageGray& i = level.intensity;
+    const int w = i.width(), h = i.height();
+    // The mask's response has standard deviation 6 sigma under white noise; its median absolute
+    // value (0.6745 of that) over every other pixel ignores the minority of pixels on edges.
+    std::vector<float> response;
+    response.reserve(static_cast<size_t>(w) * static_cast<size_t>(h) / 4 + 1);
+    for (int v = 1; v + 1 < h; v += 2) {
+      for (int u = 1; u + 1 < w; u += 2) {
+        response.push_back(std::abs(i(u - 1, v - 1) - 2.0f * i(u, v - 1) + i(u + 1, v - 1) -
+                                    2.0f * i(u - 1, v) + 4.0f * i(u, v) - 2.0f * i(u + 1, v) +
+                                    i(u - 1, v + 1) - 2.0f * i(u, v + 1) + i(u + 1, v + 1)));
+      }
+    }
+    if (!response.empty()) {
+      auto middle = response.begin() + static_cast<std::ptrdiff_t>(response.size() / 2);
+      std::nth_element(response.begin(), middle, response.end());
+      level.noise = *middle / (0.6745 * 6.0);
+    }
+    level.grad_u = ImageGray(w, h, 0.0f);
+    level.grad_v = ImageGray(w, h, 0.0f);
+    for (int v = 1; v + 1 < h; ++v) {
+      for (int u = 1; u + 1 < w; ++u) {
+        level.grad_u(u, v) = 0.5f * (i(u + 1, v) - i(u - 1, v));
+        level.grad_v(u, v) = 0.5f * (i(u, v + 1) - i(u, v - 1));
+      }
+    }
+  }
+  return out;
 }
 
 }  // namespace genscene::fusion

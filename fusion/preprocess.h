@@ -61,6 +61,22 @@ struct PyramidLevel {
   PointImage normals;
 };
 
+// A frame's brightness at one pyramid level for the photometric term of tracking: luminance,
+// display-encoded (the sRGB curve, so that dark and bright regions carry comparable contrast),
+// in [0, 1], and its gradient by central differences (0 on the border row and column).
+struct IntensityLevel {
+  ImageGray intensity;
+  ImageGray grad_u, grad_v;  // per pixel
+  // Standard deviation of the image's pixel noise, in brightness: the median absolute response
+  // to Immerkaer's (1996) mask, which cancels planes and ramps, so that texture edges (a
+  // minority of the pixels) do not count as noise.
+  double noise = 0.0;
+};
+
+// Level 0 from linear RGB `color`, each next level the 2x2 mean of the previous (the same grid as
+// BuildPyramid's levels). Empty when `color` is.
+std::vector<IntensityLevel> BuildIntensityPyramid(const ImageRgb& color, int levels);
+
 // Level 0 = full resolution (bilateral filtered), each next level half the previous.
 std::vector<PyramidLevel> BuildPyramid(const ImageDepth& masked_depth,
                                        const CameraIntrinsics& intrinsics,

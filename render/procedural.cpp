@@ -134,38 +134,7 @@ SpikeAndDent PerturbFacingVertices(const TriangleMesh& mesh, const Eigen::Vector
 }
 
 Scene MakeRoomScene() {
-  SyntheticScene room;
-  const Eigen::Vector3f wall(0.78f, 0.76f, 0.72f), floor(0.35f, 0.3f, 0.27f),
-      wood(0.45f, 0.3f, 0.18f);
-  room.room = SyntheticScene::Room{};
-  room.room->bounds =
-      Eigen::AlignedBox3d(Eigen::Vector3d(-2.5, -2.0, 0.0), Eigen::Vector3d(2.5, 2.0, 2.6));
-  room.room->albedo = {wall,  Eigen::Vector3f(0.55f, 0.65f, 0.75f), wall, wall,
-                       floor, Eigen::Vector3f::Constant(0.85f)};
-  // Table: top and four legs.
-  room.boxes.push_back(
-      {Eigen::AlignedBox3d(Eigen::Vector3d(-0.6, -0.4, 0.72), Eigen::Vector3d(0.6, 0.4, 0.76)),
-       wood});
-  for (double x : {-0.55, 0.5}) {
-    for (double y : {-0.35, 0.3}) {
-      room.boxes.push_back({Eigen::AlignedBox3d(Eigen::Vector3d(x, y, 0.0),
-                                                Eigen::Vector3d(x + 0.05, y + 0.05, 0.72)),
-                            wood});
-    }
-  }
-  // Sofa against the +y wall, cabinet against the -x wall.
-  const Eigen::Vector3f fabric(0.2f, 0.3f, 0.55f);
-  room.boxes.push_back(
-      {Eigen::AlignedBox3d(Eigen::Vector3d(-1.2, 1.2, 0.0), Eigen::Vector3d(1.2, 2.0, 0.45)),
-       fabric});
-  room.boxes.push_back(
-      {Eigen::AlignedBox3d(Eigen::Vector3d(-1.2, 1.7, 0.45), Eigen::Vector3d(1.2, 2.0, 0.9)),
-       fabric});
-  room.boxes.push_back(
-      {Eigen::AlignedBox3d(Eigen::Vector3d(-2.5, -1.0, 0.0), Eigen::Vector3d(-2.0, 0.2, 1.0)),
-       wood});
-  room.spheres.push_back(
-      {Eigen::Vector3d(0.9, -1.0, 0.2), 0.2, Eigen::Vector3f(0.8f, 0.2f, 0.15f)});
+  const SyntheticScene room = MakeLivingRoomScene();
   Scene scene;
   scene.meshes.push_back(FromSynthetic("room", room));
   scene.meshes.push_back(

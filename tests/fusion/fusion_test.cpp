@@ -631,6 +631,39 @@ TEST(FusionHardCases, PurePlaneIsDetectedAsDegenerateNotAWildPose) {
   }
 }
 
+// The same slide over a plane with texture (tiles of random brightness): the photometric term
+// fixes the directions the geometry leaves free, and the frames are tracked and fused.
+TEST(FusionHardCases, TexturedPlaneIsTrackedByItsColour) {
+  SyntheticScene scene;
+  scene.boxes.push_back(
+      {Eigen::AlignedBox3d(Eigen::Vector3d(-20, -20, -1), Eigen::Vector3d(20, 20, 0)),
+       Eigen::Vector3f::Constant(0.5f)});
+  scene.texture_tile = 0.2;
+  Trajectory trajectory;
+  for (int i = 0; i < 10; ++i) {
+    const Eigen::Vector3d eye(0.01 * i, 0.0, 1.2);
+    trajectory.Add(i / 30.0, LookAt(eye, eye + Eigen::Vector3d(0.3, 0.2, -1.0)));
+  }
+  const std::vector<RgbdFrame> frames = Render(scene, trajectory, Camera(320, 240));
+  const FusionRun run = Fuse(frames, DefaultOptions());
+  EXPECT_EQ(run.counts.at(FrameStatus::kTracked), 9);
+  for (const FrameReport& r : run.fusion->reports()) {
+    if (r.index == 0) continue;
+    EXPECT_EQ(r.icp.constrained_directions, 6) << r.index;
+    EXPECT_GT(r.icp.color_pixels, 1000u) << r.index;
+    const Eigen::Isometry3d& truth = *frames[r.index].world_from_camera;
+    ASSERT_TRUE(r.world_from_camera.has_value());
+    EXPECT_LT((r.world_from_camera->translation() - truth.translation()).norm(), 2e-3) << r.index;
+    EXPECT_LT(RotationAngle(r.world_from_camera->inverse() * truth), 2e-3) << r.index;
+  }
+  // Geometry alone (no photometric term, no feature start): the slide is unconstrained and the
+  // frames are not fused.
+  FusionOptions geometry = DefaultOptions();
+  geometry.icp.color_weight = 0.0;
+  geometry.feature_tracking = false;
+  EXPECT_EQ(Fuse(frames, geometry).counts.at(FrameStatus::kDegenerate), 9);
+}
+
 TEST(FusionHardCases, AllInvalidFrameIsSkippedAndTrackingGoesOn) {
   std::vector<RgbdFrame> frames = Render(Room(), Orbit(12), Camera(160, 120));
   frames[5].depth = ImageDepth(160, 120);
