@@ -91,13 +91,14 @@ std::optional<fs::path> InputFolder(const Workspace& ws) {
   return std::nullopt;
 }
 
-// The frames where tracking did more than follow the camera: lost, degenerate and blank frames,
-// frames started again from features, relocalisations (against which keyframe). At most
-// kListed frames per row, then how many more.
+// The frames where tracking did more than follow the camera: loops closed (against which frame,
+// how far the poses moved), lost, degenerate and blank frames, frames started again from
+// features, relocalisations (against which keyframe). At most kListed frames per row, then how
+// many more.
 void TrackingEvents(const Json& frames, std::ostream& md) {
   constexpr size_t kListed = 20;
-  const std::vector<std::string> order = {"relocalised", "started from features", "lost",
-                                          "degenerate", "blank"};
+  const std::vector<std::string> order = {"loop closed", "relocalised", "started from features",
+                                          "lost",        "degenerate",  "blank"};
   std::map<std::string, std::vector<std::string>> events;
   for (const Json& f : frames) {
     const std::string at = std::to_string(f["index"].get<long>());
@@ -111,6 +112,15 @@ void TrackingEvents(const Json& frames, std::ostream& md) {
     }
     if (status == "lost" || status == "degenerate" || status == "blank")
       events[status].push_back(at);
+    if (f.contains("loop_closure")) {
+      const Json& loop = f["loop_closure"];
+      std::string what = at + " (frame t = " + Fixed(loop["against_t"].get<double>(), 3) +
+                         ", poses moved up to " +
+                         Fixed(100.0 * loop["largest_move_m"].get<double>(), 2) + " cm";
+      const long again = loop.value("reintegrated_frames", 0L);
+      if (again > 0) what += ", " + std::to_string(again) + " frames integrated again";
+      events["loop closed"].push_back(what + ")");
+    }
   }
   if (events.empty()) {
     md << "Every frame was tracked from the one before it.\n\n";
@@ -133,12 +143,13 @@ void Tracking(const Workspace& ws, const fs::path& dir, std::ostream& md) {
   const auto fusion = ReadJson(ws.FusionJson());
   if (!fusion) return;
   md << "## Tracking and fusion\n\n";
-  PlotSeries total{"track + integrate + raycast", {}, {}}, track{"track (ICP)", {}, {}};
+  PlotSeries total{"all (with loop closure)", {}, {}}, track{"track (ICP)", {}, {}};
   for (const Json& f : (*fusion)["frames"]) {
     const double i = f["index"].get<double>();
     total.x.push_back(i);
     total.y.push_back(f["ms_preprocess"].get<double>() + f["ms_track"].get<double>() +
-                      f["ms_integrate"].get<double>() + f["ms_raycast"].get<double>());
+                      f["ms_integrate"].get<double>() + f["ms_raycast"].get<double>() +
+                      f.value("ms_loop", 0.0));
     track.x.push_back(i);
     track.y.push_back(f["ms_track"].get<double>());
   }

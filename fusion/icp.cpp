@@ -226,10 +226,7 @@ IcpReport TrackFrameToModel(const std::vector<PyramidLevel>& live, const Raycast
       GS_CHECK(
           c.live->intensity.SameSize(live[level].vertices.width(), live[level].vertices.height()));
       GS_CHECK(c.model->intensity.SameSize(c.live->intensity));
-      // The finest level's noise, halved by each 2x2 mean (the coarser levels' own estimates
-      // see texture a few pixels across as noise).
-      c.noise = std::max((*live_intensity)[0].noise, (*model_intensity)[0].noise) /
-                static_cast<double>(1 << level);
+      c.noise = std::max(c.live->noise, c.model->noise);
     }
     return c;
   };

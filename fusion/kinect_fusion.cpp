@@ -50,6 +50,7 @@ void FusionOptions::Validate() const {
   icp.Validate();
   features.Validate();
   keyframes.Validate();
+  loop.Validate();
 }
 
 TsdfVolumeParams FusionOptions::VolumeParams(const Eigen::Vector3d& origin) const {

@@ -67,9 +67,10 @@ struct PyramidLevel {
 struct IntensityLevel {
   ImageGray intensity;
   ImageGray grad_u, grad_v;  // per pixel
-  // Standard deviation of the image's pixel noise, in brightness: the median absolute response
-  // to Immerkaer's (1996) mask, which cancels planes and ramps, so that texture edges (a
-  // minority of the pixels) do not count as noise.
+  // Standard deviation of the image's pixel noise, in brightness: at full resolution the median
+  // absolute response to Immerkaer's (1996) mask, which cancels planes and ramps, so that texture
+  // edges (a minority of the pixels) do not count as noise; halved at each coarser level (a 2x2
+  // mean; the coarser levels' own responses would see texture a few pixels across as noise).
   double noise = 0.0;
 };
 

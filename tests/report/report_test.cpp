@@ -1,5 +1,6 @@
 // report.md's tracking section from a workspace's fusion.json: the frames where tracking did more
-// than follow the camera (relocalised, started from features, lost, degenerate, blank).
+// than follow the camera (loops closed, relocalised, started from features, lost, degenerate,
+// blank).
 #include "apps/report.h"
 
 #include <gtest/gtest.h>
@@ -42,6 +43,25 @@ TEST(Report, TrackingListsRelocalisationsFeatureStartsAndLostFrames) {
                   "| blank | 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, "
                   "21, 22, 23 and 6 more |");
   EXPECT_EQ(md.find("| degenerate |"), std::string::npos);
+  EXPECT_EQ(md.find("Every frame was tracked"), std::string::npos);
+}
+
+TEST(Report, TrackingListsTheLoopsClosed) {
+  test::TempDir dir;
+  nlohmann::json frames = nlohmann::json::array({Frame(0, "initial"), Frame(1, "tracked")});
+  nlohmann::json closed = Frame(2, "tracked");
+  closed["loop_closure"] = {
+      {"against_t", 0.0}, {"largest_move_m", 0.0812}, {"reintegrated_frames", 3}};
+  frames.push_back(closed);
+  closed = Frame(3, "tracked");
+  closed["loop_closure"] = {
+      {"against_t", 0.25}, {"largest_move_m", 0.001}, {"reintegrated_frames", 0}};
+  frames.push_back(closed);
+  test::WriteFile(dir / "fusion.json", nlohmann::json({{"frames", frames}}).dump());
+  const std::string md = ReadTextFile(WriteReport(Workspace(dir.path()), ReportOptions(), 1));
+  EXPECT_CONTAINS(md,
+                  "| loop closed | 2 (frame t = 0.000, poses moved up to 8.12 cm, 3 frames "
+                  "integrated again), 3 (frame t = 0.250, poses moved up to 0.10 cm) |");
   EXPECT_EQ(md.find("Every frame was tracked"), std::string::npos);
 }
 
