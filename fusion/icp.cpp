@@ -86,6 +86,9 @@ NormalEquations Accumulate(const PyramidLevel& live, const RaycastResult& model,
   constexpr double kColorNoiseFloor = 0.01;
   const double weight = options.color_weight * std::min(1.0, kColorNoiseFloor / color.noise);
   const float lambda = static_cast<float>(weight);
+  // The Huber threshold in the scaled residual's units at the unscaled weight: in brightness it
+  // is color_huber on clean frames and grows with the noise beyond the floor (a few of its
+  // standard deviations either way).
   const float color_huber = static_cast<float>(options.color_weight * options.color_huber);
   const int iw = with_color ? color.model->intensity.width() : 0;
   const int ih = with_color ? color.model->intensity.height() : 0;
@@ -133,8 +136,9 @@ NormalEquations Accumulate(const PyramidLevel& live, const RaycastResult& model,
             // Photometric: r = I_model(pi(q)) - I_live(u, v); d r / d xi = [a; q x a] with
             // a = J_pi(q)^T grad I_model (xi moves q by v + w x q, as the geometric term).
             const float x = lfx * q.x() * inv_z + lcx, y = lfy * q.y() * inv_z + lcy;
-            if (!(x >= 0.0f && y >= 0.0f && x < static_cast<float>(iw - 1) &&
-                  y < static_cast<float>(ih - 1))) {
+            // Inside the pixels with a gradient (the border row and column have none).
+            if (!(x >= 1.0f && y >= 1.0f && x < static_cast<float>(iw - 2) &&
+                  y < static_cast<float>(ih - 2))) {
               continue;
             }
             const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);

@@ -257,6 +257,12 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
       pose = *report.world_from_camera;
     }
     report.seconds_loop = SecondsSince(start);
+    if (report.loop_closure) {
+      // The model again from the corrected pose (and volume): raycast time, not loop time.
+      const double first_raycast = report.seconds_raycast;
+      UpdateModel(last_good_, &report);
+      report.seconds_raycast += first_raycast;
+    }
   }
   RgbdFrame posed = frame;
   posed.depth = depth;
@@ -292,7 +298,6 @@ void KinectFusion::ApplyLoopClosure(FrameReport* report) {
     }
     report->reintegrated = store.size();
   }
-  UpdateModel(last_good_, report);
 }
 
 void KinectFusion::UpdateModel(const Eigen::Isometry3d& pose, FrameReport* report) {

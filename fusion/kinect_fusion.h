@@ -141,7 +141,7 @@ struct FusionOptions {
     v("loop_search_radius", loop.search_radius, "m",
       "old nodes within this distance of a new node are loop candidates");
     v("loop_search_angle", loop.search_angle, "deg",
-      "old nodes viewing within this angle of a new node are loop candidates");
+      "old nodes turned by less than this from a new node are loop candidates");
     v("loop_max_candidates", loop.max_candidates, "", "loop candidates tried per new node");
     v("loop_min_correction", loop.min_correction, "m",
       "a closed loop moving no frame farther leaves the volume as it is (no re-integration)");
@@ -196,7 +196,9 @@ struct FrameReport {
   // The model raycast's pass over the volume: chunks tested against the frustum, blocks of the
   // chunks inside it projected (0 when no model was raycast).
   size_t raycast_chunks = 0, raycast_blocks = 0;
-  std::optional<Eigen::Isometry3d> world_from_camera;  // the estimate (none when lost/blank)
+  // The estimate when the frame was processed (none when lost/blank); a later closed loop moves
+  // trajectory()'s poses, not this.
+  std::optional<Eigen::Isometry3d> world_from_camera;
   double seconds_preprocess = 0.0, seconds_track = 0.0, seconds_integrate = 0.0,
          seconds_raycast = 0.0;
   // Pose-graph upkeep: frame kept, node features, loop search and optimisation, re-integration.
@@ -240,7 +242,8 @@ class KinectFusion {
   FrameReport HoldOut(const RgbdFrame& frame, const ImageDepth& depth,
                       const Eigen::Isometry3d& pose, FrameReport report);
   // After a closed loop: every pose from the graph (trajectory, keyframes, held-out frames, the
-  // last good pose) and, when a frame moved by min_correction or more, the volume re-integrated.
+  // last good pose) and, when a frame moved by min_correction or more, the volume re-integrated
+  // (the caller raycasts the model again).
   void ApplyLoopClosure(FrameReport* report);
   // The model raycast at `pose` for tracking.
   RaycastResult RaycastModel(const Eigen::Isometry3d& pose) const;

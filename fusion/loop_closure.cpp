@@ -232,11 +232,27 @@ std::optional<LoopClosureEvent> LoopClosure::AddFused(double timestamp,
     loop.information = EdgeInformation();
     graph_.AddEdge(loop);
     const std::vector<Eigen::Isometry3d> before = graph_.poses();
+    std::vector<Eigen::Isometry3d> frames_before;
+    frames_before.reserve(anchors_.size());
+    for (const auto& [t, anchor] : anchors_) frames_before.push_back(*PoseOf(t));
     event.graph = graph_.Optimize();
-    for (size_t n = 0; n < before.size(); ++n) {
-      const Eigen::Isometry3d move = before[n].inverse() * graph_.poses()[n];
-      event.largest_move = std::max(event.largest_move, move.translation().norm());
-      event.largest_turn_degrees = std::max(event.largest_turn_degrees, Degrees(move));
+    if (!(event.graph.final_cost <= event.graph.initial_cost)) {
+      // The solver made it worse (it failed): the graph as it was, without the edge.
+      graph_.RemoveLastEdge();
+      graph_.SetPoses(before);
+      continue;
+    }
+    // How far each frame moved: its camera, or the point kSceneDepth in front of it (a turn
+    // moves the surfaces a frame saw by their distance times the angle).
+    constexpr double kSceneDepth = 2.0;  // m
+    size_t f = 0;
+    for (const auto& [t, anchor] : anchors_) {
+      const Eigen::Isometry3d& a = frames_before[f++];
+      const Eigen::Isometry3d b = *PoseOf(t);
+      const Eigen::Vector3d ahead(0.0, 0.0, kSceneDepth);
+      event.largest_move = std::max({event.largest_move, (b.translation() - a.translation()).norm(),
+                                     (b * ahead - a * ahead).norm()});
+      event.largest_turn_degrees = std::max(event.largest_turn_degrees, Degrees(a.inverse() * b));
     }
     events_.push_back(event);
     return event;

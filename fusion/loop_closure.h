@@ -78,7 +78,8 @@ struct LoopClosureEvent {
   // The loop's discrepancy: how far the measured relative pose lies from the tracked one.
   double discrepancy_translation = 0.0, discrepancy_degrees = 0.0;
   PoseGraphReport graph;
-  // The largest move of a frame's pose by the optimisation.
+  // The largest move by the optimisation of a frame's camera, or of the point 2 m in front of it
+  // (a turn moves what the frame saw), and the largest turn of a frame.
   double largest_move = 0.0, largest_turn_degrees = 0.0;
 };
 

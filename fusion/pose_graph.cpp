@@ -164,6 +164,21 @@ int PoseGraph::AddNode(const Eigen::Isometry3d& world_from_node) {
   return NodeCount() - 1;
 }
 
+void PoseGraph::RemoveLastEdge() {
+  if (!edges_.empty()) edges_.pop_back();
+}
+
+void PoseGraph::SetPoses(const std::vector<Eigen::Isometry3d>& poses) {
+  if (poses.size() != poses_.size()) {
+    throw Error(Format("pose graph: ", poses.size(), " poses for ", poses_.size(), " nodes"));
+  }
+  for (size_t i = 0; i < poses.size(); ++i) {
+    if (!IsRigid(poses[i]))
+      throw Error(Format("pose graph node ", i, ": the pose is not a rigid motion"));
+  }
+  poses_ = poses;
+}
+
 void PoseGraph::AddEdge(const PoseGraphEdge& edge) {
   const auto in_range = [&](int n) { return n >= 0 && n < NodeCount(); };
   if (!in_range(edge.from) || !in_range(edge.to) || edge.from == edge.to) {

@@ -75,6 +75,10 @@ class PoseGraph {
   // Throws when a node index is out of range, from == to, the measurement is not rigid, or the
   // information is not symmetric positive semi-definite and finite.
   void AddEdge(const PoseGraphEdge& edge);
+  // Takes the last edge added out again.
+  void RemoveLastEdge();
+  // Sets every node's pose (as many as there are nodes, each rigid); throws otherwise.
+  void SetPoses(const std::vector<Eigen::Isometry3d>& poses);
   // Holds a node's pose during Optimize. Node 0 is fixed unless Unfix(0) is called.
   void Fix(int node);
   void Unfix(int node);

@@ -217,5 +217,34 @@ TEST(PoseGraph, BadEdgesAreRefusedWithTheirNodes) {
   EXPECT_EQ(graph.Optimize().message, "nothing to optimise");
 }
 
+// Undoing a solve (loop closure undoes one that raised the cost): the last edge comes out, the
+// poses are set back; wrong counts and non-rigid poses are refused.
+TEST(PoseGraph, TheLastEdgeComesOutAndThePosesAreSetBack) {
+  PoseGraph graph;
+  graph.AddNode(Eigen::Isometry3d::Identity());
+  graph.AddNode(Eigen::Isometry3d(Eigen::Translation3d(1.0, 0.0, 0.0)));
+  PoseGraphEdge edge;
+  edge.from = 0, edge.to = 1;
+  edge.measured = Eigen::Translation3d(1.0, 0.0, 0.0);
+  graph.AddEdge(edge);
+  edge.measured = Eigen::Translation3d(1.2, 0.0, 0.0);
+  graph.AddEdge(edge);
+  const std::vector<Eigen::Isometry3d> before = graph.poses();
+  graph.Optimize();
+  EXPECT_NEAR(graph.poses()[1].translation().x(), 1.1, 1e-6);  // between the two measurements
+  graph.RemoveLastEdge();
+  graph.SetPoses(before);
+  ASSERT_EQ(graph.edges().size(), 1u);
+  EXPECT_EQ(graph.poses()[1].translation().x(), 1.0);
+  EXPECT_EQ(graph.Cost(), 0.0);
+  EXPECT_CONTAINS(test::ErrorOf([&] { graph.SetPoses({before[0]}); }), "1 poses for 2 nodes");
+  Eigen::Isometry3d scaled = before[1];
+  scaled.linear() *= 2.0;
+  EXPECT_CONTAINS(test::ErrorOf([&] {
+                    graph.SetPoses({before[0], scaled});
+                  }),
+                  "node 1: the pose is not a rigid motion");
+}
+
 }  // namespace
 }  // namespace genscene::fusion
