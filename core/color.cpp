@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include "core/check.h"
 #include "core/file_util.h"
@@ -16,6 +17,17 @@ float SrgbToLinear(float encoded) {
 float LinearToSrgb(float linear) {
   if (linear <= 0.0031308f) return 12.92f * linear;
   return 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
+}
+
+float LinearToSrgbTabled(float linear) {
+  static const std::vector<float> kTable = [] {
+    std::vector<float> table(16384);
+    for (size_t i = 0; i < table.size(); ++i)
+      table[i] = LinearToSrgb(static_cast<float>(i) / 16383.0f);
+    return table;
+  }();
+  const float clamped = std::isfinite(linear) ? std::clamp(linear, 0.0f, 1.0f) : 0.0f;
+  return kTable[static_cast<size_t>(clamped * 16383.0f + 0.5f)];
 }
 
 CameraResponse CameraResponse::Parse(const std::string& text, const std::string& where) {

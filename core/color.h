@@ -12,6 +12,9 @@ namespace genscene {
 // sRGB electro-optical transfer (IEC 61966-2-1), value in [0, 1].
 float SrgbToLinear(float encoded);
 float LinearToSrgb(float linear);
+// LinearToSrgb through a table of 16384 steps, for per-pixel loops (at most 4e-4 off, near
+// black): the value clamped to [0, 1], NaN and infinities to 0.
+float LinearToSrgbTabled(float linear);
 
 struct CameraResponse {
   enum class Kind { kSrgb, kLinear, kGamma };

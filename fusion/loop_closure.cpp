@@ -33,19 +33,9 @@ Eigen::Isometry3d Orthonormalized(const Eigen::Isometry3d& pose) {
   return out;
 }
 
-// Linear [0, 1] to 8-bit sRGB through a table of 16384 steps (a step is at most a fifth of an
-// 8-bit code, near black).
+// Linear [0, 1] to 8-bit sRGB (clamped; NaN black).
 uint8_t EncodeSrgb8(float linear) {
-  static const std::vector<uint8_t> kTable = [] {
-    std::vector<uint8_t> table(16384);
-    for (size_t i = 0; i < table.size(); ++i) {
-      table[i] = static_cast<uint8_t>(
-          std::lround(255.0f * LinearToSrgb(static_cast<float>(i) / 16383.0f)));
-    }
-    return table;
-  }();
-  const float clamped = std::isfinite(linear) ? std::clamp(linear, 0.0f, 1.0f) : 0.0f;
-  return kTable[static_cast<size_t>(clamped * 16383.0f + 0.5f)];
+  return static_cast<uint8_t>(std::lround(255.0f * LinearToSrgbTabled(linear)));
 }
 
 double Degrees(const Eigen::Isometry3d& motion) {

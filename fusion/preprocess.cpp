@@ -196,23 +196,14 @@ std::vector<PyramidLevel> BuildPyramid(const ImageDepth& masked_depth,
 std::vector<IntensityLevel> BuildIntensityPyramid(const ImageRgb& color, int levels) {
   std::vector<IntensityLevel> out;
   if (color.empty()) return out;
-  // Linear luminance to the sRGB curve through a table of 16384 steps (at most 4e-4 off near
-  // black, a tenth of a real camera's brightness noise), not a pow per pixel.
-  static const std::vector<float> kSrgb = [] {
-    std::vector<float> table(16384);
-    for (size_t i = 0; i < table.size(); ++i)
-      table[i] = LinearToSrgb(static_cast<float>(i) / 16383.0f);
-    return table;
-  }();
   out.resize(static_cast<size_t>(levels));
   const int w0 = color.width(), h0 = color.height();
   out[0].intensity = ImageGray(w0, h0, 0.0f);
   ParallelFor(0, static_cast<size_t>(h0), [&](size_t v) {
     for (int u = 0; u < w0; ++u) {
-      const float l = Luminance(color(u, static_cast<int>(v)));
-      const float clamped = std::isfinite(l) ? std::clamp(l, 0.0f, 1.0f) : 0.0f;
+      // The sRGB curve through a table, not a pow per pixel.
       out[0].intensity(u, static_cast<int>(v)) =
-          kSrgb[static_cast<size_t>(clamped * 16383.0f + 0.5f)];
+          LinearToSrgbTabled(Luminance(color(u, static_cast<int>(v))));
     }
   });
   for (size_t l = 1; l < out.size(); ++l) {

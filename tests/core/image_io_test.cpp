@@ -37,6 +37,21 @@ ImageRgb RandomImage(int w, int h) {
   return image;
 }
 
+TEST(Color, TabledSrgbIsWithinItsStepOfTheCurveAndClamps) {
+  double worst = 0.0;
+  for (int i = 0; i <= 100000; ++i) {
+    const float x = static_cast<float>(i) / 100000.0f;
+    worst = std::max<double>(worst, std::abs(LinearToSrgbTabled(x) - LinearToSrgb(x)));
+  }
+  EXPECT_LT(worst, 4.5e-4);
+  EXPECT_EQ(LinearToSrgbTabled(0.0f), 0.0f);
+  EXPECT_EQ(LinearToSrgbTabled(1.0f), LinearToSrgb(1.0f));
+  EXPECT_EQ(LinearToSrgbTabled(2.0f), LinearToSrgb(1.0f));
+  EXPECT_EQ(LinearToSrgbTabled(-1.0f), 0.0f);
+  EXPECT_EQ(LinearToSrgbTabled(std::nanf("")), 0.0f);
+  EXPECT_EQ(LinearToSrgbTabled(std::numeric_limits<float>::infinity()), 0.0f);
+}
+
 TEST(ImageIo, ExrRoundTripIsExact) {
   test::TempDir dir;
   const ImageRgb image = RandomImage(37, 21);
