@@ -259,14 +259,17 @@ std::optional<Eigen::Isometry3d> LoopClosure::MatchNodes(const Node& old, const 
   event->feature_inliers = features.inliers;
   if (!pnp) return std::nullopt;
   // ICP of the live frame against the old frame's depth (and brightness), from the features'
-  // pose: it must converge on most of the frame and stay near that pose.
-  const std::vector<PyramidLevel> old_pyramid = BuildPyramid(old_depth, intrinsics_, preprocess_);
+  // pose: it must converge on most of the frame and stay near that pose. Its pyramid has
+  // kLoopVerifyExtraLevels more levels than tracking's (loop_closure.h).
+  PreprocessOptions verify = preprocess_;
+  verify.levels += kLoopVerifyExtraLevels;
+  const std::vector<PyramidLevel> old_pyramid = BuildPyramid(old_depth, intrinsics_, verify);
   const std::vector<PyramidLevel> live_pyramid =
-      BuildPyramid(store_.Depth(live.stored), intrinsics_, preprocess_);
+      BuildPyramid(store_.Depth(live.stored), intrinsics_, verify);
   const std::vector<IntensityLevel> old_intensity =
-      BuildIntensityPyramid(store_.Color(old.stored), preprocess_.levels);
+      BuildIntensityPyramid(store_.Color(old.stored), verify.levels);
   const std::vector<IntensityLevel> live_intensity =
-      BuildIntensityPyramid(store_.Color(live.stored), preprocess_.levels);
+      BuildIntensityPyramid(store_.Color(live.stored), verify.levels);
   Eigen::Isometry3d old_from_live = *pnp;
   const IcpReport icp = TrackFrameToModel(live_pyramid, ModelFromDepth(old_pyramid[0]), intrinsics_,
                                           icp_, &old_from_live, &live_intensity, &old_intensity);
