@@ -176,6 +176,8 @@ LightsSummary LightsWorkspace(const LightsInputs& in, const LightEstimationOptio
     estimate["joint_albedo"] = {
         {"initial_cost", out.estimate.rounds.empty() ? 0.0 : out.estimate.rounds.back().solve.cost},
         {"steps", steps},
+        {"shading_probes", out.estimate.albedo_probes},
+        {"final_scale", out.estimate.albedo_final_scale},
         {"seconds", out.estimate.albedo_seconds},
         {"gauge",
          "the clustering's: its global scale and its colour split (the lights start white)"},
@@ -227,8 +229,10 @@ std::string ToString(const LightsSummary& s) {
     for (const JointAlbedoStep& st : e.albedo_steps) kept += st.kept ? 1 : 0;
     char line[200];
     std::snprintf(line, sizeof(line),
-                  "; joint albedo: %d of %zu steps kept, light cost %.4g -> %.4g", kept,
-                  e.albedo_steps.size(), e.rounds.empty() ? 0.0 : e.rounds.back().solve.cost,
+                  "; joint albedo: %d of %zu steps kept, %zu shading probes, light cost %.4g -> "
+                  "%.4g",
+                  kept, e.albedo_steps.size(), e.albedo_probes,
+                  e.rounds.empty() ? 0.0 : e.rounds.back().solve.cost,
                   kept > 0 ? e.albedo_steps[static_cast<size_t>(kept - 1)].cost
                            : (e.rounds.empty() ? 0.0 : e.rounds.back().solve.cost));
     o << line;

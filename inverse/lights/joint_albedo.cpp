@@ -6,12 +6,11 @@
 
 #include "core/check.h"
 #include "core/parallel.h"
+#include "core/rng.h"
 
 namespace genscene::inverse {
 
 namespace {
-
-constexpr float kMinNormalCosine = 0.7071f;  // 45 degrees
 
 // A uniform hash grid of the pixels' first hits, cell size = the kernel radius.
 class PointGrid {
@@ -49,6 +48,20 @@ class PointGrid {
   std::unordered_map<uint64_t, std::vector<size_t>> cells_;
 };
 
+// The unit normal of the face each texel belongs to (for an edge or vertex texel, the face
+// MeshColors::SampleFacePoint names): the renders shade a model's mesh with its face normals.
+std::vector<Eigen::Vector3f> TexelFaceNormals(const TriangleMesh& mesh, const MeshColors& layout) {
+  std::vector<Eigen::Vector3f> normal(layout.SampleCount(), Eigen::Vector3f::Zero());
+  ParallelFor(0, normal.size(), [&](size_t t) {
+    if (t < layout.VertexSampleCount() && layout.IsolatedVertex(static_cast<int>(t))) return;
+    int face = -1;
+    double b1 = 0.0, b2 = 0.0;
+    layout.SampleFacePoint(t, &face, &b1, &b2);
+    if (face >= 0) normal[t] = mesh.FaceNormalScaled(static_cast<size_t>(face)).normalized();
+  });
+  return normal;
+}
+
 bool Observed(const JointAlbedoInputs& in, size_t t) {
   return in.view_counts.empty() || in.view_counts[t] > 0;
 }
@@ -79,29 +92,102 @@ std::vector<PixelSurface> LocatePixels(const render::PathTracer& tracer,
   return out;
 }
 
+std::vector<PixelSurface> ShadingProbes(const render::PathTracer& tracer, const MeshColors& layout,
+                                        int mesh_index, const std::vector<int32_t>& view_counts,
+                                        double spacing, double offset) {
+  GS_CHECK(spacing > 0.0 && offset > 0.0);
+  const render::Scene& scene = tracer.scene();
+  GS_CHECK(mesh_index >= 0 && mesh_index < static_cast<int>(scene.meshes.size()));
+  const TriangleMesh& mesh = scene.meshes[static_cast<size_t>(mesh_index)].mesh;
+  const std::vector<Eigen::Vector3f> position = layout.InterpolateVertexAttribute(mesh.vertices);
+  const std::vector<Eigen::Vector3f> normal = TexelFaceNormals(mesh, layout);
+  // One texel per cell, the first in texel order (the same probes whatever the thread count).
+  std::unordered_map<uint64_t, size_t> cells;
+  std::vector<size_t> chosen;
+  const double inverse = 1.0 / spacing;
+  for (size_t t = 0; t < position.size(); ++t) {
+    if (!view_counts.empty() && view_counts[t] <= 0) continue;
+    if (!(normal[t].squaredNorm() > 0.0f) || !position[t].allFinite()) continue;
+    const Eigen::Vector3i c = (position[t].cast<double>() * inverse).array().floor().cast<int>();
+    const uint64_t key = (static_cast<uint64_t>(static_cast<uint32_t>(c.x()) & 0x1FFFFF) << 42) |
+                         (static_cast<uint64_t>(static_cast<uint32_t>(c.y()) & 0x1FFFFF) << 21) |
+                         (static_cast<uint64_t>(static_cast<uint32_t>(c.z()) & 0x1FFFFF));
+    if (cells.emplace(key, t).second) chosen.push_back(t);
+  }
+  std::vector<PixelSurface> probes(chosen.size());
+  const float off = static_cast<float>(offset);
+  ParallelFor(0, chosen.size(), [&](size_t i) {
+    const size_t t = chosen[i];
+    const Eigen::Vector3f& n = normal[t];
+    const auto hit = tracer.tracer().Intersect(position[t] + off * n, -n, 0.0f, 3.0f * off);
+    if (!hit || hit->mesh != mesh_index) return;
+    const Eigen::Vector3i& f = mesh.faces[static_cast<size_t>(hit->face)];
+    PixelSurface& s = probes[i];
+    s.position = (1.0f - hit->b1 - hit->b2) * mesh.vertices[f[0]] + hit->b1 * mesh.vertices[f[1]] +
+                 hit->b2 * mesh.vertices[f[2]];
+    if ((s.position - position[t]).norm() > 2.0f * off) return;
+    s.hit = true;
+    s.mesh = mesh_index;
+    s.face = hit->face;
+    s.b1 = hit->b1;
+    s.b2 = hit->b2;
+    s.normal = mesh.FaceNormalScaled(static_cast<size_t>(hit->face)).normalized();
+  });
+  std::vector<PixelSurface> kept;
+  kept.reserve(probes.size());
+  for (const PixelSurface& p : probes)
+    if (p.hit) kept.push_back(p);
+  return kept;
+}
+
+std::vector<Eigen::Vector3f> ProbeShading(const render::PathTracer& lit,
+                                          const std::vector<PixelSurface>& probes, double offset,
+                                          const render::RenderOptions& paths, int spp,
+                                          uint64_t seed) {
+  GS_CHECK(spp > 0);
+  const render::Scene& scene = lit.scene();
+  std::vector<Eigen::Vector3f> out(probes.size(), Eigen::Vector3f::Zero());
+  const float off = static_cast<float>(offset);
+  ParallelFor(0, probes.size(), [&](size_t i) {
+    const PixelSurface& p = probes[i];
+    if (!p.hit) return;
+    const render::SceneMesh& m = scene.meshes[static_cast<size_t>(p.mesh)];
+    const Eigen::Vector3f albedo = m.albedo.Eval(m.mesh, p.face, p.b1, p.b2);
+    CounterRng rng(seed, i);
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    for (int s = 0; s < spp; ++s) {
+      const double first_light_u = (s + rng.UniformDouble()) / spp;
+      sum +=
+          lit.Radiance(p.position + off * p.normal, -p.normal, paths, rng, nullptr, first_light_u);
+    }
+    out[i] = (sum / static_cast<float>(spp)).cwiseQuotient(albedo.cwiseMax(0.02f));
+  });
+  return out;
+}
+
 struct ShadingKernel::Impl {
-  Impl(const std::vector<PixelSurface>& pixels, int mesh_index, double radius)
+  Impl(const std::vector<PixelSurface>& pixels, int mesh_index, double radius,
+       float min_normal_cosine)
       : pixels(pixels),
         radius(radius),
+        min_normal_cosine(min_normal_cosine),
         grids{PointGrid(pixels, mesh_index, radius), PointGrid(pixels, mesh_index, 2.0 * radius),
               PointGrid(pixels, mesh_index, 4.0 * radius)} {}
   const std::vector<PixelSurface>& pixels;
   const double radius;
+  const float min_normal_cosine;
   // One grid per kernel width (cells as wide as the kernel): 27 cells per query.
   const PointGrid grids[3];
   std::vector<Eigen::Vector3f> position, normal;  // per texel
 };
 
 ShadingKernel::ShadingKernel(const TriangleMesh& mesh, const MeshColors& layout, int mesh_index,
-                             const std::vector<PixelSurface>& pixels, double radius) {
+                             const std::vector<PixelSurface>& pixels, double radius,
+                             double min_normal_cosine) {
   GS_CHECK(radius > 0.0);
-  impl_ = std::make_unique<Impl>(pixels, mesh_index, radius);
-  TriangleMesh normals_mesh;
-  normals_mesh.vertices = mesh.vertices;
-  normals_mesh.faces = mesh.faces;
-  normals_mesh.ComputeVertexNormals();
+  impl_ = std::make_unique<Impl>(pixels, mesh_index, radius, static_cast<float>(min_normal_cosine));
   impl_->position = layout.InterpolateVertexAttribute(mesh.vertices);
-  impl_->normal = layout.InterpolateVertexAttribute(normals_mesh.normals);
+  impl_->normal = TexelFaceNormals(mesh, layout);
 }
 
 ShadingKernel::~ShadingKernel() = default;
@@ -116,7 +202,7 @@ std::vector<Eigen::Vector3f> ShadingKernel::Shade(const std::vector<Eigen::Vecto
   std::vector<Eigen::Vector3f> out(texels, Eigen::Vector3f::Zero());
   covered->assign(texels, 0);
   ParallelFor(0, texels, [&](size_t t) {
-    const Eigen::Vector3f n = k.normal[t].normalized();
+    const Eigen::Vector3f& n = k.normal[t];
     const Eigen::Vector3f& p = k.position[t];
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     double weight = 0.0;
@@ -128,7 +214,7 @@ std::vector<Eigen::Vector3f> ShadingKernel::Shade(const std::vector<Eigen::Vecto
       int count = 0;
       k.grids[level].ForNear(p, [&](size_t i) {
         const float d2 = (pixels[i].position - p).squaredNorm();
-        if (d2 >= r2 || pixels[i].normal.dot(n) < kMinNormalCosine) return;
+        if (d2 >= r2 || pixels[i].normal.dot(n) < k.min_normal_cosine) return;
         const double w = (1.0 - d2 / r2) * (1.0 - d2 / r2);
         sum += w * pixel_shading[i].cast<double>();
         weight += w;
@@ -149,7 +235,7 @@ std::vector<Eigen::Vector3f> TexelShading(const TriangleMesh& mesh, const MeshCo
                                           const std::vector<Eigen::Vector3f>& pixel_shading,
                                           double radius, int min_pixels,
                                           std::vector<uint8_t>* covered) {
-  return ShadingKernel(mesh, layout, mesh_index, pixels, radius)
+  return ShadingKernel(mesh, layout, mesh_index, pixels, radius, kPixelNormalCosine)
       .Shade(pixel_shading, min_pixels, covered);
 }
 

@@ -1,14 +1,19 @@
 // Joint albedo and lights (EstimateLights with JointAlbedoInputs): per-texel albedo alternated with
 // the voxel lights. The lights are estimated with the clustering's albedo; then, until the light
 // cost stops falling:
-//  1. the shading of every sampled pixel, S_i = P_i / a_i per channel (P_i: the cache's
-//     prediction, a_i: the albedo its camera ray meets at the pixel centre), is carried to every
-//     texel t of the Mesh Colors by a cross-bilateral kernel: the sampled pixels within
-//     albedo_radius of the texel whose surface normal is within 45 degrees of the texel's,
-//     weighted (1 - d^2 / r^2)^2, widened to 2r, then 4r where fewer than albedo_min_pixels
-//     pixels fall inside. Shading is smooth and the pixels are a few thousand per view: texture
-//     detail stays in the albedo, the kernel keeps the shading smooth. The shading comes from the
-//     first half of the paths only.
+//  1. the shading S = L / a (per channel: the outgoing radiance over the albedo) is traced under
+//     the current lights at shading probes: observed texels one per cell of a grid albedo_radius
+//     / 3 wide, albedo_probe_spp paths each from just above the surface back along its face
+//     normal (a Lambertian surface sends every camera the same radiance), with the current albedo
+//     on the mesh for the interreflections. A cross-bilateral kernel carries it to every texel:
+//     the probes within albedo_radius of the texel whose face normal is within 10 degrees of the
+//     texel's face's (the renders shade every face with its own normal, so the shading steps
+//     across a fold of the mesh), weighted (1 - d^2 / r^2)^2, widened to 2r, then 4r where fewer
+//     than albedo_min_pixels probes fall inside. (albedo_probe_spp 0: the sampled pixels' shading
+//     S_i = P_i / a_i from the first half of the cache's paths instead, normals within 45
+//     degrees; a few thousand pixels per view leave the kernel wide, and its blur of the shading
+//     went into the albedo: the Open3D room's held-out error is 0.148 with it, 0.130 with probes
+//     and step 5.) The probes' shading is independent of both halves of the cache's paths.
 //  2. each observed texel with shading gets, per channel, the albedo that minimises
 //         (a S_t - o_t)^2 + mu s^2 (a - m_k)^2
 //     (o_t: its observed colour, texture.mcol; m_k: the mean of its cluster's unregularised
@@ -33,6 +38,10 @@
 //     residual sum |P_i - I_i|^2 / sum |I_i|^2 (an independent sample of the prediction's noise:
 //     an albedo that took up the first half's noise fits it worse), is undone and ends the
 //     alternation.
+//  5. with probes, once more after the last kept step: each step's albedo was made for the
+//     lights before that step's solve, the renders show the lights after it. The texels take
+//     the shading of the final lights (steps 1 and 2, no solve; a ceiling's scale goes into the
+//     lights as 1 / scale).
 #pragma once
 
 #include <Eigen/Core>
@@ -75,16 +84,39 @@ std::vector<PixelSurface> LocatePixels(const render::PathTracer& tracer,
                                        const std::vector<PosedImage>& views,
                                        const std::vector<SampledPixel>& pixels);
 
+// Shading probes (step 1 with LightEstimationOptions::albedo_probe_spp > 0): the observed texels
+// of mesh `mesh_index` (view_counts as JointAlbedoInputs; empty: all), one per cell of a grid of
+// `spacing` (the first in texel order), each kept when the ray from `offset` above it along its
+// normal, back along the normal, meets its own mesh within 2 offsets of it (face and barycentric
+// coordinates of that hit in the result). `tracer`'s scene must hold the mesh at `mesh_index`.
+std::vector<PixelSurface> ShadingProbes(const render::PathTracer& tracer, const MeshColors& layout,
+                                        int mesh_index, const std::vector<int32_t>& view_counts,
+                                        double spacing, double offset);
+// The shading S = L / a (per channel) at every probe under `lit`'s lights: the mean radiance of
+// `spp` paths along the probe's ray (as ShadingProbes traced it, `offset` above the surface) over
+// the albedo at its hit. A Lambertian surface sends the same radiance every way, so the probe's
+// ray stands for every camera's. `lit` is the scene of ShadingProbes' tracer with lights.
+std::vector<Eigen::Vector3f> ProbeShading(const render::PathTracer& lit,
+                                          const std::vector<PixelSurface>& probes, double offset,
+                                          const render::RenderOptions& paths, int spp,
+                                          uint64_t seed);
+
 // Step 1: the kernel-weighted mean of `pixel_shading` (one per pixel, mesh `mesh` only) at every
 // texel of `layout` on `mesh`; `covered` (per texel) tells which texels some pixel reached. A
 // texel with fewer than `min_pixels` pixels within `radius` takes the kernel twice, then four
 // times as wide (sparse pixels: the shading stays an average, not one pixel's noise).
 // ShadingKernel holds what does not change between the alternation's steps (the texels' positions
 // and normals, the pixels' point grids); TexelShading is one use of it. `pixels` must outlive it.
+// The kernel's normal test: a sample votes for a texel when the normals of their faces agree
+// within 45 degrees (sampled pixels: sparse, the kernel wide) or 10 degrees (probes: dense; the
+// renders shade every face with its own normal, so the shading steps across a fold of the mesh).
+inline constexpr double kPixelNormalCosine = 0.7071;  // cos 45 degrees
+inline constexpr double kProbeNormalCosine = 0.9848;  // cos 10 degrees
 class ShadingKernel {
  public:
   ShadingKernel(const TriangleMesh& mesh, const MeshColors& layout, int mesh_index,
-                const std::vector<PixelSurface>& pixels, double radius);
+                const std::vector<PixelSurface>& pixels, double radius,
+                double min_normal_cosine = kPixelNormalCosine);
   ~ShadingKernel();
   std::vector<Eigen::Vector3f> Shade(const std::vector<Eigen::Vector3f>& pixel_shading,
                                      int min_pixels, std::vector<uint8_t>* covered) const;

@@ -430,16 +430,42 @@ class LightEstimator {
     double cost = out_.rounds.back().solve.cost;
     MeshColors current = *in.clusters;
     GS_CHECK_EQ(second_.pixels.size(), n);  // the two halves of the same pixels' paths
-    const ShadingKernel kernel(traced.mesh, current, in.mesh, surface, radius);
+    // The shading's samples: probes traced over the whole observed surface, or the sampled
+    // pixels' first halves.
+    const bool probing = options_.albedo_probe_spp > 0;
+    const double probe_offset = 1e-3 * std::max(1e-6f, box.diagonal().norm());
+    const std::vector<PixelSurface> probes =
+        probing
+            ? ShadingProbes(tracer_, current, in.mesh, in.view_counts, radius / 3.0, probe_offset)
+            : std::vector<PixelSurface>();
+    out_.albedo_probes = probes.size();
+    const ShadingKernel kernel(traced.mesh, current, in.mesh, probing ? probes : surface, radius,
+                               probing ? kProbeNormalCosine : kPixelNormalCosine);
+    // The probes' shading under the current lights, with `albedo` on the mesh (the renders'
+    // interreflections).
+    const auto probe_shading = [&](const MeshColors& albedo, int step) {
+      Scene lit_scene = tracer_.scene();
+      lit_scene.meshes[static_cast<size_t>(in.mesh)].albedo = SurfaceAlbedo::FromMeshColors(albedo);
+      lit_scene.voxel_lights = out_.lights;
+      const PathTracer lit(lit_scene);
+      return ProbeShading(lit, probes, probe_offset, options_.paths, options_.albedo_probe_spp,
+                          Mix64(seed_ + 0xA1BE * static_cast<uint64_t>(step + 1)));
+    };
     double check = CheckResidual();
     for (int step = 0; step < options_.albedo_iterations; ++step) {
-      // 1. The shading of every pixel on the mesh from the first half of the paths, carried to
-      // the texels (the second half judges the step).
-      const std::vector<Eigen::Vector3f> a = last_.Predict(out_.lights);
-      std::vector<Eigen::Vector3f> shading(n, Eigen::Vector3f::Zero());
-      for (size_t i = 0; i < n; ++i) {
-        if (!surface[i].hit || surface[i].mesh != in.mesh) continue;
-        shading[i] = a[i].cwiseQuotient(albedo[i].cwiseMax(0.02f));
+      // 1. The shading: at every probe under the current lights, or at every pixel on the mesh
+      // from the first half of the paths (the second half judges the step); carried to the
+      // texels.
+      std::vector<Eigen::Vector3f> shading;
+      if (probing) {
+        shading = probe_shading(current, step);
+      } else {
+        const std::vector<Eigen::Vector3f> a = last_.Predict(out_.lights);
+        shading.assign(n, Eigen::Vector3f::Zero());
+        for (size_t i = 0; i < n; ++i) {
+          if (!surface[i].hit || surface[i].mesh != in.mesh) continue;
+          shading[i] = a[i].cwiseQuotient(albedo[i].cwiseMax(0.02f));
+        }
       }
       std::vector<uint8_t> covered;
       const std::vector<Eigen::Vector3f> texel_shading =
@@ -487,6 +513,31 @@ class LightEstimator {
       albedo = std::move(next_albedo);
       out_.albedo = current;
       if (fall < options_.albedo_tolerance) break;
+    }
+    // 5. With probes, the albedo of the last lights: each step's albedo was made for the lights
+    // before that step's solve, and the renders show the lights after it. The texels take the
+    // probes' shading under the final lights once more; a ceiling's scale goes to the lights.
+    if (probing && out_.albedo) {
+      std::vector<uint8_t> covered;
+      const std::vector<Eigen::Vector3f> texel_shading = kernel.Shade(
+          probe_shading(current, options_.albedo_iterations), options_.albedo_min_pixels, &covered);
+      double scale = 1.0;
+      current = UpdateAlbedo(in, texel_shading, covered, options_.albedo_prior,
+                             options_.albedo_ceiling, nullptr, &scale);
+      std::vector<Eigen::Vector3f> ratio(n, Eigen::Vector3f::Ones());  // the caches follow
+      for (size_t i = 0; i < n; ++i) {
+        if (!surface[i].hit || surface[i].mesh != in.mesh) continue;
+        const Eigen::Vector3f next = current.Linear(surface[i].face, surface[i].b1, surface[i].b2)
+                                         .cwiseMax(0.0f)
+                                         .cwiseMin(1.0f);
+        ratio[i] = next.cwiseQuotient(albedo[i].cwiseMax(1e-3f)).cwiseMin(1e3f);
+      }
+      ScaleRows(ratio);
+      total_ = NormalEquations::FromCaches(last_, second_, options_.noise_correction);
+      for (Eigen::Vector3f& l : out_.lights.intensity) l /= static_cast<float>(scale);
+      out_.lights.distant_intensity /= static_cast<float>(scale);
+      out_.albedo = current;
+      out_.albedo_final_scale = scale;
     }
     out_.albedo_seconds = SecondsSince(start);
   }

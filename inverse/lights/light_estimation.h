@@ -105,6 +105,10 @@ struct LightEstimate {
   // alternation was kept, and every alternation's figures.
   std::optional<MeshColors> albedo;
   std::vector<JointAlbedoStep> albedo_steps;
+  size_t albedo_probes = 0;  // shading probes of the joint albedo (0: the sampled pixels')
+  // With probes: the ceiling's scale of the last albedo update, under the final lights (which
+  // took 1 / scale); 1: none.
+  double albedo_final_scale = 1.0;
   double albedo_seconds = 0.0;
   std::vector<std::string> notes;  // e.g. why adaptive refinement stopped early
 };

@@ -81,9 +81,12 @@ struct LightEstimationOptions {
   // Joint albedo (joint_albedo.h; EstimateLights with JointAlbedoInputs): alternations of
   // per-texel albedo and lights after the lights' estimate (0: the clustering's albedo stays).
   int albedo_iterations = 3;
-  double albedo_prior = 0.02;      // weight pulling a texel's albedo toward its cluster's
-  double albedo_radius = 0.02;     // shading kernel radius, share of the scene's diagonal
-  int albedo_min_pixels = 16;      // pixels in a texel's kernel at least (else it widens)
+  double albedo_prior = 0.02;    // weight pulling a texel's albedo toward its cluster's
+  double albedo_radius = 0.005;  // shading kernel radius, share of the scene's diagonal
+  int albedo_min_pixels = 16;    // samples in a texel's kernel at least (else it widens)
+  // Paths per shading probe: the shading is traced under the current lights at observed texels
+  // albedo_radius / 3 apart (0: taken from the sampled pixels' paths instead).
+  int albedo_probe_spp = 8;
   double albedo_ceiling = 0.9;     // the 95th percentile of the largest albedo channel at most
   double albedo_tolerance = 0.01;  // stop when the light cost falls less than this (relative)
   double memory_cap = 4000.0;      // MB the path-coefficient caches and the normal equations
@@ -152,7 +155,10 @@ struct LightEstimationOptions {
     v("albedo_radius", albedo_radius, "",
       "shading smoothing radius of the joint albedo, share of the scene's diagonal");
     v("albedo_min_pixels", albedo_min_pixels, "",
-      "joint albedo: pixels in a texel's shading kernel at least (else 2x, then 4x as wide)");
+      "joint albedo: shading samples in a texel's kernel at least (else 2x, then 4x as wide)");
+    v("albedo_probe_spp", albedo_probe_spp, "",
+      "joint albedo: paths per shading probe (probes albedo_radius / 3 apart over the observed "
+      "surface; 0: the sampled pixels' shading)");
     v("albedo_ceiling", albedo_ceiling, "",
       "joint albedo: the 95th percentile of the largest channel at most this (scaled down)");
     v("albedo_tolerance", albedo_tolerance, "",

@@ -6,6 +6,8 @@
 
 #include <cmath>
 #include <iostream>
+#include <set>
+#include <tuple>
 
 #include "core/check.h"
 #include "core/parallel.h"
@@ -84,6 +86,66 @@ TEST(JointAlbedo, TheUpdateDividesTheObservedColourByTheShading) {
   const MeshColors clamped = UpdateAlbedo(in, shading, covered, 0.0, 1.0);
   EXPECT_LE(clamped.colors()[0].maxCoeff(), 1.0f);
   EXPECT_GE(clamped.colors()[0].minCoeff(), 0.0f);
+}
+
+TEST(JointAlbedo, ProbesTraceTheShadingOfAPointLightOverTheObservedSurface) {
+  // A 2 m square floor (normal +z) of albedo (0.6, 0.3, 0.1) and a point light 1 m above its
+  // centre: nothing reflects back, so the shading is the light's irradiance over pi,
+  // S = I cos / (pi d^2), whatever the albedo.
+  Scene scene;
+  SceneMesh floor;
+  floor.mesh.vertices = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+  floor.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
+  floor.albedo = SurfaceAlbedo::Constant({0.6f, 0.3f, 0.1f});
+  scene.meshes.push_back(floor);
+  const PathTracer geometry(scene);
+  const MeshColors layout(floor.mesh, std::vector<int>(floor.mesh.faces.size(), 64));
+  // Half the texels unobserved (x < 0): no probes there.
+  const std::vector<Eigen::Vector3f> position =
+      layout.InterpolateVertexAttribute(floor.mesh.vertices);
+  std::vector<int32_t> views(layout.SampleCount());
+  for (size_t t = 0; t < views.size(); ++t) views[t] = position[t].x() >= 0.0f ? 2 : 0;
+  const double spacing = 0.1, offset = 0.005;
+  const std::vector<PixelSurface> probes =
+      ShadingProbes(geometry, layout, 0, views, spacing, offset);
+  // The observed half is 1 m x 2 m: one probe per 10 cm cell.
+  EXPECT_GE(probes.size(), 180u);
+  EXPECT_LE(probes.size(), 231u);
+  std::set<std::tuple<int, int>> cells;
+  for (const PixelSurface& p : probes) {
+    ASSERT_TRUE(p.hit);
+    EXPECT_EQ(p.mesh, 0);
+    EXPECT_GE(p.position.x(), -1e-6f);
+    EXPECT_NEAR(p.position.z(), 0.0f, 1e-6f);
+    EXPECT_NEAR(p.normal.z(), 1.0f, 1e-5f);
+    const auto cell = std::make_tuple(static_cast<int>(std::floor(p.position.x() / spacing)),
+                                      static_cast<int>(std::floor(p.position.y() / spacing)));
+    EXPECT_TRUE(cells.insert(cell).second) << "two probes in one cell";
+  }
+  scene.point_lights.push_back({Eigen::Vector3d(0, 0, 1), Eigen::Vector3f(2.0f, 1.0f, 0.5f)});
+  const PathTracer lit(scene);
+  const RenderOptions paths = RenderOptions::Paths(1);
+  const std::vector<Eigen::Vector3f> shading = ProbeShading(lit, probes, offset, paths, 4, 3);
+  ASSERT_EQ(shading.size(), probes.size());
+  for (size_t i = 0; i < probes.size(); ++i) {
+    const Eigen::Vector3f to_light = Eigen::Vector3f(0, 0, 1) - probes[i].position;
+    const float d2 = to_light.squaredNorm(), cosine = to_light.z() / std::sqrt(d2);
+    const Eigen::Vector3f truth =
+        Eigen::Vector3f(2.0f, 1.0f, 0.5f) * (cosine / (static_cast<float>(M_PI) * d2));
+    EXPECT_LT((shading[i] - truth).norm(), 1e-3f * truth.norm()) << probes[i].position.transpose();
+  }
+  // Same seed, same shading with one thread.
+  const int threads = ThreadCount();
+  SetThreadCount(1);
+  const std::vector<PixelSurface> single_probes =
+      ShadingProbes(geometry, layout, 0, views, spacing, offset);
+  const std::vector<Eigen::Vector3f> single = ProbeShading(lit, single_probes, offset, paths, 4, 3);
+  SetThreadCount(threads);
+  ASSERT_EQ(single_probes.size(), probes.size());
+  for (size_t i = 0; i < probes.size(); ++i) {
+    EXPECT_EQ(single_probes[i].position, probes[i].position);
+    EXPECT_EQ(single[i], shading[i]);
+  }
 }
 
 TEST(JointAlbedo, TheShadingKernelAveragesNearbyPixelsOfTheSameOrientation) {
