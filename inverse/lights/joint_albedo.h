@@ -7,13 +7,16 @@
 //     normal (a Lambertian surface sends every camera the same radiance), with the current albedo
 //     on the mesh for the interreflections. A cross-bilateral kernel carries it to every texel:
 //     the probes within albedo_radius of the texel whose face normal is within 10 degrees of the
-//     texel's face's (the renders shade every face with its own normal, so the shading steps
-//     across a fold of the mesh), weighted (1 - d^2 / r^2)^2, widened to 2r, then 4r where fewer
+//     texel's face's (with vertex-interpolated normals and 45 degrees the Open3D room's held-out
+//     error was 0.147, with face normals and 10 degrees 0.134; the renders shade the chain's
+//     meshes with their interpolated vertex normals, so why the face test does better is not
+//     established), weighted (1 - d^2 / r^2)^2, widened to 2r, then 4r where fewer
 //     than albedo_min_pixels probes fall inside. (albedo_probe_spp 0: the sampled pixels' shading
 //     S_i = P_i / a_i from the first half of the cache's paths instead, normals within 45
 //     degrees; a few thousand pixels per view leave the kernel wide, and its blur of the shading
-//     went into the albedo: the Open3D room's held-out error is 0.148 with it, 0.130 with probes
-//     and step 5.) The probes' shading is independent of both halves of the cache's paths.
+//     went into the albedo: the Open3D room's held-out error was 0.148 with it (and radius 2 %),
+//     0.130-0.131 with probes and step 5.) The probes' shading is independent of both halves of
+//     the cache's paths.
 //  2. each observed texel with shading gets, per channel, the albedo that minimises
 //         (a S_t - o_t)^2 + mu s^2 (a - m_k)^2
 //     (o_t: its observed colour, texture.mcol; m_k: the mean of its cluster's unregularised
@@ -93,9 +96,10 @@ std::vector<PixelSurface> ShadingProbes(const render::PathTracer& tracer, const 
                                         int mesh_index, const std::vector<int32_t>& view_counts,
                                         double spacing, double offset);
 // The shading S = L / a (per channel) at every probe under `lit`'s lights: the mean radiance of
-// `spp` paths along the probe's ray (as ShadingProbes traced it, `offset` above the surface) over
-// the albedo at its hit. A Lambertian surface sends the same radiance every way, so the probe's
-// ray stands for every camera's. `lit` is the scene of ShadingProbes' tracer with lights.
+// `spp` paths from `offset` above the probe's point back along its face normal (the hit face of
+// ShadingProbes' ray; which face the paths meet first is not checked again), over the albedo of
+// the probe's face and point. A Lambertian surface sends the same radiance every way, so the
+// probe's ray stands for every camera's. `lit` is the scene of ShadingProbes' tracer with lights.
 std::vector<Eigen::Vector3f> ProbeShading(const render::PathTracer& lit,
                                           const std::vector<PixelSurface>& probes, double offset,
                                           const render::RenderOptions& paths, int spp,
@@ -109,7 +113,7 @@ std::vector<Eigen::Vector3f> ProbeShading(const render::PathTracer& lit,
 // and normals, the pixels' point grids); TexelShading is one use of it. `pixels` must outlive it.
 // The kernel's normal test: a sample votes for a texel when the normals of their faces agree
 // within 45 degrees (sampled pixels: sparse, the kernel wide) or 10 degrees (probes: dense; the
-// renders shade every face with its own normal, so the shading steps across a fold of the mesh).
+// probes on either side of a fold of the mesh are kept apart).
 inline constexpr double kPixelNormalCosine = 0.7071;  // cos 45 degrees
 inline constexpr double kProbeNormalCosine = 0.9848;  // cos 10 degrees
 class ShadingKernel {
