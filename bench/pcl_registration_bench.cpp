@@ -63,15 +63,6 @@ using namespace genscene::fusion;
 
 namespace {
 
-// The view of a depth image as a model for TrackFrameToModel (as in fusion/loop_closure.cpp).
-RaycastResult ModelFromDepth(const PyramidLevel& level) {
-  RaycastResult model;
-  model.depth = level.depth;
-  model.points = level.vertices;
-  model.normals = level.normals;
-  return model;
-}
-
 bool g_exact = false;  // --exact
 
 // A pair of stored frames: `old` and `live` as loop closure keeps them, and the truth.

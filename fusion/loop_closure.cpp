@@ -42,7 +42,8 @@ double Degrees(const Eigen::Isometry3d& motion) {
   return RotationAngle(motion) * 180.0 / M_PI;
 }
 
-// The view of a depth image as a model for TrackFrameToModel.
+}  // namespace
+
 RaycastResult ModelFromDepth(const PyramidLevel& level) {
   RaycastResult model;
   model.depth = level.depth;
@@ -50,8 +51,6 @@ RaycastResult ModelFromDepth(const PyramidLevel& level) {
   model.normals = level.normals;
   return model;
 }
-
-}  // namespace
 
 void LoopClosureOptions::Validate() const {
   RequireRange("loop_node_translation", node_translation, 0.01, 100.0);

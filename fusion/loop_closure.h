@@ -31,6 +31,10 @@ namespace genscene::fusion {
 // fusion/README.md).
 inline constexpr int kLoopVerifyExtraLevels = 1;
 
+// The view of a depth image's pyramid level as a model for TrackFrameToModel (depth, points and
+// normals; no colour): how loop closure aligns one kept frame to another.
+RaycastResult ModelFromDepth(const PyramidLevel& level);
+
 struct LoopClosureOptions {
   bool enabled = true;
   // A new node once the camera has moved this far from the last node (either test).

@@ -12,6 +12,13 @@ namespace genscene::inverse {
 
 namespace {
 
+// The hash key of a grid cell (21 bits per axis).
+uint64_t CellKey(const Eigen::Vector3i& c) {
+  return (static_cast<uint64_t>(static_cast<uint32_t>(c.x()) & 0x1FFFFF) << 42) |
+         (static_cast<uint64_t>(static_cast<uint32_t>(c.y()) & 0x1FFFFF) << 21) |
+         (static_cast<uint64_t>(static_cast<uint32_t>(c.z()) & 0x1FFFFF));
+}
+
 // A uniform hash grid of the pixels' first hits, cell size = the kernel radius.
 class PointGrid {
  public:
@@ -19,7 +26,7 @@ class PointGrid {
       : inverse_cell_(1.0 / radius) {
     for (size_t i = 0; i < pixels.size(); ++i) {
       if (pixels[i].hit && pixels[i].mesh == mesh)
-        cells_[Key(Cell(pixels[i].position))].push_back(i);
+        cells_[CellKey(Cell(pixels[i].position))].push_back(i);
     }
   }
   // Visits the pixels in p's cell and its 26 neighbours (all within the cell size of p).
@@ -29,7 +36,7 @@ class PointGrid {
     for (int dz = -1; dz <= 1; ++dz)
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
-          const auto it = cells_.find(Key(c + Eigen::Vector3i(dx, dy, dz)));
+          const auto it = cells_.find(CellKey(c + Eigen::Vector3i(dx, dy, dz)));
           if (it == cells_.end()) continue;
           for (size_t i : it->second) visit(i);
         }
@@ -39,17 +46,12 @@ class PointGrid {
   Eigen::Vector3i Cell(const Eigen::Vector3f& p) const {
     return (p.cast<double>() * inverse_cell_).array().floor().cast<int>();
   }
-  static uint64_t Key(const Eigen::Vector3i& c) {
-    return (static_cast<uint64_t>(static_cast<uint32_t>(c.x()) & 0x1FFFFF) << 42) |
-           (static_cast<uint64_t>(static_cast<uint32_t>(c.y()) & 0x1FFFFF) << 21) |
-           (static_cast<uint64_t>(static_cast<uint32_t>(c.z()) & 0x1FFFFF));
-  }
   double inverse_cell_;
   std::unordered_map<uint64_t, std::vector<size_t>> cells_;
 };
 
 // The unit normal of the face each texel belongs to (for an edge or vertex texel, the face
-// MeshColors::SampleFacePoint names): the renders shade a model's mesh with its face normals.
+// MeshColors::SampleFacePoint names).
 std::vector<Eigen::Vector3f> TexelFaceNormals(const TriangleMesh& mesh, const MeshColors& layout) {
   std::vector<Eigen::Vector3f> normal(layout.SampleCount(), Eigen::Vector3f::Zero());
   ParallelFor(0, normal.size(), [&](size_t t) {
@@ -109,23 +111,20 @@ std::vector<PixelSurface> ShadingProbes(const render::PathTracer& tracer, const 
     if (!view_counts.empty() && view_counts[t] <= 0) continue;
     if (!(normal[t].squaredNorm() > 0.0f) || !position[t].allFinite()) continue;
     const Eigen::Vector3i c = (position[t].cast<double>() * inverse).array().floor().cast<int>();
-    const uint64_t key = (static_cast<uint64_t>(static_cast<uint32_t>(c.x()) & 0x1FFFFF) << 42) |
-                         (static_cast<uint64_t>(static_cast<uint32_t>(c.y()) & 0x1FFFFF) << 21) |
-                         (static_cast<uint64_t>(static_cast<uint32_t>(c.z()) & 0x1FFFFF));
-    if (cells.emplace(key, t).second) chosen.push_back(t);
+    if (cells.emplace(CellKey(c), t).second) chosen.push_back(t);
   }
   std::vector<PixelSurface> probes(chosen.size());
   const float off = static_cast<float>(offset);
   ParallelFor(0, chosen.size(), [&](size_t i) {
     const size_t t = chosen[i];
     const Eigen::Vector3f& n = normal[t];
+    // A hit within 3 offsets of the start lies within 2 offsets of the texel.
     const auto hit = tracer.tracer().Intersect(position[t] + off * n, -n, 0.0f, 3.0f * off);
     if (!hit || hit->mesh != mesh_index) return;
     const Eigen::Vector3i& f = mesh.faces[static_cast<size_t>(hit->face)];
     PixelSurface& s = probes[i];
     s.position = (1.0f - hit->b1 - hit->b2) * mesh.vertices[f[0]] + hit->b1 * mesh.vertices[f[1]] +
                  hit->b2 * mesh.vertices[f[2]];
-    if ((s.position - position[t]).norm() > 2.0f * off) return;
     s.hit = true;
     s.mesh = mesh_index;
     s.face = hit->face;

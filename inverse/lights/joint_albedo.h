@@ -90,8 +90,9 @@ std::vector<PixelSurface> LocatePixels(const render::PathTracer& tracer,
 // Shading probes (step 1 with LightEstimationOptions::albedo_probe_spp > 0): the observed texels
 // of mesh `mesh_index` (view_counts as JointAlbedoInputs; empty: all), one per cell of a grid of
 // `spacing` (the first in texel order), each kept when the ray from `offset` above it along its
-// normal, back along the normal, meets its own mesh within 2 offsets of it (face and barycentric
-// coordinates of that hit in the result). `tracer`'s scene must hold the mesh at `mesh_index`.
+// face normal, back along the normal, meets its own mesh within 3 offsets of the ray's start
+// (face and barycentric coordinates of that hit in the result). `tracer`'s scene must hold the mesh
+// at `mesh_index`.
 std::vector<PixelSurface> ShadingProbes(const render::PathTracer& tracer, const MeshColors& layout,
                                         int mesh_index, const std::vector<int32_t>& view_counts,
                                         double spacing, double offset);

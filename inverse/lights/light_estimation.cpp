@@ -451,6 +451,20 @@ class LightEstimator {
       return ProbeShading(lit, probes, probe_offset, options_.paths, options_.albedo_probe_spp,
                           Mix64(seed_ + 0xA1BE * static_cast<uint64_t>(step + 1)));
     };
+    // The albedo `colors` gives every pixel's first hit on the mesh (the others keep `albedo`),
+    // and in `ratio` the factor of each against `albedo`: what the caches' rows take.
+    const auto follow = [&](const MeshColors& colors, std::vector<Eigen::Vector3f>* ratio) {
+      std::vector<Eigen::Vector3f> at = albedo;
+      ratio->assign(n, Eigen::Vector3f::Ones());
+      for (size_t i = 0; i < n; ++i) {
+        if (!surface[i].hit || surface[i].mesh != in.mesh) continue;
+        at[i] = colors.Linear(surface[i].face, surface[i].b1, surface[i].b2)
+                    .cwiseMax(0.0f)
+                    .cwiseMin(1.0f);
+        (*ratio)[i] = at[i].cwiseQuotient(albedo[i].cwiseMax(1e-3f)).cwiseMin(1e3f);
+      }
+      return at;
+    };
     double check = CheckResidual();
     for (int step = 0; step < options_.albedo_iterations; ++step) {
       // 1. The shading: at every probe under the current lights, or at every pixel on the mesh
@@ -476,14 +490,8 @@ class LightEstimator {
           UpdateAlbedo(in, texel_shading, covered, options_.albedo_prior, options_.albedo_ceiling,
                        &record.texels_updated, &record.scale);
       // 4. The caches follow the albedo at the first hits; the lights are solved again.
-      std::vector<Eigen::Vector3f> next_albedo = albedo, ratio(n, Eigen::Vector3f::Ones());
-      for (size_t i = 0; i < n; ++i) {
-        if (!surface[i].hit || surface[i].mesh != in.mesh) continue;
-        next_albedo[i] = next.Linear(surface[i].face, surface[i].b1, surface[i].b2)
-                             .cwiseMax(0.0f)
-                             .cwiseMin(1.0f);
-        ratio[i] = next_albedo[i].cwiseQuotient(albedo[i].cwiseMax(1e-3f)).cwiseMin(1e3f);
-      }
+      std::vector<Eigen::Vector3f> ratio;
+      std::vector<Eigen::Vector3f> next_albedo = follow(next, &ratio);
       const VoxelLightGrid lights = out_.lights;
       const std::vector<Eigen::Vector3d> scale = scale_;
       ScaleRows(ratio);
@@ -524,14 +532,8 @@ class LightEstimator {
       double scale = 1.0;
       current = UpdateAlbedo(in, texel_shading, covered, options_.albedo_prior,
                              options_.albedo_ceiling, nullptr, &scale);
-      std::vector<Eigen::Vector3f> ratio(n, Eigen::Vector3f::Ones());  // the caches follow
-      for (size_t i = 0; i < n; ++i) {
-        if (!surface[i].hit || surface[i].mesh != in.mesh) continue;
-        const Eigen::Vector3f next = current.Linear(surface[i].face, surface[i].b1, surface[i].b2)
-                                         .cwiseMax(0.0f)
-                                         .cwiseMin(1.0f);
-        ratio[i] = next.cwiseQuotient(albedo[i].cwiseMax(1e-3f)).cwiseMin(1e3f);
-      }
+      std::vector<Eigen::Vector3f> ratio;  // the caches follow
+      albedo = follow(current, &ratio);
       ScaleRows(ratio);
       total_ = NormalEquations::FromCaches(last_, second_, options_.noise_correction);
       for (Eigen::Vector3f& l : out_.lights.intensity) l /= static_cast<float>(scale);
