@@ -328,7 +328,7 @@ TEST(JointAlbedo, TheAlternationReturnsTextureDetailToTheAlbedo) {
   }
   const double before = BackWallError(box, box.flat), after = BackWallError(box, *e.albedo);
   std::cout << "back wall albedo error: clusters " << before << ", joint " << after << "\n";
-  EXPECT_LT(after, 0.65 * before);  // measured: 0.31 -> 0.17
+  EXPECT_LT(after, 0.65 * before);  // measured: 0.309 -> 0.195
   // Same seed, same albedo with one thread.
   const int threads = ThreadCount();
   SetThreadCount(1);
