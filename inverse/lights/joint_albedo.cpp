@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 
 #include "core/check.h"
@@ -103,11 +104,20 @@ std::vector<PixelSurface> ShadingProbes(const render::PathTracer& tracer, const 
   const TriangleMesh& mesh = scene.meshes[static_cast<size_t>(mesh_index)].mesh;
   const std::vector<Eigen::Vector3f> position = layout.InterpolateVertexAttribute(mesh.vertices);
   const std::vector<Eigen::Vector3f> normal = TexelFaceNormals(mesh, layout);
-  // One texel per cell, the first in texel order (the same probes whatever the thread count).
+  // One texel per cell: the first face-interior texel in texel order, else the first edge
+  // texel, else the first vertex texel (at a vertex or an edge the probe's ray meets several
+  // faces at once). The same probes whatever the thread count.
   std::unordered_map<uint64_t, size_t> cells;
   std::vector<size_t> chosen;
   const double inverse = 1.0 / spacing;
-  for (size_t t = 0; t < position.size(); ++t) {
+  const size_t count = position.size();
+  const size_t interior = layout.VertexSampleCount() + layout.EdgeSampleCount();
+  for (size_t k = 0; k < count; ++k) {
+    // Face texels [interior, count), then edge texels [vertices, interior), then vertex texels.
+    const size_t t = k < count - interior ? interior + k
+                     : k < count - layout.VertexSampleCount()
+                         ? layout.VertexSampleCount() + (k - (count - interior))
+                         : k - (count - layout.VertexSampleCount());
     if (!view_counts.empty() && view_counts[t] <= 0) continue;
     if (!(normal[t].squaredNorm() > 0.0f) || !position[t].allFinite()) continue;
     const Eigen::Vector3i c = (position[t].cast<double>() * inverse).array().floor().cast<int>();
@@ -152,6 +162,12 @@ std::vector<Eigen::Vector3f> ProbeShading(const render::PathTracer& lit,
     if (!p.hit) return;
     const render::SceneMesh& m = scene.meshes[static_cast<size_t>(p.mesh)];
     const Eigen::Vector3f albedo = m.albedo.Eval(m.mesh, p.face, p.b1, p.b2);
+    // Below 0.02 in a channel the radiance says too little of the shading (and an albedo of 0
+    // ends the path): the probe is left out of the kernel.
+    if (!(albedo.minCoeff() >= 0.02f)) {
+      out[i].setConstant(std::numeric_limits<float>::quiet_NaN());
+      return;
+    }
     CounterRng rng(seed, i);
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
     for (int s = 0; s < spp; ++s) {
@@ -159,7 +175,7 @@ std::vector<Eigen::Vector3f> ProbeShading(const render::PathTracer& lit,
       sum +=
           lit.Radiance(p.position + off * p.normal, -p.normal, paths, rng, nullptr, first_light_u);
     }
-    out[i] = (sum / static_cast<float>(spp)).cwiseQuotient(albedo.cwiseMax(0.02f));
+    out[i] = (sum / static_cast<float>(spp)).cwiseQuotient(albedo);
   });
   return out;
 }
@@ -214,6 +230,7 @@ std::vector<Eigen::Vector3f> ShadingKernel::Shade(const std::vector<Eigen::Vecto
       k.grids[level].ForNear(p, [&](size_t i) {
         const float d2 = (pixels[i].position - p).squaredNorm();
         if (d2 >= r2 || pixels[i].normal.dot(n) < k.min_normal_cosine) return;
+        if (!pixel_shading[i].allFinite()) return;  // a probe left out
         const double w = (1.0 - d2 / r2) * (1.0 - d2 / r2);
         sum += w * pixel_shading[i].cast<double>();
         weight += w;
@@ -291,7 +308,11 @@ MeshColors UpdateAlbedo(const JointAlbedoInputs& in,
     if (count[k] == 0.0) continue;  // keeps the cluster's albedo
     if (!uses[t]) {
       a[t] = mean[k].cast<float>();
-      continue;
+      // A texel no keyframe saw, with shading: its observed colour is the texturing's fill from
+      // its observed neighbours, and it takes that over its shading as the others do (the
+      // cluster's mean differs from the neighbours, most along the strips an occluding edge
+      // hid).
+      if (!covered[t] || !(texel_shading[t].minCoeff() > 0.0f)) continue;
     }
     const Eigen::Vector3d o = in.observed->colors()[t].cast<double>();
     const Eigen::Vector3d s = texel_shading[t].cast<double>();

@@ -530,8 +530,14 @@ class LightEstimator {
       const std::vector<Eigen::Vector3f> texel_shading = kernel.Shade(
           probe_shading(current, options_.albedo_iterations), options_.albedo_min_pixels, &covered);
       double scale = 1.0;
-      current = UpdateAlbedo(in, texel_shading, covered, options_.albedo_prior,
-                             options_.albedo_ceiling, nullptr, &scale);
+      size_t voted = 0;
+      MeshColors final_albedo = UpdateAlbedo(in, texel_shading, covered, options_.albedo_prior,
+                                             options_.albedo_ceiling, &voted, &scale);
+      if (voted == 0) {  // no texel has shading: the last step's albedo stays
+        out_.albedo_seconds = SecondsSince(start);
+        return;
+      }
+      current = std::move(final_albedo);
       std::vector<Eigen::Vector3f> ratio;  // the caches follow
       albedo = follow(current, &ratio);
       ScaleRows(ratio);
