@@ -308,10 +308,10 @@ MeshColors UpdateAlbedo(const JointAlbedoInputs& in,
     if (count[k] == 0.0) continue;  // keeps the cluster's albedo
     if (!uses[t]) {
       a[t] = mean[k].cast<float>();
-      // A texel no keyframe saw, with shading: its observed colour is the texturing's fill from
-      // its observed neighbours, and it takes that over its shading as the others do (the
-      // cluster's mean differs from the neighbours, most along the strips an occluding edge
-      // hid).
+      // A texel no keyframe saw, with shading: its observed colour is the texturing's fill (its
+      // observed neighbours' colour, or the texture's mean), and it takes that over its shading
+      // as the others do (the cluster's mean differs from the neighbours, most along the strips
+      // an occluding edge hid).
       if (!covered[t] || !(texel_shading[t].minCoeff() > 0.0f)) continue;
     }
     const Eigen::Vector3d o = in.observed->colors()[t].cast<double>();

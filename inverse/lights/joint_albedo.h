@@ -14,8 +14,8 @@
 //     than albedo_min_pixels probes fall inside. (albedo_probe_spp 0: the sampled pixels' shading
 //     S_i = P_i / a_i from the first half of the cache's paths instead, normals within 45
 //     degrees; a few thousand pixels per view leave the kernel wide, and its blur of the shading
-//     went into the albedo: the Open3D room's held-out error was 0.148 with it (and radius 2 %),
-//     0.130-0.131 with probes and step 5.) The probes' shading is independent of both halves of
+//     went into the albedo: the Open3D room's held-out error is 0.148 with it (and radius 2 %),
+//     0.108 with probes.) The probes' shading is independent of both halves of
 //     the cache's paths.
 //  2. each observed texel with shading gets, per channel, the albedo that minimises
 //         (a S_t - o_t)^2 + mu s^2 (a - m_k)^2
@@ -23,9 +23,10 @@
 //     o / S; s^2: the mean S_t^2 over the texels; mu: albedo_prior), i.e.
 //         a = (o_t S_t + mu s^2 m_k) / (S_t^2 + mu s^2).
 //     Texels that no keyframe saw take the same with o_t the texturing's fill (the colour of
-//     their observed neighbours; their cluster's mean m_k differs from it most along the strips
-//     an occluding edge hid, which a new view sees: the Open3D room's held-out error without
-//     render noise 0.120 with m_k there, 0.103 with the fill); texels without shading take m_k.
+//     their observed neighbours, or the texture's mean colour where no neighbour was observed;
+//     their cluster's mean m_k differs from it most along the strips an occluding edge hid, which
+//     a new view sees: the Open3D room's held-out error without render noise is 0.120 with m_k
+//     there, 0.103 with the fill); texels without shading take m_k.
 //     The statistics (m_k, s^2, the ceiling's percentile) are the observed texels'.
 //     When the 95th percentile of the largest channel over the observed texels exceeds
 //     albedo_ceiling, the whole albedo is scaled down to it (the global scale is free: the
@@ -44,7 +45,7 @@
 //     lights are solved again. A step that raises the cost, or the second half of the paths'
 //     residual sum |P_i - I_i|^2 / sum |I_i|^2 (an independent sample of the prediction's noise:
 //     an albedo that took up the first half's noise fits it worse), is undone and ends the
-//     alternation.
+//     alternation; so does a step in which no texel has shading (before its solve).
 //  5. with probes, once more after the last kept step: each step's albedo was made for the
 //     lights before that step's solve, the renders show the lights after it. The texels take
 //     the shading of the final lights (steps 1 and 2, no solve; a ceiling's scale goes into the

@@ -489,6 +489,7 @@ class LightEstimator {
       MeshColors next =
           UpdateAlbedo(in, texel_shading, covered, options_.albedo_prior, options_.albedo_ceiling,
                        &record.texels_updated, &record.scale);
+      if (record.texels_updated == 0) break;  // no texel has shading: the albedo stays
       // 4. The caches follow the albedo at the first hits; the lights are solved again.
       std::vector<Eigen::Vector3f> ratio;
       std::vector<Eigen::Vector3f> next_albedo = follow(next, &ratio);

@@ -610,7 +610,10 @@ TEST_F(EmulatedCamera, RunRecordsTheLiveCameraAndRunsTheChainOnIt) {
                                           "albedo",  "lights", "refine", "export"};
   ASSERT_GE(ran.size(), chain.size()) << summary.dump(1);
   EXPECT_EQ(std::vector<std::string>(ran.begin(), ran.begin() + chain.size()), chain);
-  EXPECT_CONTAINS(StageResult(summary, "capture"), "8 frames (t = 0 .. ");
+  // The recording starts at the first frame it received: frame 0, unless a loaded machine made
+  // the camera skip the first ones too.
+  EXPECT_CONTAINS(StageResult(summary, "capture"),
+                  numbers.front() == 0 ? std::string("8 frames (t = 0 .. ") : "8 frames (t = ");
   EXPECT_CONTAINS(StageResult(summary, "capture"),
                   ", " + std::to_string(skipped) + " camera frames skipped");
   EXPECT_EQ(summary["input"], (ws / "capture.oni").string());
