@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <unordered_map>
+#include <utility>
 
 #include "core/check.h"
 #include "core/parallel.h"
@@ -110,18 +111,17 @@ std::vector<PixelSurface> ShadingProbes(const render::PathTracer& tracer, const 
   std::unordered_map<uint64_t, size_t> cells;
   std::vector<size_t> chosen;
   const double inverse = 1.0 / spacing;
-  const size_t count = position.size();
-  const size_t interior = layout.VertexSampleCount() + layout.EdgeSampleCount();
-  for (size_t k = 0; k < count; ++k) {
-    // Face texels [interior, count), then edge texels [vertices, interior), then vertex texels.
-    const size_t t = k < count - interior ? interior + k
-                     : k < count - layout.VertexSampleCount()
-                         ? layout.VertexSampleCount() + (k - (count - interior))
-                         : k - (count - layout.VertexSampleCount());
-    if (!view_counts.empty() && view_counts[t] <= 0) continue;
-    if (!(normal[t].squaredNorm() > 0.0f) || !position[t].allFinite()) continue;
-    const Eigen::Vector3i c = (position[t].cast<double>() * inverse).array().floor().cast<int>();
-    if (cells.emplace(CellKey(c), t).second) chosen.push_back(t);
+  const size_t vertices = layout.VertexSampleCount();
+  const size_t first_face = vertices + layout.EdgeSampleCount();
+  const std::pair<size_t, size_t> ranges[] = {
+      {first_face, position.size()}, {vertices, first_face}, {0, vertices}};
+  for (const auto& [begin, end] : ranges) {
+    for (size_t t = begin; t < end; ++t) {
+      if (!view_counts.empty() && view_counts[t] <= 0) continue;
+      if (!(normal[t].squaredNorm() > 0.0f) || !position[t].allFinite()) continue;
+      const Eigen::Vector3i c = (position[t].cast<double>() * inverse).array().floor().cast<int>();
+      if (cells.emplace(CellKey(c), t).second) chosen.push_back(t);
+    }
   }
   std::vector<PixelSurface> probes(chosen.size());
   const float off = static_cast<float>(offset);

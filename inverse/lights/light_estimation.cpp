@@ -534,19 +534,16 @@ class LightEstimator {
       size_t voted = 0;
       MeshColors final_albedo = UpdateAlbedo(in, texel_shading, covered, options_.albedo_prior,
                                              options_.albedo_ceiling, &voted, &scale);
-      if (voted == 0) {  // no texel has shading: the last step's albedo stays
-        out_.albedo_seconds = SecondsSince(start);
-        return;
+      if (voted > 0) {  // else no texel has shading: the last step's albedo stays
+        std::vector<Eigen::Vector3f> ratio;  // the caches follow
+        follow(final_albedo, &ratio);
+        ScaleRows(ratio);
+        total_ = NormalEquations::FromCaches(last_, second_, options_.noise_correction);
+        for (Eigen::Vector3f& l : out_.lights.intensity) l /= static_cast<float>(scale);
+        out_.lights.distant_intensity /= static_cast<float>(scale);
+        out_.albedo = std::move(final_albedo);
+        out_.albedo_final_scale = scale;
       }
-      current = std::move(final_albedo);
-      std::vector<Eigen::Vector3f> ratio;  // the caches follow
-      albedo = follow(current, &ratio);
-      ScaleRows(ratio);
-      total_ = NormalEquations::FromCaches(last_, second_, options_.noise_correction);
-      for (Eigen::Vector3f& l : out_.lights.intensity) l /= static_cast<float>(scale);
-      out_.lights.distant_intensity /= static_cast<float>(scale);
-      out_.albedo = current;
-      out_.albedo_final_scale = scale;
     }
     out_.albedo_seconds = SecondsSince(start);
   }
