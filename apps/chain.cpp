@@ -72,10 +72,11 @@ ChainOptions DemoChainOptions() {
   o.meshing.decimate_max_error = 0.003;
   o.lights.grid = 5;
   o.lights.pixels_per_view = 1500;
-  o.lights.penalty_weight =
-      1e-5;  // novel views 0.079 (1e-4: 0.096, 1e-3: 0.145), see the report's sweep
-  // At this weight the light spreads over about 50 of the 125 voxels, more than adaptive
-  // refinement takes (refine_max_voxels): it would stop and estimate the coarse grid twice.
+  // The penalty weight is the default (1e-3): with the joint albedo free per texel, a weaker
+  // penalty lets many voxels shape each wall's shading, and the walls' albedo takes what they
+  // leave (1e-5: novel views 0.035, but the red wall's red channel 1.08x the white wall's, truth
+  // 0.86x; docs/chain.md). Adaptive refinement is off for the same reason: its finer voxels
+  // shape the walls' shading again (one level: the red channel 1.03x).
   o.lights.refine_levels = 0;
   o.lights.rounds = 3;  // the demo's figures (README) were measured with three resampling rounds
   o.refine.iterations = 3;
