@@ -149,6 +149,66 @@ std::vector<PixelSurface> ShadingProbes(const render::PathTracer& tracer, const 
   return kept;
 }
 
+std::vector<PixelSurface> TexelSurfaces(const TriangleMesh& mesh, const MeshColors& layout,
+                                        int mesh_index) {
+  std::vector<PixelSurface> out(layout.SampleCount());
+  ParallelFor(0, out.size(), [&](size_t t) {
+    if (t < layout.VertexSampleCount() && layout.IsolatedVertex(static_cast<int>(t))) return;
+    int face = -1;
+    double b1 = 0.0, b2 = 0.0;
+    layout.SampleFacePoint(t, &face, &b1, &b2);
+    if (face < 0) return;
+    PixelSurface& s = out[t];
+    s.hit = true;
+    s.mesh = mesh_index;
+    s.face = face;
+    s.b1 = static_cast<float>(b1);
+    s.b2 = static_cast<float>(b2);
+    const auto& f = mesh.faces[static_cast<size_t>(face)];
+    s.position = (1.0f - s.b1 - s.b2) * mesh.vertices[f[0]] + s.b1 * mesh.vertices[f[1]] +
+                 s.b2 * mesh.vertices[f[2]];
+    s.normal = mesh.FaceNormalScaled(static_cast<size_t>(face)).normalized();
+  });
+  return out;
+}
+
+std::vector<Eigen::Vector3f> UnshadowedShading(const VoxelLightGrid& lights,
+                                               const render::SceneMesh& mesh,
+                                               const std::vector<PixelSurface>& at) {
+  std::vector<int> lit;  // the voxels with any intensity
+  for (int v = 0; v < lights.VoxelCount(); ++v)
+    if (lights.IntensityOf(v).maxCoeff() > 0.0f) lit.push_back(v);
+  std::vector<Eigen::Vector3f> center(lit.size());
+  for (size_t k = 0; k < lit.size(); ++k) center[k] = lights.VoxelCenter(lit[k]).cast<float>();
+  const auto& vn = mesh.mesh.normals;
+  const bool smooth = mesh.smooth_shading && vn.size() == mesh.mesh.vertices.size();
+  std::vector<Eigen::Vector3f> out(at.size(), Eigen::Vector3f::Zero());
+  ParallelFor(0, at.size(), [&](size_t i) {
+    const PixelSurface& p = at[i];
+    if (!p.hit || p.face < 0) return;
+    const Eigen::Vector3f ng = p.normal;
+    Eigen::Vector3f ns = ng;
+    if (smooth) {
+      const auto& f = mesh.mesh.faces[static_cast<size_t>(p.face)];
+      const Eigen::Vector3f n = (1.0f - p.b1 - p.b2) * vn[f[0]] + p.b1 * vn[f[1]] + p.b2 * vn[f[2]];
+      if (n.squaredNorm() > 0.0f) ns = n.normalized();
+      if (ns.dot(ng) < 0.0f) ns = -ns;
+    }
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    for (size_t k = 0; k < lit.size(); ++k) {
+      const Eigen::Vector3f to = center[k] - p.position;
+      const float d2 = to.squaredNorm();
+      if (!(d2 > 0.0f)) continue;
+      const Eigen::Vector3f l = to / std::sqrt(d2);
+      const float cos_s = ns.dot(l);
+      if (cos_s <= 0.0f || ng.dot(l) <= 0.0f) continue;
+      sum += lights.Intensity(lit[k], (-l).cast<double>()) * (cos_s * lights.Falloff(d2));
+    }
+    out[i] = sum / static_cast<float>(M_PI);
+  });
+  return out;
+}
+
 std::vector<Eigen::Vector3f> ProbeShading(const render::PathTracer& lit,
                                           const std::vector<PixelSurface>& probes, double offset,
                                           const render::RenderOptions& paths, int spp,
@@ -208,12 +268,22 @@ ShadingKernel::ShadingKernel(const TriangleMesh& mesh, const MeshColors& layout,
 ShadingKernel::~ShadingKernel() = default;
 
 std::vector<Eigen::Vector3f> ShadingKernel::Shade(const std::vector<Eigen::Vector3f>& pixel_shading,
-                                                  int min_pixels,
-                                                  std::vector<uint8_t>* covered) const {
+                                                  int min_pixels, std::vector<uint8_t>* covered,
+                                                  const ShadingGuide* guide) const {
   const Impl& k = *impl_;
   const std::vector<PixelSurface>& pixels = k.pixels;
   GS_CHECK_EQ(pixels.size(), pixel_shading.size());
   const size_t texels = k.position.size();
+  if (guide) {
+    GS_CHECK_EQ(guide->samples.size(), pixels.size());
+    GS_CHECK_EQ(guide->texels.size(), texels);
+    GS_CHECK(guide->floor.minCoeff() > 0.0f);
+  }
+  // The value the kernel averages: the shading, or the shading over the sample's guide.
+  const auto value = [&](size_t i) -> Eigen::Vector3d {
+    if (!guide) return pixel_shading[i].cast<double>();
+    return pixel_shading[i].cwiseQuotient(guide->samples[i] + guide->floor).cast<double>();
+  };
   std::vector<Eigen::Vector3f> out(texels, Eigen::Vector3f::Zero());
   covered->assign(texels, 0);
   ParallelFor(0, texels, [&](size_t t) {
@@ -232,7 +302,7 @@ std::vector<Eigen::Vector3f> ShadingKernel::Shade(const std::vector<Eigen::Vecto
         if (d2 >= r2 || pixels[i].normal.dot(n) < k.min_normal_cosine) return;
         if (!pixel_shading[i].allFinite()) return;  // a probe left out
         const double w = (1.0 - d2 / r2) * (1.0 - d2 / r2);
-        sum += w * pixel_shading[i].cast<double>();
+        sum += w * value(i);
         weight += w;
         ++count;
       });
@@ -240,6 +310,7 @@ std::vector<Eigen::Vector3f> ShadingKernel::Shade(const std::vector<Eigen::Vecto
     }
     if (weight > 0.0) {
       out[t] = (sum / weight).cast<float>();
+      if (guide) out[t] = out[t].cwiseProduct(guide->texels[t] + guide->floor);
       (*covered)[t] = 1;
     }
   });

@@ -451,6 +451,27 @@ class LightEstimator {
       return ProbeShading(lit, probes, probe_offset, options_.paths, options_.albedo_probe_spp,
                           Mix64(seed_ + 0xA1BE * static_cast<uint64_t>(step + 1)));
     };
+    // With albedo_guide, the kernel's guide under the current lights (ShadingGuide): the
+    // voxels' unshadowed direct shading at the probes and the texels, and the floor.
+    const bool guided = probing && options_.albedo_guide > 0.0;
+    const std::vector<PixelSurface> texel_points =
+        guided ? TexelSurfaces(traced.mesh, current, in.mesh) : std::vector<PixelSurface>();
+    const auto guide_for = [&](const std::vector<Eigen::Vector3f>& shading) {
+      ShadingGuide guide;
+      guide.samples = UnshadowedShading(out_.lights, traced, probes);
+      guide.texels = UnshadowedShading(out_.lights, traced, texel_points);
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      size_t count = 0;
+      for (const Eigen::Vector3f& s : shading) {
+        if (!s.allFinite()) continue;
+        sum += s.cast<double>();
+        ++count;
+      }
+      const Eigen::Vector3d mean =
+          count > 0 ? Eigen::Vector3d(sum / count) : Eigen::Vector3d::Ones();
+      guide.floor = (options_.albedo_guide * mean).cwiseMax(1e-6).cast<float>();
+      return guide;
+    };
     // The albedo `colors` gives every pixel's first hit on the mesh (the others keep `albedo`),
     // and in `ratio` the factor of each against `albedo`: what the caches' rows take.
     const auto follow = [&](const MeshColors& colors, std::vector<Eigen::Vector3f>* ratio) {
@@ -482,8 +503,9 @@ class LightEstimator {
         }
       }
       std::vector<uint8_t> covered;
+      const ShadingGuide guide = guided ? guide_for(shading) : ShadingGuide();
       const std::vector<Eigen::Vector3f> texel_shading =
-          kernel.Shade(shading, options_.albedo_min_pixels, &covered);
+          kernel.Shade(shading, options_.albedo_min_pixels, &covered, guided ? &guide : nullptr);
       // 2. The albedo.
       JointAlbedoStep record;
       MeshColors next =
@@ -528,8 +550,11 @@ class LightEstimator {
     // probes' shading under the final lights once more; a ceiling's scale goes to the lights.
     if (probing && out_.albedo) {
       std::vector<uint8_t> covered;
-      const std::vector<Eigen::Vector3f> texel_shading = kernel.Shade(
-          probe_shading(current, options_.albedo_iterations), options_.albedo_min_pixels, &covered);
+      const std::vector<Eigen::Vector3f> shading =
+          probe_shading(current, options_.albedo_iterations);
+      const ShadingGuide guide = guided ? guide_for(shading) : ShadingGuide();
+      const std::vector<Eigen::Vector3f> texel_shading =
+          kernel.Shade(shading, options_.albedo_min_pixels, &covered, guided ? &guide : nullptr);
       double scale = 1.0;
       size_t voted = 0;
       MeshColors final_albedo = UpdateAlbedo(in, texel_shading, covered, options_.albedo_prior,

@@ -52,6 +52,7 @@ void LightEstimationOptions::Validate() const {
   RequireRange("albedo_radius", albedo_radius, 1e-6, 1.0);
   RequireRange("albedo_min_pixels", albedo_min_pixels, 1, 1 << 20);
   RequireRange("albedo_probe_spp", albedo_probe_spp, 0, 1 << 16);
+  RequireRange("albedo_guide", albedo_guide, 0.0, 1e6);
   RequireRange("albedo_ceiling", albedo_ceiling, 1e-3, 1.0);
   RequireRange("albedo_tolerance", albedo_tolerance, 0.0, 1.0);
   RequireRange("active_fraction", active_fraction, 0.0, 1.0);

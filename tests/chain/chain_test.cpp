@@ -476,7 +476,8 @@ TEST(GensceneDemo, ModelMatchesTheGroundTruth) {
   ASSERT_EQ(clusters.labels().size(), joint.SampleCount());
   std::map<int32_t, std::pair<Eigen::Vector3d, double>> sums;
   for (size_t t = 0; t < joint.SampleCount(); ++t) {
-    auto& [sum, count] = sums[clusters.labels()[t]];
+    auto& [sum, count] =
+        sums.try_emplace(clusters.labels()[t], Eigen::Vector3d::Zero(), 0.0).first->second;
     sum += joint.colors()[t].cast<double>();
     count += 1.0;
   }
@@ -522,7 +523,10 @@ TEST(GensceneDemo, ModelMatchesTheGroundTruth) {
 
 // The held-out judge on a synthetic input runs against the ground truth as well: the true scene
 // rendered at each held-out pose scores the model, both baselines and the held-out frame itself
-// (which, being the true scene plus sensor and render noise, comes closer to it than any model).
+// (the true scene plus sensor and render noise). A model averages the noise of several views and
+// can come closer to the truth than one frame (the unlit texture does, and so does the model
+// here: 0.167 against the frame's 0.170), so what is checked is the order the judge must give:
+// the frame and the model both well ahead of the albedo under ambient light.
 TEST(GensceneDemo, HeldOutFramesAreAlsoJudgedAgainstTheTruth) {
   test::TempDir tmp;
   const Workspace ws(tmp / "demo");
@@ -542,8 +546,9 @@ TEST(GensceneDemo, HeldOutFramesAreAlsoJudgedAgainstTheTruth) {
               frame, truth["model"]["relative_rmse"].get<double>(),
               truth["texture_unlit"]["relative_rmse"].get<double>(),
               truth["albedo_ambient"]["relative_rmse"].get<double>());
-  EXPECT_LT(frame, truth["model"]["relative_rmse"].get<double>());
-  EXPECT_LT(frame, truth["albedo_ambient"]["relative_rmse"].get<double>());
+  const double ambient = truth["albedo_ambient"]["relative_rmse"].get<double>();
+  EXPECT_LT(frame, 0.75 * ambient);
+  EXPECT_LT(truth["model"]["relative_rmse"].get<double>(), 0.75 * ambient);
   for (const auto& f : holdout["frames"]) EXPECT_TRUE(f.contains("against_truth"));
   EXPECT_TRUE(fs::exists(ws.EvaluationDir() / "holdout_00_truth.png"));
   const auto summary = nlohmann::json::parse(ReadTextFile(ws.SummaryJson()));

@@ -177,6 +177,79 @@ TEST(JointAlbedo, ProbesTraceTheShadingOfAPointLightOverTheObservedSurface) {
   for (const Eigen::Vector3f& s : none) EXPECT_TRUE(s.allFinite());
 }
 
+TEST(JointAlbedo, TheGuidedKernelKeepsTheFalloffOfALightNearTheSurface) {
+  // A 2 m floor of albedo 0.5 and one voxel light 15 cm above its centre, shining down (lobe -z):
+  // nothing reflects back or shadows, so the probes' shading is the unshadowed shading G, and
+  // its falloff under the light is steep against the kernel's radius.
+  Scene scene;
+  SceneMesh floor;
+  floor.mesh.vertices = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+  floor.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
+  floor.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.5f));
+  scene.meshes.push_back(floor);
+  VoxelLightGrid lights;
+  lights.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.05, -0.05, 0.1), Eigen::Vector3d(0.05, 0.05, 0.2));
+  lights.dims = Eigen::Vector3i::Ones();
+  lights.softening = 0.02;
+  lights.intensity = {Eigen::Vector3f(2.0f, 1.0f, 0.5f)};
+  lights.weights = {{0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f}};
+  const PathTracer geometry(scene);
+  scene.voxel_lights = lights;
+  const PathTracer lit(scene);
+  const MeshColors layout(floor.mesh, std::vector<int>(floor.mesh.faces.size(), 64));
+  const double offset = 0.002;
+  const std::vector<PixelSurface> probes = ShadingProbes(geometry, layout, 0, {}, 0.03, offset);
+  ASSERT_GT(probes.size(), 1000u);
+  const std::vector<Eigen::Vector3f> shading =
+      ProbeShading(lit, probes, offset, RenderOptions::Paths(1), 4, 5);
+  const std::vector<Eigen::Vector3f> at_probes = UnshadowedShading(lights, scene.meshes[0], probes);
+  // G by hand: I (-l . -z) cos / (pi (d^2 + e^2)), l the unit direction to the light.
+  const auto by_hand = [&](const Eigen::Vector3f& p) -> Eigen::Vector3f {
+    const Eigen::Vector3f to = Eigen::Vector3f(0.0f, 0.0f, 0.15f) - p;
+    const float d2 = to.squaredNorm(), cosine = to.z() / std::sqrt(d2);
+    return Eigen::Vector3f(2.0f, 1.0f, 0.5f) *
+           (cosine * cosine / (static_cast<float>(M_PI) * (d2 + 0.02f * 0.02f)));
+  };
+  for (size_t i = 0; i < probes.size(); ++i) {
+    const Eigen::Vector3f truth = by_hand(probes[i].position);
+    EXPECT_LT((at_probes[i] - truth).norm(), 1e-4f * truth.norm())
+        << probes[i].position.transpose();
+    EXPECT_LT((shading[i] - truth).norm(), 1e-3f * truth.norm()) << probes[i].position.transpose();
+  }
+  // The texels' shading from the probes, 10 cm kernel: the plain mean is pulled up under the
+  // light (the falloff is convex), the guided one follows it.
+  const std::vector<PixelSurface> texels = TexelSurfaces(floor.mesh, layout, 0);
+  ASSERT_EQ(texels.size(), layout.SampleCount());
+  ShadingGuide guide;
+  guide.samples = at_probes;
+  guide.texels = UnshadowedShading(lights, scene.meshes[0], texels);
+  Eigen::Vector3f mean = Eigen::Vector3f::Zero();
+  for (const Eigen::Vector3f& v : shading) mean += v;
+  guide.floor = 0.5f * mean / static_cast<float>(shading.size());
+  const ShadingKernel kernel(floor.mesh, layout, 0, probes, 0.1, kProbeNormalCosine);
+  std::vector<uint8_t> covered;
+  const std::vector<Eigen::Vector3f> plain = kernel.Shade(shading, 4, &covered);
+  const std::vector<Eigen::Vector3f> guided = kernel.Shade(shading, 4, &covered, &guide);
+  double plain_worst = 0.0, guided_worst = 0.0;
+  int checked = 0;
+  for (size_t t = 0; t < texels.size(); ++t) {
+    const Eigen::Vector3f& p = texels[t].position;
+    if (!covered[t] || p.head<2>().norm() > 0.5f) continue;
+    const Eigen::Vector3f truth = by_hand(p);
+    EXPECT_LT((guide.texels[t] - truth).norm(), 1e-4f * truth.norm());
+    plain_worst = std::max(plain_worst, double((plain[t] - truth).norm() / truth.norm()));
+    guided_worst = std::max(guided_worst, double((guided[t] - truth).norm() / truth.norm()));
+    ++checked;
+  }
+  std::cout << "shading within 0.5 m of the light's foot, worst relative error: plain kernel "
+            << plain_worst << ", guided " << guided_worst << " (" << checked << " texels)\n";
+  EXPECT_GT(checked, 500);
+  EXPECT_GT(plain_worst, 0.1);  // the plain mean's bias under the light (0.17 here)
+  EXPECT_LT(guided_worst, 0.03);
+  EXPECT_LT(guided_worst, 0.2 * plain_worst);
+}
+
 TEST(JointAlbedo, TheShadingKernelAveragesNearbyPixelsOfTheSameOrientation) {
   const TriangleMesh mesh = SquareAndWall();
   const MeshColors layout(mesh, std::vector<int>(mesh.faces.size(), 8));
