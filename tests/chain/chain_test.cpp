@@ -491,7 +491,7 @@ TEST(GensceneDemo, ModelMatchesTheGroundTruth) {
       if (score(means[k].first) > score(means[best].first)) best = k;
     return best;
   };
-  const auto chroma = [](const Eigen::Vector3d& c) { return c / c.sum(); };
+  const auto chroma = [](const Eigen::Vector3d& c) -> Eigen::Vector3d { return c / c.sum(); };
   const size_t red = argmax([&](const Eigen::Vector3d&c) { return chroma(c).x(); }),
                green = argmax([&](const Eigen::Vector3d&c) { return chroma(c).y(); }),
                white = argmax([&](const Eigen::Vector3d&c) {
