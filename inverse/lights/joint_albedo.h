@@ -21,8 +21,8 @@
 //     voxels' unshadowed first-bounce shading (UnshadowedShading, exact and cheap) and c
 //     albedo_guide times the probes' mean shading. A plain mean of a falloff that is convex near
 //     a light is too high there (17 % under a light 15 cm above a floor with a 10 cm kernel,
-//     0.9 % guided), and G carries the texel's own shading normal; the Open3D room's held-out
-//     error (refinement off) 0.108 -> 0.104.
+//     0.9 % guided), and G carries the texel's own shading normal (the Open3D room's held-out
+//     error with refinement off: plain 0.108, guided 0.104).
 //  2. each observed texel with shading gets, per channel, the albedo that minimises
 //         (a S_t - o_t)^2 + mu s^2 (a - m_k)^2
 //     (o_t: its observed colour, texture.mcol; m_k: the mean of its cluster's unregularised
