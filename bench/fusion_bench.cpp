@@ -28,7 +28,10 @@
 #include <exception>
 #include <map>
 #include <optional>
+#include <stdexcept>
 #include <string>
+#include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "core/frame_source.h"
@@ -46,9 +49,34 @@ constexpr const char* kUsage =
     "usage: bench_fusion FOLDER [FOLDER ...] [--threads N] [--model-subsample N] "
     "[--allocation-stride N]"
     " [--weighting noise|uniform] [--copies N] [--color-weight W] [--no-loop-closure]\n"
+    "         [--set KEY=VALUE ...]\n"
     "       bench_fusion --scale N [--texture M] [--width W] [--per-turn N]\n"
     "         [--radius M] [--depth-bias K] [--color-weight W] [--no-loop-closure]\n"
     "         [--threads N]\n";
+
+// --set KEY=VALUE: any option of the fusion section (genscene-fuse --help lists them).
+using Overrides = std::vector<std::pair<std::string, std::string>>;
+
+void ApplyOverrides(const Overrides& overrides, fusion::FusionOptions* options) {
+  for (const auto& [key, text] : overrides) {
+    bool found = false;
+    options->Visit([&](const char* name, auto& value, const char*, const char*) {
+      if (key != name) return;
+      found = true;
+      using T = std::decay_t<decltype(value)>;
+      if constexpr (std::is_same_v<T, bool>) {
+        value = text == "true" || text == "1";
+      } else if constexpr (std::is_same_v<T, std::string>) {
+        value = text;
+      } else if constexpr (std::is_integral_v<T>) {
+        value = static_cast<T>(std::stoll(text));
+      } else {
+        value = static_cast<T>(std::stod(text));
+      }
+    });
+    if (!found) throw std::runtime_error("--set: no fusion option " + key);
+  }
+}
 
 double PeakMegabytes() {
   rusage usage{};
@@ -58,7 +86,7 @@ double PeakMegabytes() {
 
 // The long scan of --scale (see the top of the file).
 void LongScan(int frames, double texture, int width, int per_turn, bool loop_closure, double radius,
-              double depth_bias, double color_weight) {
+              double depth_bias, double color_weight, const Overrides& overrides) {
   SyntheticScene room = MakeLivingRoomScene();
   room.texture_tile = texture;
   const int height = width * 3 / 4;
@@ -68,6 +96,7 @@ void LongScan(int frames, double texture, int width, int per_turn, bool loop_clo
   fusion::FusionOptions options;
   options.loop.enabled = loop_closure;
   if (color_weight >= 0.0) options.icp.color_weight = color_weight;
+  ApplyOverrides(overrides, &options);
   options.Validate();
   fusion::KinectFusion kf(options, k);
   std::printf(
@@ -155,8 +184,9 @@ void TimeRaycastAgainstVolumeSize(const TsdfVolume& volume, const Trajectory& tr
           volume.block(b);
     }
   }
-  const CameraIntrinsics k = intrinsics.Scaled(1.0 / options.model_subsample);
-  const int normal_step = std::max(1, 2 / options.model_subsample);
+  const int subsample = options.ModelSubsample(intrinsics.width);
+  const CameraIntrinsics k = intrinsics.Scaled(1.0 / subsample);
+  const int normal_step = std::max(1, 2 / subsample);
   double seconds[2] = {};
   size_t projected[2] = {};
   for (int pass = 0; pass < 3; ++pass) {  // the first pass warms the caches, untimed
@@ -200,6 +230,7 @@ int Run(int argc, char** argv) {
   double radius = 0.4;
   double depth_bias = 0.0;
   double color_weight = -1.0;  // the default
+  Overrides overrides;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--help") == 0 || std::strcmp(argv[i], "-h") == 0) {
       std::printf(
@@ -231,6 +262,11 @@ int Run(int argc, char** argv) {
       depth_bias = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--radius") == 0 && i + 1 < argc) {
       radius = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--set") == 0 && i + 1 < argc) {
+      const std::string kv = argv[++i];
+      const size_t eq = kv.find('=');
+      if (eq == std::string::npos) throw std::runtime_error("--set " + kv + ": expected KEY=VALUE");
+      overrides.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
     } else if (std::strcmp(argv[i], "--no-loop-closure") == 0) {
       loop_closure = false;
     } else if (std::strcmp(argv[i], "--per-turn") == 0 && i + 1 < argc) {
@@ -243,7 +279,8 @@ int Run(int argc, char** argv) {
   }
   if (scale > 0) {
     SetThreadCount(threads);
-    LongScan(scale, texture, width, per_turn, loop_closure, radius, depth_bias, color_weight);
+    LongScan(scale, texture, width, per_turn, loop_closure, radius, depth_bias, color_weight,
+             overrides);
     return 0;
   }
   if (folders.empty()) {
@@ -252,18 +289,20 @@ int Run(int argc, char** argv) {
   }
   SetThreadCount(threads);
   std::printf(
-      "threads %d, model raycast at 1/%d resolution, allocation stride %d (0 = width / 160), %s "
+      "threads %d, model subsample %d (0 = by the width), allocation stride %d (0 = width / 160), "
+      "%s "
       "weights, colour weight %g, loop closure %s\n",
       ThreadCount(), model_subsample, allocation_stride, weighting.c_str(),
       color_weight >= 0.0 ? color_weight : fusion::IcpOptions().color_weight,
       loop_closure ? "on" : "off");
-  std::printf("%-28s %9s %7s | %8s %8s %8s %8s %8s %8s | %9s | %8s %9s\n", "sequence", "size",
-              "frames", "prep ms", "track ms", "integ ms", "ray ms", "loop ms", "fps", "ATE cm",
-              "integ fps", "blocks");
+  std::printf("%-28s %9s %7s | %8s %8s %8s %8s %8s %8s %8s | %9s | %8s %9s\n", "sequence", "size",
+              "frames", "prep ms", "track ms", "integ ms", "ray ms", "loop ms", "fps", "wall fps",
+              "ATE cm", "integ fps", "blocks");
   for (const std::string& folder : folders) {
     auto source = OpenFrameSource(folder, SourceOptions());
     const std::vector<RgbdFrame> frames = ReadAllFrames(*source);  // decoding is not timed
     double totals[2][5] = {};
+    double wall[2] = {};  // the whole of ProcessFrame
     double ate = 0.0;
     std::optional<TsdfVolume> volume;
     Trajectory trajectory;
@@ -276,10 +315,14 @@ int Run(int argc, char** argv) {
       options.weighting = weighting;
       options.loop.enabled = loop_closure;
       if (color_weight >= 0.0) options.icp.color_weight = color_weight;
+      ApplyOverrides(overrides, &options);
       options.Validate();
       fusion::KinectFusion kf(options, source->Intrinsics());
       for (const RgbdFrame& f : frames) {
+        const auto start = std::chrono::steady_clock::now();
         const fusion::FrameReport r = kf.ProcessFrame(f);
+        wall[mode] +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         totals[mode][0] += r.seconds_preprocess;
         totals[mode][1] += r.seconds_track;
         totals[mode][2] += r.seconds_integrate;
@@ -299,11 +342,11 @@ int Run(int argc, char** argv) {
     char size[32];
     std::snprintf(size, sizeof(size), "%dx%d", source->Intrinsics().width,
                   source->Intrinsics().height);
-    std::printf("%-28s %9s %7zu | %8.2f %8.2f %8.2f %8.2f %8.2f %8.1f | %9.3f | %8.1f %9zu\n",
+    std::printf("%-28s %9s %7zu | %8.2f %8.2f %8.2f %8.2f %8.2f %8.1f %8.1f | %9.3f | %8.1f %9zu\n",
                 folder.substr(folder.size() > 28 ? folder.size() - 28 : 0).c_str(), size,
                 frames.size(), 1e3 * totals[0][0] / n, 1e3 * totals[0][1] / n,
                 1e3 * totals[0][2] / n, 1e3 * totals[0][3] / n, 1e3 * totals[0][4] / n,
-                1.0 / per_frame, 100.0 * ate, n / totals[1][2],
+                1.0 / per_frame, n / wall[0], 100.0 * ate, n / totals[1][2],
                 volume ? volume->num_blocks() : size_t{0});
     if (copies > 0 && volume && volume->num_blocks() > 0) {
       TimeRaycastAgainstVolumeSize(*volume, trajectory, source->Intrinsics(), icp_options, copies,

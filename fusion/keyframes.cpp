@@ -30,22 +30,23 @@ bool KeyframeSelector::MovedEnough(const Eigen::Isometry3d& from,
          RotationAngle(motion) * 180.0 / M_PI >= options_.rotation;
 }
 
-double KeyframeSelector::NewSurfaceFraction(const RgbdFrame& frame) const {
-  const CameraIntrinsics& k = frame.intrinsics;
-  if (frame.depth.empty() || k.width <= 0 || !frame.depth.SameSize(k.width, k.height)) return 0.0;
+double KeyframeSelector::NewSurfaceFraction(const ImageDepth& depth,
+                                            const Eigen::Isometry3d& world_from_camera,
+                                            const CameraIntrinsics& k) const {
+  if (depth.empty() || k.width <= 0 || !depth.SameSize(k.width, k.height)) return 0.0;
   // The keyframes with depth, newest first (most points end there), and the frame in each.
   std::vector<const RgbdFrame*> seen_by;
   std::vector<Eigen::Isometry3d> keyframe_from_frame;
   for (auto it = keyframes_.rbegin(); it != keyframes_.rend(); ++it) {
     if (it->depth.empty() || it->intrinsics.width <= 0) continue;
     seen_by.push_back(&*it);
-    keyframe_from_frame.push_back(it->world_from_camera->inverse() * *frame.world_from_camera);
+    keyframe_from_frame.push_back(it->world_from_camera->inverse() * world_from_camera);
   }
   const int step = std::max(1, k.width / 40);
   size_t samples = 0, unseen = 0;
   for (int v = step / 2; v < k.height; v += step) {
     for (int u = step / 2; u < k.width; u += step) {
-      const float z = frame.depth(u, v);
+      const float z = depth(u, v);
       if (!(z > 0.0f)) continue;
       ++samples;
       const Eigen::Vector3d p = k.Unproject(u, v, z);
@@ -68,44 +69,66 @@ double KeyframeSelector::NewSurfaceFraction(const RgbdFrame& frame) const {
 }
 
 void KeyframeSelector::Offer(const RgbdFrame& frame) {
-  if (frame.color.empty() || !frame.world_from_camera) return;
+  if (!frame.world_from_camera) return;
+  Offer(frame, frame.depth, *frame.world_from_camera, frame.intrinsics);
+}
+
+void KeyframeSelector::Offer(const RgbdFrame& frame, const ImageDepth& depth,
+                             const Eigen::Isometry3d& world_from_camera,
+                             const CameraIntrinsics& intrinsics) {
+  if (frame.color.empty()) return;
   const size_t index = offered_++;
-  const double s = Sharpness(frame.color);
-  if (static_cast<int>(keyframes_.size()) < options_.min_keyframes) HoldCandidate(frame, s);
+  // The sharpness (a pass over the colour image) and the copy only for a frame that may be held.
+  std::optional<double> sharpness;
+  auto sharpness_of_frame = [&] {
+    if (!sharpness) sharpness = Sharpness(frame.color);
+    return *sharpness;
+  };
+  auto posed = [&] {
+    RgbdFrame copy;
+    copy.timestamp = frame.timestamp;
+    copy.color = frame.color;
+    copy.depth = depth;
+    copy.world_from_camera = world_from_camera;
+    copy.intrinsics = intrinsics;
+    copy.color_path = frame.color_path;
+    copy.depth_path = frame.depth_path;
+    return copy;
+  };
+  // Held for min_keyframes while too few are chosen: every candidate_stride_-th offered frame.
+  if (static_cast<int>(keyframes_.size()) < options_.min_keyframes &&
+      index >= candidates_.size() * candidate_stride_) {
+    bool hold = true;
+    if (static_cast<int>(candidates_.size()) == kCandidates) {  // full: every other, twice apart
+      std::vector<Candidate> kept;
+      for (size_t i = 0; i < candidates_.size(); i += 2) kept.push_back(std::move(candidates_[i]));
+      candidates_ = std::move(kept);
+      candidate_stride_ *= 2;
+      hold = index >= candidates_.size() * candidate_stride_;
+    }
+    if (hold) candidates_.push_back({index, sharpness_of_frame(), posed()});
+  }
   // A frame as far from the window's start as a keyframe must be from the last one closes the
   // window: it is a view of its own.
-  if (window_left_ > 0 && MovedEnough(*window_start_, *frame.world_from_camera)) Commit();
+  if (window_left_ > 0 && MovedEnough(*window_start_, world_from_camera)) Commit();
   if (window_left_ == 0) {
     bool due = keyframes_.empty() && !best_;
     if (!due && !keyframes_.empty())
-      due = MovedEnough(*keyframes_.back().world_from_camera, *frame.world_from_camera);
+      due = MovedEnough(*keyframes_.back().world_from_camera, world_from_camera);
     if (!due && !keyframes_.empty() && options_.new_surface > 0.0)
-      due = NewSurfaceFraction(frame) >= options_.new_surface;
+      due = NewSurfaceFraction(depth, world_from_camera, intrinsics) >= options_.new_surface;
     if (!due) return;
     window_left_ = options_.window;
-    window_start_ = *frame.world_from_camera;
+    window_start_ = world_from_camera;
     best_sharpness_ = -1.0;
   }
+  const double s = sharpness_of_frame();
   if (s > best_sharpness_) {
     best_sharpness_ = s;
-    best_ = frame;
+    best_ = posed();
     best_index_ = index;
   }
   if (--window_left_ == 0) Commit();
-}
-
-void KeyframeSelector::HoldCandidate(const RgbdFrame& frame, double sharpness) {
-  if (offered_ - 1 < candidates_.size() * candidate_stride_)
-    return;  // not the next evenly spaced one
-  if (static_cast<int>(candidates_.size()) ==
-      kCandidates) {  // full: keep every other, twice the spacing
-    std::vector<Candidate> kept;
-    for (size_t i = 0; i < candidates_.size(); i += 2) kept.push_back(std::move(candidates_[i]));
-    candidates_ = std::move(kept);
-    candidate_stride_ *= 2;
-    if (offered_ - 1 < candidates_.size() * candidate_stride_) return;
-  }
-  candidates_.push_back({offered_ - 1, sharpness, frame});
 }
 
 void KeyframeSelector::Finish() {

@@ -42,6 +42,10 @@ class KeyframeSelector {
 
   // Offers a tracked frame (its world_from_camera set). Frames without colour are ignored.
   void Offer(const RgbdFrame& frame);
+  // The same for `frame` with `depth`, `world_from_camera` and `intrinsics` in place of its own
+  // (a frame is copied only when it is held).
+  void Offer(const RgbdFrame& frame, const ImageDepth& depth,
+             const Eigen::Isometry3d& world_from_camera, const CameraIntrinsics& intrinsics);
   // Closes an open window and tops the keyframes up to min_keyframes (end of the sequence).
   void Finish();
 
@@ -60,10 +64,11 @@ class KeyframeSelector {
     RgbdFrame frame;
   };
   bool MovedEnough(const Eigen::Isometry3d& from, const Eigen::Isometry3d& to) const;
-  // The share of `frame`'s depth samples that no keyframe saw (0 without depth or intrinsics).
-  double NewSurfaceFraction(const RgbdFrame& frame) const;
+  // The share of the depth samples of a frame at `world_from_camera` that no keyframe saw (0
+  // without depth or intrinsics).
+  double NewSurfaceFraction(const ImageDepth& depth, const Eigen::Isometry3d& world_from_camera,
+                            const CameraIntrinsics& k) const;
   void Commit();
-  void HoldCandidate(const RgbdFrame& frame, double sharpness);
   void TopUp();
 
   KeyframeOptions options_;

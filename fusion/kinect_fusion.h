@@ -45,10 +45,24 @@ struct FusionOptions {
   std::string tracking = "icp";  // icp (estimate the poses) or known (fuse with the source's poses)
   double min_valid_fraction = 0.05;  // frames with fewer valid depth pixels are blank (skipped)
   // The model is raycast at 1/N of the depth's resolution for ICP (normals over the same
-  // baseline in metres). Measured on the synthetic room 150 frames: N = 2 gives ATE 0.521 cm
-  // against 0.515 at full resolution (320x240) and 0.337 against 0.338 (640x480), TUM fr1/desk
-  // 0.1773 against 0.1774 cm, for a third of the raycast time; N = 3: 0.581 / 0.359 cm.
-  int model_subsample = 2;
+  // baseline in metres). 0 = by the image's width: 2 up to 320 pixels wide, beyond that width / 160
+  // rounded (4 at 640x480), at most 8 (ModelSubsample). Measured with tracking at full resolution
+  // on the synthetic room, 150 frames: N = 2 gives ATE 0.521 cm against 0.515 at full resolution
+  // (320x240) and 0.337 against 0.338 (640x480), TUM fr1/desk 0.1773 against 0.1774 cm, for a
+  // third of the raycast time; N = 3: 0.581 / 0.359 cm. At 640x480 with tracking at 320x240
+  // (tracking_subsample), N = 2 / 3 / 4: raycast 19.8 / 10.6 / 7.0 ms a frame on 7-Scenes,
+  // ATE 7-Scenes 0.778 / 0.795 / 0.808 cm, TUM fr1/desk 0.169 / 0.166 / 0.164 cm, the
+  // path-traced room (Kinect noise) 0.435 / 0.495 / 0.507 cm (bench_fusion --set
+  // model_subsample=N).
+  int model_subsample = 0;
+  // Tracking's pyramid starts at 1/N of the depth's resolution (the masked depth reduced by
+  // edge-aware 2x2 averaging; BuildPyramid): 1, 2 or 4; 0 = by the image's width, the largest
+  // power of two that leaves the finest level at least 320 pixels wide (1 at 320x240, 2 at
+  // 640x480; TrackingSubsample). Integration, keyframes and loop closure keep the full resolution.
+  // At 640x480, full resolution / 320x240 (with the model at 1/2): tracking 27.6 / 7.4 ms and
+  // preprocessing 14.6 / 3.8 ms a frame on 7-Scenes, ATE 7-Scenes 0.792 / 0.778 cm, TUM fr1/desk
+  // 0.176 / 0.169 cm, the path-traced room 0.358 / 0.435 cm.
+  int tracking_subsample = 0;
   // Blocks are allocated along the truncation band of every Nth pixel in each direction; every
   // pixel still updates the voxels of the allocated blocks (integrate.h). A block that only a
   // lone pixel's band reaches (the rim of an observed region, a flying pixel) then waits until
@@ -90,7 +104,11 @@ struct FusionOptions {
     v("min_valid_fraction", min_valid_fraction, "",
       "frames with fewer valid depth pixels are skipped as blank");
     v("model_subsample", model_subsample, "",
-      "raycast the model for tracking at 1/N of the depth's resolution (1 = full)");
+      "raycast the model for tracking at 1/N of the depth's resolution (1 = full; 0 = 2 up to "
+      "320 px wide, else width / 160)");
+    v("tracking_subsample", tracking_subsample, "",
+      "track on a depth pyramid starting at 1/N of the depth's resolution (1, 2 or 4; 0 = the "
+      "largest that keeps it >= 320 pixels wide)");
     v("allocation_stride", allocation_stride, "px",
       "allocate TSDF blocks along the band of every Nth pixel (1 = all, 0 = width / 160)");
     v("weighting", weighting, "",
@@ -101,7 +119,8 @@ struct FusionOptions {
     v("range_min", preprocess.min_depth, "m", "depth nearer than this is invalid (sensor range)");
     v("range_max", preprocess.max_depth, "m", "depth farther than this is invalid (sensor range)");
     v("bilateral_radius", preprocess.bilateral_radius, "px",
-      "bilateral filter half-width for tracking (0 = off)");
+      "bilateral filter half-width for tracking at full resolution (0 = off; a subsampled "
+      "pyramid is not filtered)");
     v("bilateral_sigma_space", preprocess.bilateral_sigma_space, "px", "bilateral spatial sigma");
     v("bilateral_sigma_depth", preprocess.bilateral_sigma_depth, "m", "bilateral range sigma");
     v("icp_iterations_fine", icp.iterations_fine, "", "ICP iterations at full resolution");
@@ -162,6 +181,10 @@ struct FusionOptions {
   void Validate() const;
   // allocation_stride for images `width` pixels wide (0 resolved: width / 160 rounded, >= 1).
   int AllocationStride(int width) const;
+  // model_subsample for images `width` pixels wide (0 resolved).
+  int ModelSubsample(int width) const;
+  // tracking_subsample for images `width` pixels wide (0 resolved).
+  int TrackingSubsample(int width) const;
   TsdfVolumeParams VolumeParams(const Eigen::Vector3d& origin) const;
 };
 
@@ -245,8 +268,9 @@ class KinectFusion {
   // last good pose) and, when a frame moved by min_correction or more, the volume re-integrated
   // (the caller raycasts the model again).
   void ApplyLoopClosure(FrameReport* report);
-  // The model raycast at `pose` for tracking.
-  RaycastResult RaycastModel(const Eigen::Isometry3d& pose) const;
+  // The model seen from `pose` at 1/subsample of the depth's resolution (with intrinsics
+  // intrinsics_.Scaled(1 / subsample)).
+  RaycastResult RaycastModel(const Eigen::Isometry3d& pose, int subsample) const;
   // model_ = the model raycast at `pose`, its time and its pass over the volume in `report`.
   void UpdateModel(const Eigen::Isometry3d& pose, FrameReport* report);
   // Step 3b: the pose of a frame ICP lost, from features against the last fused frame refined by
@@ -275,6 +299,7 @@ class KinectFusion {
   std::vector<IntensityLevel> model_intensity_;
   CameraIntrinsics
       model_intrinsics_;            // the model's raycast camera (intrinsics at 1/model_subsample)
+  int model_subsample_ = 2;         // of model_ (ModelSubsample, or finer after a feature start)
   IntegrationOptions integration_;  // allocation stride (resolved by the image width) and weights
   Trajectory trajectory_;
   std::vector<FrameReport> reports_;

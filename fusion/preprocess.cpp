@@ -176,12 +176,22 @@ PointImage ComputeNormalMap(const PointImage& vertices, double max_jump, int ste
 
 std::vector<PyramidLevel> BuildPyramid(const ImageDepth& masked_depth,
                                        const CameraIntrinsics& intrinsics,
-                                       const PreprocessOptions& options) {
+                                       const PreprocessOptions& options, int subsample) {
+  GS_CHECK(subsample >= 1 && (subsample & (subsample - 1)) == 0);
   std::vector<PyramidLevel> levels(static_cast<size_t>(options.levels));
   levels[0].intrinsics = intrinsics;
-  levels[0].depth =
-      BilateralFilterDepth(masked_depth, options.bilateral_radius, options.bilateral_sigma_space,
-                           options.bilateral_sigma_depth);
+  ImageDepth reduced;
+  for (int s = subsample; s > 1; s /= 2) {
+    reduced =
+        DownsampleDepth(reduced.empty() ? masked_depth : reduced, options.bilateral_sigma_depth);
+    levels[0].intrinsics = levels[0].intrinsics.Scaled(0.5);
+  }
+  // A reduced first level is smoothed by its 2x2 means alone: the bilateral filter on top of them
+  // made tracking worse (preprocess.h).
+  levels[0].depth = subsample > 1 ? std::move(reduced)
+                                  : BilateralFilterDepth(masked_depth, options.bilateral_radius,
+                                                         options.bilateral_sigma_space,
+                                                         options.bilateral_sigma_depth);
   for (size_t l = 1; l < levels.size(); ++l) {
     levels[l].intrinsics = levels[l - 1].intrinsics.Scaled(0.5);
     levels[l].depth = DownsampleDepth(levels[l - 1].depth, options.bilateral_sigma_depth);
@@ -193,10 +203,14 @@ std::vector<PyramidLevel> BuildPyramid(const ImageDepth& masked_depth,
   return levels;
 }
 
-std::vector<IntensityLevel> BuildIntensityPyramid(const ImageRgb& color, int levels) {
+std::vector<IntensityLevel> BuildIntensityPyramid(const ImageRgb& color, int levels,
+                                                  int subsample) {
+  GS_CHECK(subsample >= 1 && (subsample & (subsample - 1)) == 0);
   std::vector<IntensityLevel> out;
   if (color.empty()) return out;
-  out.resize(static_cast<size_t>(levels));
+  int skipped = 0;  // the full-resolution levels below the first one returned
+  while ((1 << skipped) < subsample) ++skipped;
+  out.resize(static_cast<size_t>(levels + skipped));
   const int w0 = color.width(), h0 = color.height();
   out[0].intensity = ImageGray(w0, h0, 0.0f);
   ParallelFor(0, static_cast<size_t>(h0), [&](size_t v) {
@@ -217,6 +231,27 @@ std::vector<IntensityLevel> BuildIntensityPyramid(const ImageRgb& color, int lev
       }
     }
   }
+  // Noise at full resolution: the mask's response has standard deviation 6 sigma under white
+  // noise; its median absolute value (0.6745 of that) over every other pixel ignores the minority
+  // of pixels on edges. Each 2x2 mean halves it.
+  const ImageGray& full = out[0].intensity;
+  std::vector<float> response;
+  response.reserve(static_cast<size_t>(w0) * static_cast<size_t>(h0) / 4 + 1);
+  for (int v = 1; v + 1 < h0; v += 2) {
+    for (int u = 1; u + 1 < w0; u += 2) {
+      response.push_back(std::abs(full(u - 1, v - 1) - 2.0f * full(u, v - 1) + full(u + 1, v - 1) -
+                                  2.0f * full(u - 1, v) + 4.0f * full(u, v) -
+                                  2.0f * full(u + 1, v) + full(u - 1, v + 1) -
+                                  2.0f * full(u, v + 1) + full(u + 1, v + 1)));
+    }
+  }
+  if (!response.empty()) {
+    auto middle = response.begin() + static_cast<std::ptrdiff_t>(response.size() / 2);
+    std::nth_element(response.begin(), middle, response.end());
+    out[0].noise = *middle / (0.6745 * 6.0);
+  }
+  for (size_t l = 1; l < out.size(); ++l) out[l].noise = 0.5 * out[l - 1].noise;
+  out.erase(out.begin(), out.begin() + skipped);  // `full` is not used from here on
   for (IntensityLevel& level : out) {
     const ImageGray& i = level.intensity;
     const int w = i.width(), h = i.height();
@@ -230,25 +265,6 @@ std::vector<IntensityLevel> BuildIntensityPyramid(const ImageRgb& color, int lev
       }
     });
   }
-  // Noise at full resolution: the mask's response has standard deviation 6 sigma under white
-  // noise; its median absolute value (0.6745 of that) over every other pixel ignores the minority
-  // of pixels on edges. Each 2x2 mean halves it.
-  const ImageGray& i = out[0].intensity;
-  std::vector<float> response;
-  response.reserve(static_cast<size_t>(w0) * static_cast<size_t>(h0) / 4 + 1);
-  for (int v = 1; v + 1 < h0; v += 2) {
-    for (int u = 1; u + 1 < w0; u += 2) {
-      response.push_back(std::abs(i(u - 1, v - 1) - 2.0f * i(u, v - 1) + i(u + 1, v - 1) -
-                                  2.0f * i(u - 1, v) + 4.0f * i(u, v) - 2.0f * i(u + 1, v) +
-                                  i(u - 1, v + 1) - 2.0f * i(u, v + 1) + i(u + 1, v + 1)));
-    }
-  }
-  if (!response.empty()) {
-    auto middle = response.begin() + static_cast<std::ptrdiff_t>(response.size() / 2);
-    std::nth_element(response.begin(), middle, response.end());
-    out[0].noise = *middle / (0.6745 * 6.0);
-  }
-  for (size_t l = 1; l < out.size(); ++l) out[l].noise = 0.5 * out[l - 1].noise;
   return out;
 }
 

@@ -314,12 +314,17 @@ TEST(Fusion, TracksTheRoomWithExactDepth) {
   EXPECT_LT(run.fusion->volume().num_blocks(), bounding_blocks);
 }
 
-// The model raycast at half resolution (model_subsample 2, the default: a quarter of the rays)
-// and at full resolution both track every frame of the room; the raycast has the size asked for.
+// The model raycast at half resolution (model_subsample 0 picks 2 up to 320 pixels wide: a
+// quarter of the rays) and at full resolution both track every frame of the room; the raycast
+// has the size asked for.
 TEST(Fusion, TracksTheRoomWithTheModelAtHalfAndFullResolution) {
   const std::vector<RgbdFrame> frames = Render(Room(), Orbit(40), Camera(160, 120));
   FusionOptions o = DefaultOptions();
-  EXPECT_EQ(o.model_subsample, 2);
+  EXPECT_EQ(o.model_subsample, 0);
+  EXPECT_EQ(o.ModelSubsample(160), 2);
+  EXPECT_EQ(o.ModelSubsample(320), 2);
+  EXPECT_EQ(o.ModelSubsample(640), 4);
+  EXPECT_EQ(o.ModelSubsample(1280), 8);
   for (int subsample : {2, 1}) {
     o.model_subsample = subsample;
     const FusionRun run = Fuse(frames, o);
@@ -331,8 +336,56 @@ TEST(Fusion, TracksTheRoomWithTheModelAtHalfAndFullResolution) {
               << " cm\n";
     EXPECT_LT(ate.rmse, 0.01);
   }
-  o.model_subsample = 0;
+  o.model_subsample = 9;
   EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }), "model_subsample");
+}
+
+// Tracking on a pyramid that starts at 1/2 or 1/4 of the depth's resolution (tracking_subsample,
+// by default the largest that keeps the finest level >= 320 pixels wide): the depth pyramid's
+// first level is the masked depth reduced by DownsampleDepth, unfiltered, with intrinsics to
+// match; the brightness pyramid's levels are the full pyramid's from the same level on, bit for
+// bit (noise included); and the room is tracked as well from the reduced levels.
+TEST(Fusion, TracksOnAPyramidThatStartsBelowFullResolution) {
+  FusionOptions o = DefaultOptions();
+  EXPECT_EQ(o.tracking_subsample, 0);
+  EXPECT_EQ(o.TrackingSubsample(160), 1);
+  EXPECT_EQ(o.TrackingSubsample(320), 1);
+  EXPECT_EQ(o.TrackingSubsample(639), 1);
+  EXPECT_EQ(o.TrackingSubsample(640), 2);
+  EXPECT_EQ(o.TrackingSubsample(1280), 4);
+  EXPECT_EQ(o.TrackingSubsample(4096), 4);
+
+  const std::vector<RgbdFrame> frames = Render(Room(), Orbit(40), Camera(160, 120));
+  const RgbdFrame& f = frames[5];
+  const ImageDepth masked = MaskInvalidDepth(f.depth, 0.1, 6.0);
+  const std::vector<PyramidLevel> half = BuildPyramid(masked, f.intrinsics, o.preprocess, 2);
+  ASSERT_EQ(half.size(), 3u);
+  const ImageDepth reduced = DownsampleDepth(masked, o.preprocess.bilateral_sigma_depth);
+  ASSERT_TRUE(half[0].depth.SameSize(80, 60));
+  EXPECT_EQ(half[0].depth.pixels(), reduced.pixels());
+  EXPECT_DOUBLE_EQ(half[0].intrinsics.fx, f.intrinsics.Scaled(0.5).fx);
+  EXPECT_DOUBLE_EQ(half[0].intrinsics.cx, f.intrinsics.Scaled(0.5).cx);
+  EXPECT_TRUE(half[2].depth.SameSize(20, 15));
+  const std::vector<IntensityLevel> full = BuildIntensityPyramid(f.color, 4);
+  for (int subsample : {2, 4}) {
+    const std::vector<IntensityLevel> part = BuildIntensityPyramid(f.color, 2, subsample);
+    ASSERT_EQ(part.size(), 2u);
+    const size_t skip = subsample == 2 ? 1 : 2;
+    for (size_t l = 0; l < part.size(); ++l) {
+      EXPECT_EQ(part[l].intensity.pixels(), full[l + skip].intensity.pixels());
+      EXPECT_EQ(part[l].grad_u.pixels(), full[l + skip].grad_u.pixels());
+      EXPECT_EQ(part[l].grad_v.pixels(), full[l + skip].grad_v.pixels());
+      EXPECT_EQ(part[l].noise, full[l + skip].noise);
+    }
+  }
+  o.tracking_subsample = 2;
+  const FusionRun run = Fuse(frames, o);
+  EXPECT_EQ(run.counts.at(FrameStatus::kTracked), 39);
+  const AteResult ate = ComputeAte(run.fusion->trajectory(), GroundTruth(frames));
+  std::cout << "room, 40 frames 160x120 tracked at 80x60: ATE " << 100 * ate.rmse << " cm\n";
+  EXPECT_LT(ate.rmse, 0.01);
+  o.tracking_subsample = 3;
+  EXPECT_CONTAINS(test::ErrorOf([&] { o.Validate(); }), "tracking_subsample");
 }
 
 // Blocks allocated along the band of every second pixel (allocation_stride 2) are a subset of those
