@@ -29,8 +29,6 @@ void IcpOptions::Validate() const {
 
 namespace {
 
-using Matrix6d = Eigen::Matrix<double, 6, 6>;
-
 // Normal equations of the point-to-plane residuals of a set of rows.
 struct NormalEquations {
   Matrix6d jtj = Matrix6d::Zero();
@@ -276,6 +274,9 @@ IcpReport TrackFrameToModel(const std::vector<PyramidLevel>& live, const Raycast
       ne.valid > 0 ? static_cast<double>(ne.inliers) / static_cast<double>(ne.valid) : 0.0;
   if (ne.inliers >= 6) {
     report.rms_residual = std::sqrt(ne.squared_residuals / static_cast<double>(ne.inliers));
+    constexpr double kMinSigma = 1e-3;  // m
+    const double sigma = std::max(report.rms_residual, kMinSigma);
+    report.information = Matrix6d(ne.jtj.selfadjointView<Eigen::Upper>()) / (sigma * sigma);
     const Step step = SolveConstrained(ne, options.degenerate_eigen_ratio);
     report.condition = step.condition;
     report.constrained_directions = step.constrained;

@@ -16,6 +16,8 @@
 
 namespace genscene::fusion {
 
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
 struct IcpOptions {
   int iterations_fine = 10;   // Gauss-Newton iterations at full resolution (KinectFusion: 10)
   int iterations_middle = 5;  // at half resolution (5)
@@ -62,6 +64,11 @@ struct IcpReport {
   double condition = 0.0;     // largest / smallest eigenvalue of J^T J (rotation scaled to metres)
   int constrained_directions = 0;  // of 6
   bool degenerate = false;         // some direction was unconstrained
+  // Information (inverse covariance) of the result: J^T J of the final pass (Huber weights, both
+  // terms) over the variance of the point-to-plane residual (its RMS, at least 1 mm), for a left
+  // perturbation xi = [translation (m); rotation (rad)] of model_from_live (the pose moves to
+  // exp(xi) model_from_live). Zero with fewer than 6 inliers.
+  Matrix6d information = Matrix6d::Zero();
 };
 
 // Refines `model_from_live` (the live camera in the frame of the camera the model was raycast

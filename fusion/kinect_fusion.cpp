@@ -234,7 +234,10 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
       model_intensity_ = std::move(live_intensity);
       held_out_pose_.reset();
       trajectory_.Add(frame.timestamp, pose);
-      if (loops_) loops_->Anchor(frame.timestamp, pose);
+      if (loops_) {
+        loops_->Advance(pose, &report.icp.information);
+        loops_->Anchor(frame.timestamp, pose);
+      }
       return finish(report);
     }
     report.status = FrameStatus::kTracked;
@@ -272,7 +275,11 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
   trajectory_.Add(frame.timestamp, pose);
   if (loops_) {
     start = std::chrono::steady_clock::now();
-    report.loop_closure = loops_->AddFused(frame.timestamp, pose, depth, frame.color);
+    // The step from the last good pose as ICP measured it (not for the first frame, nor for one
+    // started from features, whose ICP ran from another pose).
+    const bool icp_step = report.status == FrameStatus::kTracked && !report.feature_start;
+    report.loop_closure = loops_->AddFused(frame.timestamp, pose, depth, frame.color,
+                                           icp_step ? &report.icp.information : nullptr);
     if (report.loop_closure) {
       ApplyLoopClosure(&report);
       pose = *report.world_from_camera;

@@ -1,5 +1,6 @@
 #include "fusion/loop_closure.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -14,14 +15,14 @@ namespace genscene::fusion {
 
 namespace {
 
-// Information of a relative pose measured to about 1 degree and 1 cm (odometry between nodes and
-// verified loops alike: the optimisation then spreads a loop's discrepancy over its edges).
-Matrix6d EdgeInformation() {
-  constexpr double kSigmaRotation = M_PI / 180.0, kSigmaTranslation = 0.01;
-  Vector6d diagonal;
-  diagonal.head<3>().setConstant(1.0 / (kSigmaRotation * kSigmaRotation));
-  diagonal.tail<3>().setConstant(1.0 / (kSigmaTranslation * kSigmaTranslation));
-  return diagonal.asDiagonal();
+// The pose graph's information (of e = [rotation; translation]) from a covariance of a right
+// perturbation [translation; rotation].
+Matrix6d GraphInformation(const Matrix6d& covariance) {
+  Eigen::PermutationMatrix<6> swap;
+  swap.indices() << 3, 4, 5, 0, 1, 2;  // [t; r] -> [r; t]
+  Matrix6d information = covariance.inverse();
+  information = swap * information * swap.transpose();
+  return 0.5 * (information + information.transpose());
 }
 
 // The pose with its rotation made exactly orthonormal (poses read from text files, e.g. a
@@ -33,16 +34,37 @@ Eigen::Isometry3d Orthonormalized(const Eigen::Isometry3d& pose) {
   return out;
 }
 
-// Linear [0, 1] to 8-bit sRGB (clamped; NaN black).
-uint8_t EncodeSrgb8(float linear) {
-  return static_cast<uint8_t>(std::lround(255.0f * LinearToSrgbTabled(linear)));
-}
-
 double Degrees(const Eigen::Isometry3d& motion) {
   return RotationAngle(motion) * 180.0 / M_PI;
 }
 
 }  // namespace
+
+Matrix6d Adjoint(const Eigen::Isometry3d& t) {
+  const Eigen::Matrix3d r = t.linear();
+  Matrix6d a = Matrix6d::Zero();
+  a.topLeftCorner<3, 3>() = r;
+  a.topRightCorner<3, 3>() = Skew(t.translation()) * r;
+  a.bottomRightCorner<3, 3>() = r;
+  return a;
+}
+
+Matrix6d RightCovarianceFromLeftInformation(const Eigen::Isometry3d& m,
+                                            const Matrix6d& information) {
+  const Eigen::SelfAdjointEigenSolver<Matrix6d> eig(information);
+  const double floor = 1e-6 * std::max(eig.eigenvalues().maxCoeff(), 1e-300);
+  const Vector6d inverse = eig.eigenvalues().cwiseMax(floor).cwiseInverse();
+  const Matrix6d covariance =
+      eig.eigenvectors() * inverse.asDiagonal() * eig.eigenvectors().transpose();
+  const Matrix6d a = Adjoint(m.inverse());
+  return a * covariance * a.transpose();
+}
+
+Matrix6d ComposeRightCovariance(const Matrix6d& covariance, const Eigen::Isometry3d& step,
+                                const Matrix6d& step_covariance) {
+  const Matrix6d a = Adjoint(step.inverse());
+  return a * covariance * a.transpose() + step_covariance;
+}
 
 RaycastResult ModelFromDepth(const PyramidLevel& level) {
   RaycastResult model;
@@ -75,6 +97,8 @@ void FrameStore::Add(double timestamp, const ImageDepth& depth, const ImageRgb& 
   }
   const float inv_step = static_cast<float>(1.0 / depth_step_);
   const size_t width = static_cast<size_t>(depth.width());
+  // Linear [0, 1] to 8-bit sRGB through a table (clamped; NaN black).
+  const uint8_t* srgb8 = Srgb8Table();
   ParallelFor(0, static_cast<size_t>(depth.height()), [&](size_t row) {
     for (size_t i = row * width; i < (row + 1) * width; ++i) {
       const float z = depth.pixels()[i];
@@ -83,7 +107,7 @@ void FrameStore::Add(double timestamp, const ImageDepth& depth, const ImageRgb& 
                        : 0;
       if (f.color.empty()) continue;
       for (int c = 0; c < 3; ++c)
-        f.color[3 * i + static_cast<size_t>(c)] = EncodeSrgb8(color.pixels()[i][c]);
+        f.color[3 * i + static_cast<size_t>(c)] = srgb8[SrgbTableIndex(color.pixels()[i][c])];
     }
   });
   bytes_ += f.depth.size() * sizeof(uint16_t) + f.color.size();
@@ -126,6 +150,25 @@ LoopClosure::LoopClosure(const LoopClosureOptions& options, const CameraIntrinsi
   options_.Validate();
 }
 
+void LoopClosure::Advance(const Eigen::Isometry3d& world_from_camera, const Matrix6d* information) {
+  const Eigen::Isometry3d pose = Orthonormalized(world_from_camera);
+  if (chain_pose_) {
+    const Eigen::Isometry3d step = chain_pose_->inverse() * pose;
+    Matrix6d step_covariance;
+    if (information != nullptr && information->allFinite() && information->trace() > 0.0) {
+      step_covariance = RightCovarianceFromLeftInformation(step, *information);
+    } else {
+      const double sigma_r = kStepSigmaDegrees * M_PI / 180.0;
+      Vector6d diagonal;
+      diagonal << Eigen::Vector3d::Constant(kStepSigmaTranslation * kStepSigmaTranslation),
+          Eigen::Vector3d::Constant(sigma_r * sigma_r);
+      step_covariance = diagonal.asDiagonal();
+    }
+    chain_covariance_ = ComposeRightCovariance(chain_covariance_, step, step_covariance);
+  }
+  chain_pose_ = pose;
+}
+
 void LoopClosure::Anchor(double timestamp, const Eigen::Isometry3d& world_from_camera) {
   AnchorPose a;
   a.node = static_cast<int>(nodes_.size()) - 1;
@@ -146,8 +189,10 @@ std::optional<Eigen::Isometry3d> LoopClosure::PoseOf(double timestamp) const {
 std::optional<LoopClosureEvent> LoopClosure::AddFused(double timestamp,
                                                       const Eigen::Isometry3d& tracked_pose,
                                                       const ImageDepth& masked_depth,
-                                                      const ImageRgb& color) {
+                                                      const ImageRgb& color,
+                                                      const Matrix6d* information) {
   const Eigen::Isometry3d pose = Orthonormalized(tracked_pose);
+  Advance(pose, information);
   const size_t fused_index = fused_++;
   if (storing_) {
     const size_t frame_bytes = masked_depth.size() * (sizeof(uint16_t) + (color.empty() ? 0 : 3));
@@ -174,9 +219,10 @@ std::optional<LoopClosureEvent> LoopClosure::AddFused(double timestamp,
     odometry.to = id;
     odometry.measured =
         Orthonormalized(graph_.poses()[static_cast<size_t>(id - 1)].inverse() * pose);
-    odometry.information = EdgeInformation();
+    odometry.information = GraphInformation(chain_covariance_);
     graph_.AddEdge(odometry);
   }
+  chain_covariance_.setZero();
   Node node;
   node.timestamp = timestamp;
   node.fused_index = fused_index;
@@ -206,7 +252,8 @@ std::optional<LoopClosureEvent> LoopClosure::AddFused(double timestamp,
   for (const auto& [distance, j] : candidates) {
     LoopClosureEvent event;
     const Node& old = nodes_[static_cast<size_t>(j)];
-    const auto old_from_live = MatchNodes(old, live, &event);
+    Matrix6d loop_information;
+    const auto old_from_live = MatchNodes(old, live, &event, &loop_information);
     if (!old_from_live) continue;
     event.node_timestamp = live.timestamp;
     event.against_timestamp = old.timestamp;
@@ -218,7 +265,8 @@ std::optional<LoopClosureEvent> LoopClosure::AddFused(double timestamp,
     loop.from = j;
     loop.to = id;
     loop.measured = Orthonormalized(*old_from_live);
-    loop.information = EdgeInformation();
+    loop.information =
+        GraphInformation(RightCovarianceFromLeftInformation(*old_from_live, loop_information));
     graph_.AddEdge(loop);
     const std::vector<Eigen::Isometry3d> before = graph_.poses();
     std::vector<Eigen::Isometry3d> frames_before;
@@ -243,6 +291,7 @@ std::optional<LoopClosureEvent> LoopClosure::AddFused(double timestamp,
                                      (b * ahead - a * ahead).norm()});
       event.largest_turn_degrees = std::max(event.largest_turn_degrees, Degrees(a.inverse() * b));
     }
+    chain_pose_ = graph_.poses()[static_cast<size_t>(id)];  // the chain goes on from here
     events_.push_back(event);
     return event;
   }
@@ -250,7 +299,8 @@ std::optional<LoopClosureEvent> LoopClosure::AddFused(double timestamp,
 }
 
 std::optional<Eigen::Isometry3d> LoopClosure::MatchNodes(const Node& old, const Node& live,
-                                                         LoopClosureEvent* event) const {
+                                                         LoopClosureEvent* event,
+                                                         Matrix6d* information) const {
   const ImageDepth old_depth = store_.Depth(old.stored);
   FeatureAlignReport features;
   const auto pnp =
@@ -281,6 +331,7 @@ std::optional<Eigen::Isometry3d> LoopClosure::MatchNodes(const Node& old, const 
       Degrees(correction) > kMaxCorrectionDeg) {
     return std::nullopt;
   }
+  if (information != nullptr) *information = icp.information;
   return old_from_live;
 }
 

@@ -31,6 +31,20 @@ namespace genscene::fusion {
 // fusion/README.md).
 inline constexpr int kLoopVerifyExtraLevels = 1;
 
+// Uncertainty of relative poses for the pose graph, with twists [translation (m); rotation (rad)]
+// (as IcpReport::information) and exp of core/se3.h:
+// the adjoint of `t`, exp(Ad(t) xi) = t exp(xi) t^-1;
+Matrix6d Adjoint(const Eigen::Isometry3d& t);
+// the covariance of a right perturbation of `m` (m exp(eps)) from the information of a left one
+// (exp(xi) m): eps = Ad(m^-1) xi; directions the information leaves (nearly) free get a variance
+// 1e6 times the best-measured direction's;
+Matrix6d RightCovarianceFromLeftInformation(const Eigen::Isometry3d& m,
+                                            const Matrix6d& information);
+// and the covariance of the right perturbation of a x step, from that of a (`covariance`) and of
+// step (`step_covariance`), independent, to first order.
+Matrix6d ComposeRightCovariance(const Matrix6d& covariance, const Eigen::Isometry3d& step,
+                                const Matrix6d& step_covariance);
+
 // The view of a depth image's pyramid level as a model for TrackFrameToModel (depth, points and
 // normals; no colour): how loop closure aligns one kept frame to another.
 RaycastResult ModelFromDepth(const PyramidLevel& level);
@@ -102,11 +116,22 @@ class LoopClosure {
 
   // A frame fusion gave a pose (tracked, degenerate or held out): anchored to the newest node.
   void Anchor(double timestamp, const Eigen::Isometry3d& world_from_camera);
-  // A fused frame (anchored by this call too): kept for re-integration; a node when the camera
-  // moved enough, which is then matched against the old nodes near it. Returns the closure when
-  // one was found and the graph optimised (the poses of PoseOf have moved then).
+  // The next pose of the chain tracking follows (a fused or a degenerate frame: the pose the next
+  // frame is tracked from), with the information of its ICP relative to the previous one
+  // (IcpReport::information), or null where there is none (a frame started from features, poses
+  // handed in): such a step counts as measured to kStepSigmaTranslation / kStepSigmaDegrees. The
+  // steps' covariances, carried along the chain, give the odometry edge between two nodes its
+  // information, so that a loop's discrepancy goes where tracking was weakest.
+  void Advance(const Eigen::Isometry3d& world_from_camera, const Matrix6d* information);
+  static constexpr double kStepSigmaTranslation = 0.01;  // m
+  static constexpr double kStepSigmaDegrees = 1.0;
+  // A fused frame (anchored by this call too, and advanced with `information`): kept for
+  // re-integration; a node when the camera moved enough, which is then matched against the old
+  // nodes near it. Returns the closure when one was found and the graph optimised (the poses of
+  // PoseOf have moved then).
   std::optional<LoopClosureEvent> AddFused(double timestamp, const Eigen::Isometry3d& pose,
-                                           const ImageDepth& masked_depth, const ImageRgb& color);
+                                           const ImageDepth& masked_depth, const ImageRgb& color,
+                                           const Matrix6d* information = nullptr);
 
   // The current pose of an anchored frame (moved by every closed loop).
   std::optional<Eigen::Isometry3d> PoseOf(double timestamp) const;
@@ -126,9 +151,11 @@ class LoopClosure {
     int node = -1;  // -1: before the first node (the pose as given)
     Eigen::Isometry3d node_from_frame = Eigen::Isometry3d::Identity();
   };
-  // The pose of `live` in the frame of `old`, from features and verified by ICP.
+  // The pose of `live` in the frame of `old`, from features and verified by ICP; `information`
+  // (optional) receives that of the ICP (IcpReport::information).
   std::optional<Eigen::Isometry3d> MatchNodes(const Node& old, const Node& live,
-                                              LoopClosureEvent* event) const;
+                                              LoopClosureEvent* event,
+                                              Matrix6d* information = nullptr) const;
 
   LoopClosureOptions options_;
   CameraIntrinsics intrinsics_;
@@ -140,6 +167,10 @@ class LoopClosure {
   std::map<double, AnchorPose> anchors_;
   FrameStore store_;
   size_t fused_ = 0;  // fused frames offered
+  // The chain since the newest node: its last pose and the covariance of the newest node's
+  // relative pose to it (right perturbation [translation; rotation]).
+  std::optional<Eigen::Isometry3d> chain_pose_;
+  Matrix6d chain_covariance_ = Matrix6d::Zero();
   bool storing_ = true;
   std::vector<LoopClosureEvent> events_;
 };

@@ -9,6 +9,7 @@
 
 #include "core/color.h"
 #include "core/parallel.h"
+#include "core/rng.h"
 #include "core/se3.h"
 #include "core/synthetic.h"
 #include "core/trajectory_metrics.h"
@@ -65,6 +66,51 @@ TEST(FrameStore, KeepsDepthToATenthOfAMillimetreAndColourToItsSrgbCode) {
 // shift growing to 5 cm, as tracking's error would). Returning to the start, the new node's
 // features match the first node, ICP verifies the match, and the optimised graph takes most of
 // the drift out of every pose.
+// The uncertainty carried along the chain of tracked steps between two nodes (the odometry
+// edge's information) against sampling: each of five steps is perturbed on the left by a twist
+// drawn from the inverse of its (anisotropic, coupled) information, the steps are composed, and
+// the covariance of the composed pose's right perturbation log((a b ...)^-1 (a' b' ...)) is
+// compared with ComposeRightCovariance over RightCovarianceFromLeftInformation. A swapped adjoint
+// block or the left perturbation taken for a right one is off by far more than the tolerance.
+TEST(LoopClosure, ChainCovarianceMatchesSampledSteps) {
+  CounterRng rng(7, 1);
+  std::vector<Eigen::Isometry3d> steps;
+  std::vector<Matrix6d> informations, factors;  // covariance = factor factor^T
+  Matrix6d propagated = Matrix6d::Zero();
+  Eigen::Isometry3d chain = Eigen::Isometry3d::Identity();
+  for (int i = 0; i < 5; ++i) {
+    Vector6d xi;
+    for (int j = 0; j < 6; ++j) xi[j] = (j < 3 ? 0.1 : 0.15) * rng.Normal();
+    steps.push_back(ExpSE3(xi));
+    Matrix6d f;
+    for (int r = 0; r < 6; ++r)
+      for (int c = 0; c < 6; ++c) f(r, c) = (r == c ? 1.0 : 0.3) * 1e-3 * rng.Normal();
+    factors.push_back(f);
+    const Matrix6d covariance = f * f.transpose() + 1e-9 * Matrix6d::Identity();
+    informations.push_back(covariance.inverse());
+    propagated = ComposeRightCovariance(
+        propagated, steps.back(),
+        RightCovarianceFromLeftInformation(steps.back(), informations.back()));
+    chain = chain * steps.back();
+  }
+  constexpr int kSamples = 20000;
+  Matrix6d sampled = Matrix6d::Zero();
+  for (int n = 0; n < kSamples; ++n) {
+    Eigen::Isometry3d perturbed = Eigen::Isometry3d::Identity();
+    for (size_t i = 0; i < steps.size(); ++i) {
+      Vector6d z;
+      for (int j = 0; j < 6; ++j) z[j] = rng.Normal();
+      perturbed = perturbed * (ExpSE3(factors[i] * z) * steps[i]);
+    }
+    const Vector6d eps = LogSE3(chain.inverse() * perturbed);
+    sampled += eps * eps.transpose() / kSamples;
+  }
+  const double error = (sampled - propagated).norm() / propagated.norm();
+  std::printf("chain covariance: sampled against propagated, relative Frobenius error %.4f\n",
+              error);
+  EXPECT_LT(error, 0.05);
+}
+
 TEST(LoopClosure, ARevisitIsFoundAndTheGraphTakesOutTheDrift) {
   const SyntheticScene room = TexturedRoom();
   const CameraIntrinsics k = Camera320();
@@ -186,7 +232,10 @@ TEST(LoopClosure, FusionClosesTheLoopOfADriftingScanAndIntegratesTheVolumeAgain)
       100.0 * closed.ate, odometry.blocks, closed.blocks);
   EXPECT_GT(odometry.end_drift, 0.03);
   EXPECT_LT(closed.end_drift, odometry.end_drift / 3.0);
-  EXPECT_LT(closed.ate, odometry.ate);
+  // Most of the ATE goes too: the odometry edges carry the information tracking measured, so the
+  // discrepancy goes where tracking was weakest (with every edge alike, 1 cm and 1 degree: 2.21 ->
+  // 1.77 cm).
+  EXPECT_LT(closed.ate, odometry.ate / 2.0);
   // The same trajectory, bit for bit, with one thread.
   SetThreadCount(1);
   const Run one_thread = fuse(true);
