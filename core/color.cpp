@@ -19,15 +19,29 @@ float LinearToSrgb(float linear) {
   return 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
 }
 
-float LinearToSrgbTabled(float linear) {
+const float* SrgbTable() {
   static const std::vector<float> kTable = [] {
-    std::vector<float> table(16384);
+    std::vector<float> table(kSrgbTableSize);
     for (size_t i = 0; i < table.size(); ++i)
-      table[i] = LinearToSrgb(static_cast<float>(i) / 16383.0f);
+      table[i] = LinearToSrgb(static_cast<float>(i) / static_cast<float>(kSrgbTableSize - 1));
     return table;
   }();
-  const float clamped = std::isfinite(linear) ? std::clamp(linear, 0.0f, 1.0f) : 0.0f;
-  return kTable[static_cast<size_t>(clamped * 16383.0f + 0.5f)];
+  return kTable.data();
+}
+
+const uint8_t* Srgb8Table() {
+  static const std::vector<uint8_t> kTable = [] {
+    const float* srgb = SrgbTable();
+    std::vector<uint8_t> table(kSrgbTableSize);
+    for (size_t i = 0; i < table.size(); ++i)
+      table[i] = static_cast<uint8_t>(std::lround(255.0f * srgb[i]));
+    return table;
+  }();
+  return kTable.data();
+}
+
+float LinearToSrgbTabled(float linear) {
+  return SrgbTable()[SrgbTableIndex(linear)];
 }
 
 CameraResponse CameraResponse::Parse(const std::string& text, const std::string& where) {

@@ -3,6 +3,9 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
 #include <string>
 
 #include "core/image.h"
@@ -15,6 +18,18 @@ float LinearToSrgb(float linear);
 // LinearToSrgb through a table of 16384 steps, for per-pixel loops (at most 4e-4 off, near
 // black): the value clamped to [0, 1], NaN and infinities to 0.
 float LinearToSrgbTabled(float linear);
+// The same table (and the 8-bit codes lround(255 x its values)) for loops that inline the look-up:
+// kSrgbTableSize entries, the value x at SrgbTableIndex(x).
+inline constexpr size_t kSrgbTableSize = 16384;
+const float* SrgbTable();
+const uint8_t* Srgb8Table();
+inline size_t SrgbTableIndex(float linear) {
+  // NaN fails both comparisons; infinities go to 0 as NaN does.
+  const float clamped = linear > 0.0f && linear <= std::numeric_limits<float>::max()
+                            ? (linear < 1.0f ? linear : 1.0f)
+                            : 0.0f;
+  return static_cast<size_t>(clamped * static_cast<float>(kSrgbTableSize - 1) + 0.5f);
+}
 
 struct CameraResponse {
   enum class Kind { kSrgb, kLinear, kGamma };

@@ -213,11 +213,11 @@ std::vector<IntensityLevel> BuildIntensityPyramid(const ImageRgb& color, int lev
   out.resize(static_cast<size_t>(levels + skipped));
   const int w0 = color.width(), h0 = color.height();
   out[0].intensity = ImageGray(w0, h0, 0.0f);
+  const float* srgb = SrgbTable();  // the sRGB curve through a table, not a pow per pixel
   ParallelFor(0, static_cast<size_t>(h0), [&](size_t v) {
     for (int u = 0; u < w0; ++u) {
-      // The sRGB curve through a table, not a pow per pixel.
       out[0].intensity(u, static_cast<int>(v)) =
-          LinearToSrgbTabled(Luminance(color(u, static_cast<int>(v))));
+          srgb[SrgbTableIndex(Luminance(color(u, static_cast<int>(v))))];
     }
   });
   for (size_t l = 1; l < out.size(); ++l) {
