@@ -8,12 +8,14 @@
 #include <cstdio>
 
 #include "core/color.h"
+#include "core/mesh_distance.h"
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "core/se3.h"
 #include "core/synthetic.h"
 #include "core/trajectory_metrics.h"
 #include "fusion/kinect_fusion.h"
+#include "meshing/marching_cubes.h"
 
 namespace genscene::fusion {
 namespace {
@@ -173,7 +175,8 @@ TEST(LoopClosure, ARevisitIsFoundAndTheGraphTakesOutTheDrift) {
 // KinectFusion with loop closure on a scan that really drifts: the sensor's depth is bent by 0.1 %
 // at the image's borders (AddRadialDepthBias) on top of Kinect noise, and tracking ends the loop
 // centimetres off. The loop is closed against the first node, every fused frame is integrated
-// again at its corrected pose, and the end of the loop comes back to its start.
+// again at its corrected pose, the end of the loop comes back to its start, and the mesh comes
+// within a voxel of the room's surface.
 TEST(LoopClosure, FusionClosesTheLoopOfADriftingScanAndIntegratesTheVolumeAgain) {
   const SyntheticScene room = TexturedRoom();
   const CameraIntrinsics k = Camera320();
@@ -192,7 +195,9 @@ TEST(LoopClosure, FusionClosesTheLoopOfADriftingScanAndIntegratesTheVolumeAgain)
     std::vector<FrameReport> reports;
     double end_drift = 0.0, ate = 0.0;
     size_t blocks = 0;
+    SurfaceError surface;  // the volume's mesh against the room's
   };
+  const TriangleMesh room_mesh = room.ToMesh();
   auto fuse = [&](bool loop_closure) {
     FusionOptions options;
     options.loop.enabled = loop_closure;
@@ -203,6 +208,12 @@ TEST(LoopClosure, FusionClosesTheLoopOfADriftingScanAndIntegratesTheVolumeAgain)
     run.trajectory = fusion.trajectory();
     run.reports = fusion.reports();
     run.blocks = fusion.volume().num_blocks();
+    // The mesh in the first frame's world (the trajectory starts at the truth's first pose).
+    TriangleMesh mesh = meshing::ExtractMesh(fusion.volume(), meshing::MeshingOptions()).mesh;
+    const Eigen::Isometry3d world_from_first = truth.poses().front().world_from_camera;
+    for (Eigen::Vector3f& v : mesh.vertices)
+      v = (world_from_first * v.cast<double>()).cast<float>();
+    run.surface = MeasureSurfaceError(mesh, room_mesh);
     const Eigen::Isometry3d truth_end =
         truth.poses().front().world_from_camera.inverse() * truth.poses().back().world_from_camera;
     run.end_drift =
@@ -227,15 +238,22 @@ TEST(LoopClosure, FusionClosesTheLoopOfADriftingScanAndIntegratesTheVolumeAgain)
   EXPECT_GE(loops, 1u);
   std::printf(
       "end of the loop %.2f -> %.2f cm from its start's truth, ATE %.2f -> %.2f cm, "
-      "blocks %zu -> %zu\n",
+      "blocks %zu -> %zu, mesh against the room: mean %.2f -> %.2f mm, RMS %.2f -> %.2f mm "
+      "(over the surface %.2f -> %.2f mm)\n",
       100.0 * odometry.end_drift, 100.0 * closed.end_drift, 100.0 * odometry.ate,
-      100.0 * closed.ate, odometry.blocks, closed.blocks);
+      100.0 * closed.ate, odometry.blocks, closed.blocks, 1e3 * odometry.surface.mean,
+      1e3 * closed.surface.mean, 1e3 * odometry.surface.rms, 1e3 * closed.surface.rms,
+      1e3 * odometry.surface.area_mean, 1e3 * closed.surface.area_mean);
   EXPECT_GT(odometry.end_drift, 0.03);
   EXPECT_LT(closed.end_drift, odometry.end_drift / 3.0);
   // Most of the ATE goes too: the odometry edges carry the information tracking measured, so the
   // discrepancy goes where tracking was weakest (with every edge alike, 1 cm and 1 degree: 2.21 ->
   // 1.77 cm).
   EXPECT_LT(closed.ate, odometry.ate / 2.0);
+  // The mesh of the closed loop lies within a voxel (1 cm) of the room on average (odometry's
+  // doubled walls: about 2 cm).
+  EXPECT_LT(closed.surface.mean, 0.01);
+  EXPECT_LT(closed.surface.mean, odometry.surface.mean / 2.0);
   // The same trajectory, bit for bit, with one thread.
   SetThreadCount(1);
   const Run one_thread = fuse(true);
