@@ -116,7 +116,7 @@ TEST(LoopClosure, ChainCovarianceMatchesSampledSteps) {
 TEST(LoopClosure, ARevisitIsFoundAndTheGraphTakesOutTheDrift) {
   const SyntheticScene room = TexturedRoom();
   const CameraIntrinsics k = Camera320();
-  const Trajectory truth = MakeRoomLoopTrajectory(Eigen::Vector3d::Zero(), 0.4, 1.5, 1.0, 200, 11);
+  const Trajectory truth = MakeRoomLoopTrajectory(Eigen::Vector3d::Zero(), 0.4, 1.5, 1.1, 220, 11);
   LoopClosureOptions options;
   LoopClosure loops(options, k, PreprocessOptions(), IcpOptions(), FeatureAlignOptions());
   std::vector<Eigen::Isometry3d> drifted;
@@ -174,13 +174,14 @@ TEST(LoopClosure, ARevisitIsFoundAndTheGraphTakesOutTheDrift) {
 
 // KinectFusion with loop closure on a scan that really drifts: the sensor's depth is bent by 0.1 %
 // at the image's borders (AddRadialDepthBias) on top of Kinect noise, and tracking ends the loop
-// centimetres off. The loop is closed against the first node, every fused frame is integrated
-// again at its corrected pose, the end of the loop comes back to its start, and the mesh comes
-// within a voxel of the room's surface.
+// centimetres off. The camera walks the circle 1.1 times (220 frames): the loop is closed against
+// the first node, then against the next ones as the camera passes them again; every fused frame
+// is integrated again at its corrected pose, the end comes back to its truth, the ATE falls to a
+// third, and the mesh comes within a voxel of the room's surface.
 TEST(LoopClosure, FusionClosesTheLoopOfADriftingScanAndIntegratesTheVolumeAgain) {
   const SyntheticScene room = TexturedRoom();
   const CameraIntrinsics k = Camera320();
-  const Trajectory truth = MakeRoomLoopTrajectory(Eigen::Vector3d::Zero(), 0.4, 1.5, 1.0, 200, 11);
+  const Trajectory truth = MakeRoomLoopTrajectory(Eigen::Vector3d::Zero(), 0.4, 1.5, 1.1, 220, 11);
   std::vector<RgbdFrame> frames;
   for (size_t i = 0; i < truth.size(); ++i) {
     const StampedPose& p = truth.poses()[i];
@@ -228,9 +229,12 @@ TEST(LoopClosure, FusionClosesTheLoopOfADriftingScanAndIntegratesTheVolumeAgain)
   size_t loops = 0;
   for (const FrameReport& r : closed.reports) {
     if (!r.loop_closure) continue;
-    ++loops;
-    EXPECT_EQ(r.loop_closure->against_timestamp, truth.poses()[0].timestamp);
+    if (loops++ == 0) EXPECT_EQ(r.loop_closure->against_timestamp, truth.poses()[0].timestamp);
     EXPECT_GT(r.index, 150u);
+    // Against a node from the first turn (at least min_separation frames back).
+    EXPECT_LE(r.loop_closure->against_timestamp,
+              truth.poses()[r.index - static_cast<size_t>(LoopClosureOptions().min_separation)]
+                  .timestamp);
     if (r.loop_closure->largest_move >= LoopClosureOptions().min_correction) {
       EXPECT_EQ(r.reintegrated, r.index + 1);  // every fused frame so far
     }
@@ -247,9 +251,9 @@ TEST(LoopClosure, FusionClosesTheLoopOfADriftingScanAndIntegratesTheVolumeAgain)
   EXPECT_GT(odometry.end_drift, 0.03);
   EXPECT_LT(closed.end_drift, odometry.end_drift / 3.0);
   // Most of the ATE goes too: the odometry edges carry the information tracking measured, so the
-  // discrepancy goes where tracking was weakest (with every edge alike, 1 cm and 1 degree: 2.21 ->
-  // 1.77 cm).
-  EXPECT_LT(closed.ate, odometry.ate / 2.0);
+  // discrepancy goes where tracking was weakest (with every edge alike, 1 cm and 1 degree, on one
+  // turn of 200 frames: 2.21 -> 1.77 cm; with the information: 0.86 cm).
+  EXPECT_LT(closed.ate, odometry.ate / 3.0);
   // The mesh of the closed loop lies within a voxel (1 cm) of the room on average (odometry's
   // doubled walls: about 2 cm).
   EXPECT_LT(closed.surface.mean, 0.01);
