@@ -135,10 +135,10 @@ def odometry(folders, build, voxel, trunc):
         poses = [paths[0][2]]
         start = time.perf_counter()
         for i in range(1, len(rgbds)):
-            ok, source_from_target, _ = o3d.pipelines.odometry.compute_rgbd_odometry(
+            # source = frame i, target = frame i - 1: the result maps i's points into i - 1's frame.
+            ok, target_from_source, _ = o3d.pipelines.odometry.compute_rgbd_odometry(
                 rgbds[i], rgbds[i - 1], intr, np.eye(4), jacobian, option)
-            # source = frame i, target = frame i - 1: the motion maps i's points into i - 1's frame.
-            poses.append(poses[-1] @ (source_from_target if ok else np.eye(4)))
+            poses.append(poses[-1] @ (target_from_source if ok else np.eye(4)))
         odom_seconds = time.perf_counter() - start
         volume = o3d.pipelines.integration.ScalableTSDFVolume(
             voxel_length=voxel, sdf_trunc=trunc, color_type=o3d.pipelines.integration.TSDFVolumeColorType.RGB8)

@@ -44,12 +44,12 @@ struct FusionOptions {
   double memory_cap = 4000.0;    // MB the TSDF may allocate; exceeding it is an error
   std::string tracking = "icp";  // icp (estimate the poses) or known (fuse with the source's poses)
   double min_valid_fraction = 0.05;  // frames with fewer valid depth pixels are blank (skipped)
-  // The model is raycast at 1/N of the depth's resolution for ICP (normals over the same
-  // baseline in metres). 0 = by the image's width: 2 up to 320 pixels wide, beyond that width / 160
-  // rounded (4 at 640x480), at most 8 (ModelSubsample). Measured with tracking at full resolution
-  // on the synthetic room, 150 frames: N = 2 gives ATE 0.521 cm against 0.515 at full resolution
-  // (320x240) and 0.337 against 0.338 (640x480), TUM fr1/desk 0.1773 against 0.1774 cm, for a
-  // third of the raycast time; N = 3: 0.581 / 0.359 cm. At 640x480 with tracking at 320x240
+  // The model is raycast at 1/N of the depth's resolution for ICP (normals over +-1 pixel of it,
+  // +-2 at full resolution). 0 = by the image's width: 2 up to 320 pixels wide, beyond that width /
+  // 160 rounded (4 at 640x480), at most 8 (ModelSubsample). Measured with tracking at full
+  // resolution on the synthetic room, 150 frames: N = 2 gives ATE 0.521 cm against 0.515 at full
+  // resolution (320x240) and 0.337 against 0.338 (640x480), TUM fr1/desk 0.1773 against 0.1774 cm,
+  // for a third of the raycast time; N = 3: 0.581 / 0.359 cm. At 640x480 with tracking at 320x240
   // (tracking_subsample), N = 2 / 3 / 4: raycast 19.8 / 10.6 / 7.0 ms a frame on 7-Scenes,
   // ATE 7-Scenes 0.778 / 0.795 / 0.808 cm, TUM fr1/desk 0.169 / 0.166 / 0.164 cm, the
   // path-traced room (Kinect noise) 0.435 / 0.495 / 0.507 cm (bench_fusion --set
@@ -105,7 +105,7 @@ struct FusionOptions {
       "frames with fewer valid depth pixels are skipped as blank");
     v("model_subsample", model_subsample, "",
       "raycast the model for tracking at 1/N of the depth's resolution (1 = full; 0 = 2 up to "
-      "320 px wide, else width / 160)");
+      "320 px wide, else width / 160 rounded, at most 8)");
     v("tracking_subsample", tracking_subsample, "",
       "track on a depth pyramid starting at 1/N of the depth's resolution (1, 2 or 4; 0 = the "
       "largest that keeps it >= 320 pixels wide)");

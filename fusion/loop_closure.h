@@ -118,10 +118,10 @@ class LoopClosure {
   void Anchor(double timestamp, const Eigen::Isometry3d& world_from_camera);
   // The next pose of the chain tracking follows (a fused or a degenerate frame: the pose the next
   // frame is tracked from), with the information of its ICP relative to the previous one
-  // (IcpReport::information), or null where there is none (a frame started from features, poses
-  // handed in): such a step counts as measured to kStepSigmaTranslation / kStepSigmaDegrees. The
-  // steps' covariances, carried along the chain, give the odometry edge between two nodes its
-  // information, so that a loop's discrepancy goes where tracking was weakest.
+  // (IcpReport::information), or null where there is none (the first frame, poses handed in): such
+  // a step counts as measured to kStepSigmaTranslation / kStepSigmaDegrees. The steps' covariances,
+  // carried along the chain, give the odometry edge between two nodes its information, so that a
+  // loop's discrepancy goes where tracking was weakest.
   void Advance(const Eigen::Isometry3d& world_from_camera, const Matrix6d* information);
   static constexpr double kStepSigmaTranslation = 0.01;  // m
   static constexpr double kStepSigmaDegrees = 1.0;

@@ -231,27 +231,29 @@ std::vector<IntensityLevel> BuildIntensityPyramid(const ImageRgb& color, int lev
       }
     }
   }
-  // Noise at full resolution: the mask's response has standard deviation 6 sigma under white
-  // noise; its median absolute value (0.6745 of that) over every other pixel ignores the minority
-  // of pixels on edges. Each 2x2 mean halves it.
-  const ImageGray& full = out[0].intensity;
-  std::vector<float> response;
-  response.reserve(static_cast<size_t>(w0) * static_cast<size_t>(h0) / 4 + 1);
-  for (int v = 1; v + 1 < h0; v += 2) {
-    for (int u = 1; u + 1 < w0; u += 2) {
-      response.push_back(std::abs(full(u - 1, v - 1) - 2.0f * full(u, v - 1) + full(u + 1, v - 1) -
-                                  2.0f * full(u - 1, v) + 4.0f * full(u, v) -
-                                  2.0f * full(u + 1, v) + full(u - 1, v + 1) -
-                                  2.0f * full(u, v + 1) + full(u + 1, v + 1)));
+  {
+    // Noise at full resolution: the mask's response has standard deviation 6 sigma under white
+    // noise; its median absolute value (0.6745 of that) over every other pixel ignores the minority
+    // of pixels on edges. Each 2x2 mean halves it.
+    const ImageGray& full = out[0].intensity;
+    std::vector<float> response;
+    response.reserve(static_cast<size_t>(w0) * static_cast<size_t>(h0) / 4 + 1);
+    for (int v = 1; v + 1 < h0; v += 2) {
+      for (int u = 1; u + 1 < w0; u += 2) {
+        response.push_back(std::abs(full(u - 1, v - 1) - 2.0f * full(u, v - 1) +
+                                    full(u + 1, v - 1) - 2.0f * full(u - 1, v) + 4.0f * full(u, v) -
+                                    2.0f * full(u + 1, v) + full(u - 1, v + 1) -
+                                    2.0f * full(u, v + 1) + full(u + 1, v + 1)));
+      }
+    }
+    if (!response.empty()) {
+      auto middle = response.begin() + static_cast<std::ptrdiff_t>(response.size() / 2);
+      std::nth_element(response.begin(), middle, response.end());
+      out[0].noise = *middle / (0.6745 * 6.0);
     }
   }
-  if (!response.empty()) {
-    auto middle = response.begin() + static_cast<std::ptrdiff_t>(response.size() / 2);
-    std::nth_element(response.begin(), middle, response.end());
-    out[0].noise = *middle / (0.6745 * 6.0);
-  }
   for (size_t l = 1; l < out.size(); ++l) out[l].noise = 0.5 * out[l - 1].noise;
-  out.erase(out.begin(), out.begin() + skipped);  // `full` is not used from here on
+  out.erase(out.begin(), out.begin() + skipped);
   for (IntensityLevel& level : out) {
     const ImageGray& i = level.intensity;
     const int w = i.width(), h = i.height();

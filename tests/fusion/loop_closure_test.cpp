@@ -63,11 +63,6 @@ TEST(FrameStore, KeepsDepthToATenthOfAMillimetreAndColourToItsSrgbCode) {
   EXPECT_TRUE(store.Color(1).empty());
 }
 
-// A camera walks once around a 0.4 m circle in the room looking out at the walls (200 frames);
-// the poses given to the loop closure drift (a turn about the vertical growing to 3 degrees and a
-// shift growing to 5 cm, as tracking's error would). Returning to the start, the new node's
-// features match the first node, ICP verifies the match, and the optimised graph takes most of
-// the drift out of every pose.
 // The uncertainty carried along the chain of tracked steps between two nodes (the odometry
 // edge's information) against sampling: each of five steps is perturbed on the left by a twist
 // drawn from the inverse of its (anisotropic, coupled) information, the steps are composed, and
@@ -113,10 +108,39 @@ TEST(LoopClosure, ChainCovarianceMatchesSampledSteps) {
   EXPECT_LT(error, 0.05);
 }
 
+// The pose graph's edge error at a pose that is the measurement moved by a small right
+// perturbation eps = [translation; rotation] is eps with its halves swapped ([rotation;
+// translation], the order of PoseGraphEdge::information), to first order: the correspondence by
+// which loop closure hands the graph the inverse of a right-perturbation covariance.
+TEST(LoopClosure, TheGraphsEdgeErrorIsTheRightPerturbationReordered) {
+  CounterRng rng(11, 2);
+  double worst = 0.0;
+  for (int trial = 0; trial < 20; ++trial) {
+    Vector6d xi, eps;
+    for (int j = 0; j < 6; ++j) xi[j] = rng.Normal();
+    for (int j = 0; j < 6; ++j) eps[j] = 1e-4 * rng.Normal();
+    const Eigen::Isometry3d measured = ExpSE3(xi);
+    const Eigen::Isometry3d from = ExpSE3(Vector6d::Constant(0.3 * (trial % 3)));
+    const Eigen::Isometry3d to = from * measured * ExpSE3(eps);
+    const Vector6d e = PoseGraphEdgeError(from, to, measured);
+    Vector6d swapped;
+    swapped << eps.tail<3>(), eps.head<3>();
+    worst = std::max(worst, (e - swapped).norm() / eps.norm());
+  }
+  std::printf("edge error against the swapped right perturbation: worst relative difference %.2e\n",
+              worst);
+  EXPECT_LT(worst, 1e-3);  // second order in |eps| = 1e-4
+}
+
+// A camera walks once around a 0.4 m circle in the room looking out at the walls (200 frames);
+// the poses given to the loop closure drift (a turn about the vertical growing to 3 degrees and a
+// shift growing to 5 cm, as tracking's error would). Returning to the start, the new node's
+// features match the first node, ICP verifies the match, and the optimised graph takes most of
+// the drift out of every pose.
 TEST(LoopClosure, ARevisitIsFoundAndTheGraphTakesOutTheDrift) {
   const SyntheticScene room = TexturedRoom();
   const CameraIntrinsics k = Camera320();
-  const Trajectory truth = MakeRoomLoopTrajectory(Eigen::Vector3d::Zero(), 0.4, 1.5, 1.1, 220, 11);
+  const Trajectory truth = MakeRoomLoopTrajectory(Eigen::Vector3d::Zero(), 0.4, 1.5, 1.0, 200, 11);
   LoopClosureOptions options;
   LoopClosure loops(options, k, PreprocessOptions(), IcpOptions(), FeatureAlignOptions());
   std::vector<Eigen::Isometry3d> drifted;
@@ -229,17 +253,15 @@ TEST(LoopClosure, FusionClosesTheLoopOfADriftingScanAndIntegratesTheVolumeAgain)
   size_t loops = 0;
   for (const FrameReport& r : closed.reports) {
     if (!r.loop_closure) continue;
-    if (loops++ == 0) EXPECT_EQ(r.loop_closure->against_timestamp, truth.poses()[0].timestamp);
+    if (loops++ == 0) {
+      EXPECT_EQ(r.loop_closure->against_timestamp, truth.poses()[0].timestamp);
+    }
     EXPECT_GT(r.index, 150u);
-    // Against a node from the first turn (at least min_separation frames back).
-    EXPECT_LE(r.loop_closure->against_timestamp,
-              truth.poses()[r.index - static_cast<size_t>(LoopClosureOptions().min_separation)]
-                  .timestamp);
     if (r.loop_closure->largest_move >= LoopClosureOptions().min_correction) {
       EXPECT_EQ(r.reintegrated, r.index + 1);  // every fused frame so far
     }
   }
-  EXPECT_GE(loops, 1u);
+  EXPECT_GE(loops, 2u);  // against the first node, then against a later one
   std::printf(
       "end of the loop %.2f -> %.2f cm from its start's truth, ATE %.2f -> %.2f cm, "
       "blocks %zu -> %zu, mesh against the room: mean %.2f -> %.2f mm, RMS %.2f -> %.2f mm "
