@@ -85,14 +85,10 @@ void KeyframeSelector::Offer(const RgbdFrame& frame, const ImageDepth& depth,
     return *sharpness;
   };
   auto posed = [&] {
-    RgbdFrame copy;
-    copy.timestamp = frame.timestamp;
-    copy.color = frame.color;
+    RgbdFrame copy = frame;
     copy.depth = depth;
     copy.world_from_camera = world_from_camera;
     copy.intrinsics = intrinsics;
-    copy.color_path = frame.color_path;
-    copy.depth_path = frame.depth_path;
     return copy;
   };
   // Held for min_keyframes while too few are chosen: every candidate_stride_-th offered frame.

@@ -113,7 +113,6 @@ KinectFusion::KinectFusion(const FusionOptions& options, const CameraIntrinsics&
   options_.Validate();
   intrinsics_.Validate();
   model_subsample_ = options_.ModelSubsample(intrinsics_.width);
-  model_intrinsics_ = intrinsics_.Scaled(1.0 / model_subsample_);
   integration_.allocation_stride = options_.AllocationStride(intrinsics_.width);
   integration_.noise_weights = options_.weighting == "noise";
   if (options_.loop.enabled && options_.tracking != "known")
@@ -186,8 +185,9 @@ FrameReport KinectFusion::ProcessFrame(const RgbdFrame& frame) {
     Eigen::Isometry3d model_from_live =
         held_out_pose_ ? Eigen::Isometry3d(last_good_.inverse() * *held_out_pose_)
                        : Eigen::Isometry3d::Identity();
-    report.icp = TrackFrameToModel(pyramid, model_, model_intrinsics_, options_.icp,
-                                   &model_from_live, &live_intensity, &model_intensity_);
+    report.icp =
+        TrackFrameToModel(pyramid, model_, intrinsics_.Scaled(1.0 / model_subsample_), options_.icp,
+                          &model_from_live, &live_intensity, &model_intensity_);
     report.seconds_track = SecondsSince(start);
     const double moved = model_from_live.translation().norm();
     const double turned = RotationAngle(model_from_live) * 180.0 / M_PI;
@@ -334,7 +334,6 @@ void KinectFusion::UpdateModel(const Eigen::Isometry3d& pose, FrameReport* repor
   const int auto_subsample = options_.ModelSubsample(intrinsics_.width);
   model_subsample_ = report->feature_start ? std::min(2, auto_subsample) : auto_subsample;
   model_ = RaycastModel(pose, model_subsample_);
-  model_intrinsics_ = intrinsics_.Scaled(1.0 / model_subsample_);
   report->seconds_raycast = SecondsSince(start);
   report->raycast_chunks = model_.chunks_tested;
   report->raycast_blocks = model_.blocks_projected;

@@ -297,9 +297,9 @@ class KinectFusion {
   // The brightness pyramid of the frame at last_good_ (the photometric term's reference; empty
   // without colour or with color_weight 0).
   std::vector<IntensityLevel> model_intensity_;
-  CameraIntrinsics
-      model_intrinsics_;            // the model's raycast camera (intrinsics at 1/model_subsample)
-  int model_subsample_ = 2;         // of model_ (ModelSubsample, or finer after a feature start)
+  // model_ is raycast at intrinsics_.Scaled(1 / model_subsample_) (ModelSubsample, or finer after
+  // a feature start).
+  int model_subsample_ = 2;
   IntegrationOptions integration_;  // allocation stride (resolved by the image width) and weights
   Trajectory trajectory_;
   std::vector<FrameReport> reports_;
