@@ -122,7 +122,7 @@ std::string ToString(const FuseSummary& s) {
   if (s.ate) {
     out << "ATE:        RMSE " << 100.0 * s.ate->rmse << " cm, max " << 100.0 * s.ate->max
         << " cm over " << s.ate->pairs
-        << " poses (against the source's known poses, Horn-aligned)\n";
+        << " poses (against the source's known poses at each frame's time, Horn-aligned)\n";
   }
   return out.str();
 }

@@ -73,8 +73,9 @@ def nearest(stamps, t):
 
 def read_recording(folder):
     """(intrinsic, depth scale, [(colour path, depth path, world_from_camera)]) of a TUM or
-    7-Scenes folder; TUM's depth images are paired with the nearest colour image and the nearest
-    ground-truth pose in time, as genscene's reader does without an associations file."""
+    7-Scenes folder; TUM's depth images are paired with the nearest colour image, and the ground
+    truth is taken at the colour image's time (positions interpolated), as genscene's reader and
+    its ATE do."""
     frames_dir = os.path.join(folder, "rgbd-frames")
     if os.path.isdir(frames_dir):
         k = np.loadtxt(os.path.join(folder, "camera-intrinsics.txt"))
@@ -91,12 +92,17 @@ def read_recording(folder):
     rgb, depth = present(rgb), present(depth)
     rgb_t = np.array([float(r[0]) for r in rgb])
     gt_t = np.array([float(r[0]) for r in gt])
+    gt_xyz = np.array([[float(x) for x in r[1:4]] for r in gt])
     frames = []
     for t, dpath in depth:
         c = rgb[nearest(rgb_t, float(t))]
+        # The ground truth at the frame's (colour) time stamp, as genscene's ATE pairs it: the
+        # position interpolated between the bracketing poses (the rotation of the nearest one;
+        # the ATE uses positions only).
         g = gt[nearest(gt_t, float(c[0]))]
-        frames.append((os.path.join(folder, c[1]), os.path.join(folder, dpath),
-                       quaternion_pose([float(x) for x in g[1:8]])))
+        pose = quaternion_pose([float(x) for x in g[1:8]])
+        pose[:3, 3] = [np.interp(float(c[0]), gt_t, gt_xyz[:, k]) for k in range(3)]
+        frames.append((os.path.join(folder, c[1]), os.path.join(folder, dpath), pose))
     first = np.asarray(o3d.io.read_image(frames[0][1]))
     h, w = first.shape[:2]
     name = os.path.basename(os.path.normpath(folder))

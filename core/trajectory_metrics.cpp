@@ -10,9 +10,13 @@
 
 namespace genscene {
 
-AteResult ComputeAte(const Trajectory& estimated, const Trajectory& ground_truth,
-                     double max_time_difference) {
-  // Association as in TUM's associate.py: all candidate pairs within the limit, closest first.
+namespace {
+
+// (estimated index, ground-truth position) pairs, sorted by the estimated index.
+std::vector<std::pair<size_t, Eigen::Vector3d>> NearestPairs(const Trajectory& estimated,
+                                                             const Trajectory& ground_truth,
+                                                             double max_time_difference) {
+  // As TUM's associate.py: all candidate pairs within the limit, closest first, each used once.
   std::vector<std::tuple<double, size_t, size_t>> candidates;
   const auto& est = estimated.poses();
   const auto& gt = ground_truth.poses();
@@ -27,14 +31,42 @@ AteResult ComputeAte(const Trajectory& estimated, const Trajectory& ground_truth
   }
   std::sort(candidates.begin(), candidates.end());
   std::set<size_t> used_est, used_gt;
-  std::vector<std::pair<size_t, size_t>> pairs;
+  std::vector<std::pair<size_t, Eigen::Vector3d>> pairs;
   for (const auto& [dt, i, j] : candidates) {
     if (used_est.count(i) || used_gt.count(j)) continue;
     used_est.insert(i);
     used_gt.insert(j);
-    pairs.emplace_back(i, j);
+    pairs.emplace_back(i, gt[j].world_from_camera.translation());
   }
-  std::sort(pairs.begin(), pairs.end());
+  std::sort(pairs.begin(), pairs.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
+  return pairs;
+}
+
+std::vector<std::pair<size_t, Eigen::Vector3d>> InterpolatedPairs(const Trajectory& estimated,
+                                                                  const Trajectory& ground_truth,
+                                                                  double max_time_difference) {
+  std::vector<std::pair<size_t, Eigen::Vector3d>> pairs;
+  const auto& est = estimated.poses();
+  for (size_t i = 0; i < est.size(); ++i) {
+    const double t = est[i].timestamp;
+    if (auto p = ground_truth.Interpolate(t, 2.0 * max_time_difference)) {
+      pairs.emplace_back(i, p->translation());
+    } else if (auto q = ground_truth.Nearest(t, max_time_difference)) {
+      pairs.emplace_back(i, q->world_from_camera.translation());
+    }
+  }
+  return pairs;
+}
+
+}  // namespace
+
+AteResult ComputeAte(const Trajectory& estimated, const Trajectory& ground_truth,
+                     double max_time_difference, AteAssociation association) {
+  const auto& est = estimated.poses();
+  const auto pairs = association == AteAssociation::kNearest
+                         ? NearestPairs(estimated, ground_truth, max_time_difference)
+                         : InterpolatedPairs(estimated, ground_truth, max_time_difference);
   if (pairs.size() < 3) {
     throw Error(Format("ATE: only ", pairs.size(), " of ", est.size(),
                        " estimated poses have a ground-truth pose within ", max_time_difference,
@@ -42,13 +74,12 @@ AteResult ComputeAte(const Trajectory& estimated, const Trajectory& ground_truth
   }
   // Positions relative to their first pair, so that 1 km from the origin loses no precision.
   const Eigen::Vector3d est_ref = est[pairs[0].first].world_from_camera.translation();
-  const Eigen::Vector3d gt_ref = gt[pairs[0].second].world_from_camera.translation();
+  const Eigen::Vector3d gt_ref = pairs[0].second;
   Eigen::Matrix3Xd src(3, pairs.size()), dst(3, pairs.size());
   for (size_t k = 0; k < pairs.size(); ++k) {
     src.col(static_cast<Eigen::Index>(k)) =
         est[pairs[k].first].world_from_camera.translation() - est_ref;
-    dst.col(static_cast<Eigen::Index>(k)) =
-        gt[pairs[k].second].world_from_camera.translation() - gt_ref;
+    dst.col(static_cast<Eigen::Index>(k)) = pairs[k].second - gt_ref;
   }
   const Eigen::Matrix4d m = Eigen::umeyama(src, dst, /*with_scaling=*/false);
   Eigen::Isometry3d local = Eigen::Isometry3d::Identity();
