@@ -167,6 +167,7 @@ HeldOutEvaluation EvaluateHeldOut(const Workspace& ws, const LightEstimationOpti
     const FirstHits hits = TraceFirstHits(tracer, texture, frame);
     RenderOptions paths = lights.paths;
     paths.spp = spp;
+    paths.surface_only = true;  // as the mask and the baselines: where the model has a surface
     const RenderHalves halves = RenderInHalves(tracer, frame.view, paths, seed + 3000 + f,
                                                (seed + 3000 + f) ^ 0xD1B54A32D192ED03ull);
     const ImageRgb &a = halves.a, &b = halves.b, &render = halves.mean;

@@ -4,7 +4,10 @@
 //   - the observed-colour texture shown unlit (what a textured mesh from Open3D or InfiniTAM
 //     gives: no lights, cannot relight);
 //   - the albedo under a uniform white ambient light.
-// Pixels: those whose camera ray hits the model and whose frame colour is finite. Each prediction
+// Pixels: those whose camera ray hits the model and whose frame colour is finite; the baselines
+// take the colour of that ray's hit, the model's render the mean over the samples of the pixel's
+// footprint that meet a surface (RenderOptions::surface_only: on the outline of a scan the rest
+// of the footprint is unscanned space, which no prediction here claims to know). Each prediction
 // P gets its own exposure / white-balance gain g (per channel, least squares over the pixels: real
 // cameras adapt per frame), then
 //   relative RMSE = sqrt(sum |g P - R|^2 / sum |R|^2) in linear RGB (after the camera response),

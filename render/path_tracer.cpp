@@ -520,6 +520,7 @@ RenderOutput PathTracer::Render(const PosedView& view, const RenderOptions& opti
           out.object(u, v) = hit->mesh;
         }
         Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        int counted = 0;
         const path::PixelLattice lattice(seed, pixel);
         for (int s = 0; s < options.spp; ++s) {
           CounterRng rng(seed, pixel, static_cast<uint64_t>(s));
@@ -536,6 +537,8 @@ RenderOutput PathTracer::Render(const PosedView& view, const RenderOptions& opti
             } while (x < -0.5 || y < -0.5 || x >= k.width - 0.5 || y >= k.height - 0.5);
           }
           const Eigen::Vector3f dir = rotation * k.RayDirection(x, y).cast<float>().normalized();
+          if (options.surface_only && !Hit(eye, dir)) continue;
+          ++counted;
           const Eigen::Vector3f l =
               Radiance(eye, dir, options, rng, &pixel_rays[pixel], lattice(s, 2));
           if (!l.allFinite()) {
@@ -544,7 +547,7 @@ RenderOutput PathTracer::Render(const PosedView& view, const RenderOptions& opti
           }
           sum += l.cast<double>();
         }
-        out.radiance(u, v) = (sum / options.spp).cast<float>();
+        if (counted > 0) out.radiance(u, v) = (sum / counted).cast<float>();
       },
       16);
   for (const RayCounts& r : pixel_rays) {

@@ -52,6 +52,11 @@ struct RenderOptions {
   // rays from the surfaces built on first use), so that bright lights behind walls are rarely
   // chosen where they are blocked. Changes only the noise, never the expected image.
   bool light_visibility = true;
+  // A pixel averages only the samples whose camera ray meets a surface (black where none does):
+  // the colour of the covered part of a pixel on a silhouette against empty space, which a scan's
+  // model has wherever the room was not scanned. The held-out evaluation renders so, its mask and
+  // baselines being the pixel centre's hit. Not a user setting: no key in Visit.
+  bool surface_only = false;
 
   // The stages that trace paths hold their path settings as one RenderOptions and list them under
   // these keys, saying in `spp_help` what one of their samples is.

@@ -80,6 +80,47 @@ TEST(PathTracer, PointLightOverPlaneIsExact) {
   }
 }
 
+// A square against empty space, seen from above: the pixels along its outline are partly
+// covered. The box filter averages in the empty part (black); surface_only averages only the
+// samples that meet the square, so an outline pixel has the colour of the square's inside.
+TEST(PathTracer, SurfaceOnlyAveragesTheCoveredPartOfAPixel) {
+  Scene scene;
+  scene.meshes.push_back(Square(0.96, 0.0, true, Eigen::Vector3f(0.6f, 0.6f, 0.6f)));
+  scene.point_lights.push_back({Eigen::Vector3d(0.0, 0.0, 20.0), Eigen::Vector3f(400, 400, 400)});
+  const PathTracer tracer(scene);
+  // 0.1 m per pixel on the plane: the square's edges at +-0.48 m cut pixels at 80 % or 30 %.
+  const PosedView view = LookingDownAt({0.0, 0.0, 2.0}, {0.0, 0.0, 0.0}, 20, 20, 20.0);
+  RenderOptions options;
+  options.spp = 64;
+  options.max_depth = 2;
+  const RenderOutput box = tracer.Render(view, options, 3);
+  options.surface_only = true;
+  const RenderOutput covered = tracer.Render(view, options, 3);
+  const float inside = covered.radiance(10, 10).x();
+  ASSERT_GT(inside, 0.0f);
+  int outline = 0;
+  for (int v = 0; v < 20; ++v) {
+    for (int u = 0; u < 20; ++u) {
+      const bool centre_hits = box.depth(u, v) > 0.0f;
+      const bool on_outline = u == 5 || u == 14 || v == 5 || v == 14;
+      if (!centre_hits) {
+        // Pixels whose centre misses may still be partly covered (the 30 % ones); never brighter.
+        EXPECT_LE(covered.radiance(u, v).x(), 1.02f * inside) << u << "," << v;
+        continue;
+      }
+      EXPECT_NEAR(covered.radiance(u, v).x(), inside, 0.02f * inside) << u << "," << v;
+      if (on_outline) {
+        ++outline;
+        EXPECT_LT(box.radiance(u, v).x(), 0.9f * inside) << u << "," << v;
+      } else {
+        EXPECT_NEAR(box.radiance(u, v).x(), covered.radiance(u, v).x(), 1e-4f * inside);
+      }
+    }
+  }
+  EXPECT_EQ(outline, 36);  // the ring of pixels 5..14 around the square's inside
+  EXPECT_EQ(covered.radiance(0, 0).x(), 0.0f);
+}
+
 // Direct light of one voxel over a plane against the emission model, as a point (softening 0)
 // and softened: E = I(w) cos / (r^2 + e^2).
 TEST(PathTracer, VoxelLightOverPlaneFollowsEmissionModel) {
