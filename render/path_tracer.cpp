@@ -192,8 +192,8 @@ float PathTracer::AreaLightPdf(const SurfacePoint& from, const SurfacePoint& on_
 
 Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
                                      const Eigen::Vector3f& direction, const RenderOptions& options,
-                                     CounterRng& rng, RayCounts* counts,
-                                     double first_light_u) const {
+                                     CounterRng& rng, RayCounts* counts, double first_light_u,
+                                     bool* met_surface) const {
   RayCounts local;
   Eigen::Vector3f radiance = Eigen::Vector3f::Zero();
   Eigen::Vector3f beta = Eigen::Vector3f::Ones();  // path throughput
@@ -207,6 +207,7 @@ Eigen::Vector3f PathTracer::Radiance(const Eigen::Vector3f& origin,
   for (int depth = 1;; ++depth) {  // depth = segments of the path so far, ending at `hit`
     ++local.intersect;
     const auto hit = Hit(ray_o, ray_d);
+    if (depth == 1 && met_surface) *met_surface = hit.has_value();
     if (!hit) break;
     const SceneMesh& mesh = scene_.meshes[hit->mesh];
 
@@ -537,10 +538,11 @@ RenderOutput PathTracer::Render(const PosedView& view, const RenderOptions& opti
             } while (x < -0.5 || y < -0.5 || x >= k.width - 0.5 || y >= k.height - 0.5);
           }
           const Eigen::Vector3f dir = rotation * k.RayDirection(x, y).cast<float>().normalized();
-          if (options.surface_only && !Hit(eye, dir)) continue;
-          ++counted;
+          bool met_surface = false;
           const Eigen::Vector3f l =
-              Radiance(eye, dir, options, rng, &pixel_rays[pixel], lattice(s, 2));
+              Radiance(eye, dir, options, rng, &pixel_rays[pixel], lattice(s, 2), &met_surface);
+          if (options.surface_only && !met_surface) continue;
+          ++counted;
           if (!l.allFinite()) {
             throw Error(Format("rendering failed at pixel (", u, ", ", v, ") sample ", s,
                                ": radiance (", l.transpose(), ") is not finite (seed ", seed, ")"));

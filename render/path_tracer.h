@@ -166,10 +166,12 @@ class PathTracer {
   // Radiance along one camera ray (one path sample), for tests and the inverse stages.
   // Adds the rays it traces to `counts` when given. `first_light_u` in [0, 1), when given, is
   // the number that chooses the first vertex's light (Render stratifies it over a pixel's
-  // samples); otherwise `rng` draws it.
+  // samples); otherwise `rng` draws it. `met_surface`, when given, says whether the ray itself
+  // met a surface (RenderOptions::surface_only).
   Eigen::Vector3f Radiance(const Eigen::Vector3f& origin, const Eigen::Vector3f& direction,
                            const RenderOptions& options, CounterRng& rng,
-                           RayCounts* counts = nullptr, double first_light_u = -1.0) const;
+                           RayCounts* counts = nullptr, double first_light_u = -1.0,
+                           bool* met_surface = nullptr) const;
 
   // Light estimation's walk: the same camera path as Radiance() (BSDF sampling,
   // Russian roulette, max_depth), but at every vertex it connects to the voxels of `splitting`
