@@ -34,7 +34,14 @@ scripts/build.sh --target genscene_release_pass
 # and do not run alone at the end.
 echo "test: $(date +%T) sanitizer build (ASan + UBSan)"
 scripts/build.sh --sanitize
-export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1"
+# intercept_tls_get_addr=0: the __tls_get_addr interceptor of GCC 12's and clang 14's sanitizer
+# runtimes (fixed upstream in GCC 14 / LLVM 17) takes a dynamic TLS block whose address is 16
+# bytes past a page boundary for a pre-2.25 glibc header and reads a bogus range from before it;
+# the leak check's tracer then dies at exit ("Tracer caught signal 11", exit 134) although
+# nothing leaked. Dynamic TLS comes from the OpenNI2 drivers that the .oni and camera paths
+# dlopen, so it hit those tests at random (seen once in CI, in genscene-fuse on a .oni). Leaks are
+# still found; only pointers held solely in a dlopen'ed library's TLS are not scanned.
+export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1:intercept_tls_get_addr=0"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export LSAN_OPTIONS="suppressions=$PWD/scripts/lsan.supp:print_suppressions=0"
 echo "test: $(date +%T) sanitizer tests (all)"

@@ -75,7 +75,7 @@ mkdir -p "$ROOT/work" "$ROOT/driver" && touch "$ROOT/.bad-input-work" || { echo 
 WORK=$(cd "$ROOT/work" && pwd)
 export BIN="$BIN_DIR" CASE="$CASE_DIR" WORK FIX="$HERE/fixtures"
 # Sanitizer builds: report and stop at the first problem (scripts/test.sh sets the same).
-export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1:intercept_tls_get_addr=0}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 
 # Apps may be relinked while the catalogue runs (a developer's build): wait for them.
