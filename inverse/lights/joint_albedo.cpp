@@ -9,6 +9,8 @@
 #include "core/check.h"
 #include "core/parallel.h"
 #include "core/rng.h"
+#include "render/path_continuation.h"
+#include "render/ray_tracer.h"
 
 namespace genscene::inverse {
 
@@ -172,14 +174,24 @@ std::vector<PixelSurface> TexelSurfaces(const TriangleMesh& mesh, const MeshColo
   return out;
 }
 
-std::vector<Eigen::Vector3f> UnshadowedShading(const VoxelLightGrid& lights,
-                                               const render::SceneMesh& mesh,
-                                               const std::vector<PixelSurface>& at) {
+std::vector<Eigen::Vector3f> DirectShading(const VoxelLightGrid& lights,
+                                           const render::SceneMesh& mesh,
+                                           const std::vector<PixelSurface>& at,
+                                           const render::RayTracer* visibility) {
   std::vector<int> lit;  // the voxels with any intensity
-  for (int v = 0; v < lights.VoxelCount(); ++v)
-    if (lights.IntensityOf(v).maxCoeff() > 0.0f) lit.push_back(v);
+  float strongest = 0.0f;
+  for (int v = 0; v < lights.VoxelCount(); ++v) {
+    const float largest = lights.IntensityOf(v).maxCoeff();
+    if (largest <= 0.0f) continue;
+    lit.push_back(v);
+    strongest = std::max(strongest, largest);
+  }
   std::vector<Eigen::Vector3f> center(lit.size());
-  for (size_t k = 0; k < lit.size(); ++k) center[k] = lights.VoxelCenter(lit[k]).cast<float>();
+  std::vector<uint8_t> traced(lit.size(), 0);  // whose visibility is traced
+  for (size_t k = 0; k < lit.size(); ++k) {
+    center[k] = lights.VoxelCenter(lit[k]).cast<float>();
+    traced[k] = visibility != nullptr && lights.IntensityOf(lit[k]).maxCoeff() >= 1e-3f * strongest;
+  }
   const auto& vn = mesh.mesh.normals;
   const bool smooth = mesh.smooth_shading && vn.size() == mesh.mesh.vertices.size();
   std::vector<Eigen::Vector3f> out(at.size(), Eigen::Vector3f::Zero());
@@ -194,6 +206,13 @@ std::vector<Eigen::Vector3f> UnshadowedShading(const VoxelLightGrid& lights,
       if (n.squaredNorm() > 0.0f) ns = n.normalized();
       if (ns.dot(ng) < 0.0f) ns = -ns;
     }
+    // The shadow rays' origin, as the renders' (path::OffsetScale along the face normal).
+    const Eigen::Vector3f from = p.position + render::path::OffsetScale(p.position) * ng;
+    thread_local std::vector<Eigen::Vector3f> directions;
+    thread_local std::vector<float> lengths;
+    thread_local std::vector<Eigen::Vector3f> terms;
+    thread_local std::vector<uint8_t> blocked;
+    directions.clear(), lengths.clear(), terms.clear();
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
     for (size_t k = 0; k < lit.size(); ++k) {
       const Eigen::Vector3f to = center[k] - p.position;
@@ -202,7 +221,26 @@ std::vector<Eigen::Vector3f> UnshadowedShading(const VoxelLightGrid& lights,
       const Eigen::Vector3f l = to / std::sqrt(d2);
       const float cos_s = ns.dot(l);
       if (cos_s <= 0.0f || ng.dot(l) <= 0.0f) continue;
-      sum += lights.Intensity(lit[k], (-l).cast<double>()) * (cos_s * lights.Falloff(d2));
+      const Eigen::Vector3f term =
+          lights.Intensity(lit[k], (-l).cast<double>()) * (cos_s * lights.Falloff(d2));
+      if (!traced[k]) {
+        sum += term;
+        continue;
+      }
+      // As RayTracer::SegmentOccluded: the segment to the voxel's centre less its last 1e-4.
+      const Eigen::Vector3f segment = center[k] - from;
+      const float length = segment.norm();
+      if (!(length > 0.0f)) continue;
+      directions.push_back(segment / length);
+      lengths.push_back(length * (1.0f - 1e-4f));
+      terms.push_back(term);
+    }
+    if (!directions.empty()) {
+      blocked.assign(directions.size(), 0);
+      visibility->OccludedFrom(from, directions.data(), lengths.data(),
+                               static_cast<int>(directions.size()), 0.0f, blocked.data());
+      for (size_t j = 0; j < directions.size(); ++j)
+        if (!blocked[j]) sum += terms[j];
     }
     out[i] = sum / static_cast<float>(M_PI);
   });

@@ -452,14 +452,14 @@ class LightEstimator {
                           Mix64(seed_ + 0xA1BE * static_cast<uint64_t>(step + 1)));
     };
     // With albedo_guide, the kernel's guide under the current lights (ShadingGuide): the
-    // voxels' unshadowed direct shading at the probes and the texels, and the floor.
+    // voxels' direct shading with its shadows at the probes and the texels, and the floor.
     const bool guided = probing && options_.albedo_guide > 0.0;
     const std::vector<PixelSurface> texel_points =
         guided ? TexelSurfaces(traced.mesh, current, in.mesh) : std::vector<PixelSurface>();
     const auto guide_for = [&](const std::vector<Eigen::Vector3f>& shading) {
       ShadingGuide guide;
-      guide.samples = UnshadowedShading(out_.lights, traced, probes);
-      guide.texels = UnshadowedShading(out_.lights, traced, texel_points);
+      guide.samples = DirectShading(out_.lights, traced, probes, &tracer_.tracer());
+      guide.texels = DirectShading(out_.lights, traced, texel_points, &tracer_.tracer());
       Eigen::Vector3d sum = Eigen::Vector3d::Zero();
       size_t count = 0;
       for (const Eigen::Vector3f& s : shading) {

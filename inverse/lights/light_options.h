@@ -87,7 +87,7 @@ struct LightEstimationOptions {
   // Paths per shading probe: the shading is traced under the current lights at observed texels
   // albedo_radius / 3 apart (0: taken from the sampled pixels' paths instead).
   int albedo_probe_spp = 8;
-  // With probes, the kernel averages the shading relative to the voxels' unshadowed direct
+  // With probes, the kernel averages the shading relative to the voxels' direct (shadowed)
   // shading at the probe plus this share of the probes' mean shading (ShadingGuide), and scales
   // it by the texel's own (0: the plain mean of the shading).
   double albedo_guide = 0.5;
@@ -164,8 +164,8 @@ struct LightEstimationOptions {
       "joint albedo: paths per shading probe (probes albedo_radius / 3 apart over the observed "
       "surface; 0: the sampled pixels' shading)");
     v("albedo_guide", albedo_guide, "",
-      "joint albedo with probes: the kernel averages the shading over the voxels' unshadowed "
-      "direct shading plus this share of the probes' mean (0: the plain mean)");
+      "joint albedo with probes: the kernel averages the shading over the voxels' direct "
+      "shading (with shadows) plus this share of the probes' mean (0: the plain mean)");
     v("albedo_ceiling", albedo_ceiling, "",
       "joint albedo: the 95th percentile of the largest channel at most this (scaled down)");
     v("albedo_tolerance", albedo_tolerance, "",

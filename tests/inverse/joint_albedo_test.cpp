@@ -203,7 +203,7 @@ TEST(JointAlbedo, TheGuidedKernelKeepsTheFalloffOfALightNearTheSurface) {
   ASSERT_GT(probes.size(), 1000u);
   const std::vector<Eigen::Vector3f> shading =
       ProbeShading(lit, probes, offset, RenderOptions::Paths(1), 4, 5);
-  const std::vector<Eigen::Vector3f> at_probes = UnshadowedShading(lights, scene.meshes[0], probes);
+  const std::vector<Eigen::Vector3f> at_probes = DirectShading(lights, scene.meshes[0], probes);
   // G by hand: I (-l . -z) cos / (pi (d^2 + e^2)), l the unit direction to the light.
   const auto by_hand = [&](const Eigen::Vector3f& p) -> Eigen::Vector3f {
     const Eigen::Vector3f to = Eigen::Vector3f(0.0f, 0.0f, 0.15f) - p;
@@ -223,7 +223,7 @@ TEST(JointAlbedo, TheGuidedKernelKeepsTheFalloffOfALightNearTheSurface) {
   ASSERT_EQ(texels.size(), layout.SampleCount());
   ShadingGuide guide;
   guide.samples = at_probes;
-  guide.texels = UnshadowedShading(lights, scene.meshes[0], texels);
+  guide.texels = DirectShading(lights, scene.meshes[0], texels);
   Eigen::Vector3f mean = Eigen::Vector3f::Zero();
   for (const Eigen::Vector3f& v : shading) mean += v;
   guide.floor = 0.5f * mean / static_cast<float>(shading.size());
@@ -248,6 +248,51 @@ TEST(JointAlbedo, TheGuidedKernelKeepsTheFalloffOfALightNearTheSurface) {
   EXPECT_GT(plain_worst, 0.1);  // the plain mean's bias under the light (0.17 here)
   EXPECT_LT(guided_worst, 0.03);
   EXPECT_LT(guided_worst, 0.2 * plain_worst);
+}
+
+TEST(JointAlbedo, TheDirectShadingHasTheShadowOfAnOccluder) {
+  // The floor and light above; a 10 cm square 5 cm above the floor at x = 0.3 casts its shadow
+  // onto x in [0.375, 0.525], |y| < 0.075 (the light's centre, 15 cm up, seen past the square).
+  Scene scene;
+  SceneMesh floor;
+  floor.mesh.vertices = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+  floor.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
+  floor.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.5f));
+  scene.meshes.push_back(floor);
+  SceneMesh square;
+  square.mesh.vertices = {
+      {0.25f, -0.05f, 0.05f}, {0.35f, -0.05f, 0.05f}, {0.35f, 0.05f, 0.05f}, {0.25f, 0.05f, 0.05f}};
+  square.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
+  square.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.5f));
+  scene.meshes.push_back(square);
+  VoxelLightGrid lights;
+  lights.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.05, -0.05, 0.1), Eigen::Vector3d(0.05, 0.05, 0.2));
+  lights.dims = Eigen::Vector3i::Ones();
+  lights.softening = 0.02;
+  lights.intensity = {Eigen::Vector3f(2.0f, 1.0f, 0.5f)};
+  lights.weights = {{0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f}};
+  const PathTracer geometry(scene);
+  const MeshColors layout(floor.mesh, std::vector<int>(floor.mesh.faces.size(), 256));
+  const std::vector<PixelSurface> texels = TexelSurfaces(floor.mesh, layout, 0);
+  const std::vector<Eigen::Vector3f> open = DirectShading(lights, scene.meshes[0], texels);
+  const std::vector<Eigen::Vector3f> shadowed =
+      DirectShading(lights, scene.meshes[0], texels, &geometry.tracer());
+  ASSERT_EQ(shadowed.size(), texels.size());
+  int in_shadow = 0, in_light = 0;
+  for (size_t t = 0; t < texels.size(); ++t) {
+    const Eigen::Vector3f& p = texels[t].position;
+    ASSERT_GT(open[t].minCoeff(), 0.0f) << p.transpose();
+    if (p.x() > 0.39f && p.x() < 0.51f && std::abs(p.y()) < 0.06f) {
+      EXPECT_EQ(shadowed[t], Eigen::Vector3f::Zero()) << p.transpose();
+      ++in_shadow;
+    } else if (p.x() < 0.36f || p.x() > 0.54f || std::abs(p.y()) > 0.09f) {
+      EXPECT_EQ(shadowed[t], open[t]) << p.transpose();
+      ++in_light;
+    }
+  }
+  EXPECT_GT(in_shadow, 100);
+  EXPECT_GT(in_light, 1000);
 }
 
 TEST(JointAlbedo, TheShadingKernelAveragesNearbyPixelsOfTheSameOrientation) {
