@@ -40,7 +40,7 @@ scripts/build.sh --sanitize
 # the leak check's tracer then dies at exit ("Tracer caught signal 11", exit 134) although
 # nothing leaked. Dynamic TLS comes from the OpenNI2 drivers that the .oni and camera paths
 # dlopen, so it hit those tests at random (seen once in CI, in genscene-fuse on a .oni). Leaks are
-# still found; only pointers held solely in a dlopen'ed library's TLS are not scanned.
+# still found; at worst an object held only in such TLS could be reported as a leak.
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1:intercept_tls_get_addr=0"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 export LSAN_OPTIONS="suppressions=$PWD/scripts/lsan.supp:print_suppressions=0"

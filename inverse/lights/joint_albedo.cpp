@@ -230,7 +230,10 @@ std::vector<Eigen::Vector3f> DirectShading(const VoxelLightGrid& lights,
       // As RayTracer::SegmentOccluded: the segment to the voxel's centre less its last 1e-4.
       const Eigen::Vector3f segment = center[k] - from;
       const float length = segment.norm();
-      if (!(length > 0.0f)) continue;
+      if (!(length > 0.0f)) {  // as SegmentOccluded: an empty segment is not blocked
+        sum += term;
+        continue;
+      }
       directions.push_back(segment / length);
       lengths.push_back(length * (1.0f - 1e-4f));
       terms.push_back(term);

@@ -18,12 +18,13 @@
 //     0.108 with probes.) The probes' shading is independent of both halves of
 //     the cache's paths. With albedo_guide > 0 (probes only) the kernel is guided
 //     (ShadingGuide): it averages S / (G + c) and multiplies the texel's own G + c back, G the
-//     voxels' first-bounce shading with its shadows (DirectShading, exact) and c
+//     voxels' first-bounce shading with its shadows (DirectShading) and c
 //     albedo_guide times the probes' mean shading. A plain mean of a falloff that is convex near
 //     a light is too high there (17 % under a light 15 cm above a floor with a 10 cm kernel,
 //     0.9 % guided), and G carries the texel's own shading normal and shadows (the Open3D
 //     room's held-out error with refinement off: plain 0.108, guided 0.104; with the voxels'
-//     shadows in G 0.0996 against 0.1017 without, the unrefined mesh).
+//     shadows in G 0.0996 against 0.1017 without, genscene run's defaults, where the refine
+//     stage kept the unrefined mesh).
 //  2. each observed texel with shading gets, per channel, the albedo that minimises
 //         (a S_t - o_t)^2 + mu s^2 (a - m_k)^2
 //     (o_t: its observed colour, texture.mcol; m_k: the mean of its cluster's unregularised

@@ -293,6 +293,55 @@ TEST(JointAlbedo, TheDirectShadingHasTheShadowOfAnOccluder) {
   }
   EXPECT_GT(in_shadow, 100);
   EXPECT_GT(in_light, 1000);
+
+  // A second voxel 10 cm over, at 1e-4 of the first's intensity: under the 1e-3 cutoff its
+  // visibility is not traced, so the first voxel's shadow keeps exactly its unshadowed term.
+  VoxelLightGrid two = lights;
+  two.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.05, -0.05, 0.1), Eigen::Vector3d(0.15, 0.05, 0.2));
+  two.dims = Eigen::Vector3i(2, 1, 1);
+  two.intensity = {Eigen::Vector3f(2.0f, 1.0f, 0.5f), Eigen::Vector3f(2e-4f, 1e-4f, 5e-5f)};
+  two.weights = {lights.weights[0], lights.weights[0]};
+  VoxelLightGrid weak_only = two;
+  weak_only.intensity[0].setZero();
+  const std::vector<Eigen::Vector3f> weak = DirectShading(weak_only, scene.meshes[0], texels);
+  const std::vector<Eigen::Vector3f> both =
+      DirectShading(two, scene.meshes[0], texels, &geometry.tracer());
+  for (size_t t = 0; t < texels.size(); ++t) {
+    const Eigen::Vector3f& p = texels[t].position;
+    if (!(p.x() > 0.39f && p.x() < 0.51f && std::abs(p.y()) < 0.06f)) continue;
+    ASSERT_GT(weak[t].minCoeff(), 0.0f);
+    EXPECT_LT((both[t] - weak[t]).norm(), 1e-6f * weak[t].norm()) << p.transpose();
+  }
+
+  // 25 voxels of one intensity (more shadow rays per point than one packet of 16), nothing in
+  // between: every texel's shading is the unshadowed sum.
+  Scene open_floor;
+  open_floor.meshes.push_back(floor);
+  const PathTracer floor_only(open_floor);
+  VoxelLightGrid many = lights;
+  many.bounds =
+      Eigen::AlignedBox3d(Eigen::Vector3d(-0.25, -0.25, 0.1), Eigen::Vector3d(0.25, 0.25, 0.2));
+  many.dims = Eigen::Vector3i(5, 5, 1);
+  many.intensity.assign(25, Eigen::Vector3f(2.0f, 1.0f, 0.5f));
+  many.weights.assign(25, lights.weights[0]);
+  const std::vector<Eigen::Vector3f> free_sum = DirectShading(many, open_floor.meshes[0], texels);
+  const std::vector<Eigen::Vector3f> traced =
+      DirectShading(many, open_floor.meshes[0], texels, &floor_only.tracer());
+  for (size_t t = 0; t < texels.size(); ++t) {
+    ASSERT_GT(free_sum[t].minCoeff(), 0.0f);
+    EXPECT_LT((traced[t] - free_sum[t]).norm(), 1e-5f * free_sum[t].norm())
+        << texels[t].position.transpose();
+  }
+  // With the square back, those 25 voxels are shadowed in part: less light, never more.
+  const std::vector<Eigen::Vector3f> partly =
+      DirectShading(many, scene.meshes[0], texels, &geometry.tracer());
+  int darker = 0;
+  for (size_t t = 0; t < texels.size(); ++t) {
+    EXPECT_TRUE((partly[t].array() <= free_sum[t].array() * (1.0f + 1e-5f)).all());
+    if (partly[t].x() < 0.99f * free_sum[t].x()) ++darker;
+  }
+  EXPECT_GT(darker, 100);
 }
 
 TEST(JointAlbedo, TheShadingKernelAveragesNearbyPixelsOfTheSameOrientation) {
