@@ -250,7 +250,13 @@ TEST_F(EmulatedCamera, RecordingHoldsTheStreamedFramesFrameForFrame) {
   const capture::OniRecording rec = capture::ReadOniFile(out / "live.oni");
   ASSERT_EQ(rec.frames.size(), 12u);
   const std::vector<int> numbers = ExpectFolderFrames(rec);
-  EXPECT_EQ(numbers.front(), 0) << "the first frame the camera sends is recorded";
+  // The camera streams at 30 Hz whether or not the reader keeps up, and OpenNI2 keeps only the
+  // newest frame of a stream: on a loaded machine (the sanitizer pass, two tests at once) the
+  // first read can come after frame 0 was replaced. The recording starts at the first pair read
+  // and from there holds every frame, or reports each one it missed.
+  const int missed = numbers.back() - numbers.front() + 1 - static_cast<int>(numbers.size());
+  EXPECT_CONTAINS(r.output, "skipped: " + std::to_string(missed) + " camera frames");
+  EXPECT_LE(numbers.front(), 30) << "the recording starts within the camera's first second";
   EXPECT_EQ(test::CountFilesContaining(out.path(), "tmp"), 0);
 }
 
