@@ -177,16 +177,17 @@ TEST(JointAlbedo, ProbesTraceTheShadingOfAPointLightOverTheObservedSurface) {
   for (const Eigen::Vector3f& s : none) EXPECT_TRUE(s.allFinite());
 }
 
-TEST(JointAlbedo, TheGuidedKernelKeepsTheFalloffOfALightNearTheSurface) {
-  // A 2 m floor of albedo 0.5 and one voxel light 15 cm above its centre, shining down (lobe -z):
-  // nothing reflects back or shadows, so the probes' shading is the unshadowed shading G, and
-  // its falloff under the light is steep against the kernel's radius.
-  Scene scene;
+// A 2 m square floor at z = 0 centred on the origin, albedo 0.5.
+SceneMesh FloorOfAlbedoHalf() {
   SceneMesh floor;
   floor.mesh.vertices = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
   floor.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
   floor.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.5f));
-  scene.meshes.push_back(floor);
+  return floor;
+}
+
+// One voxel light centred 15 cm above the origin, shining down (lobe -z), softening 2 cm.
+VoxelLightGrid OneVoxelAboveTheFloor() {
   VoxelLightGrid lights;
   lights.bounds =
       Eigen::AlignedBox3d(Eigen::Vector3d(-0.05, -0.05, 0.1), Eigen::Vector3d(0.05, 0.05, 0.2));
@@ -194,6 +195,17 @@ TEST(JointAlbedo, TheGuidedKernelKeepsTheFalloffOfALightNearTheSurface) {
   lights.softening = 0.02;
   lights.intensity = {Eigen::Vector3f(2.0f, 1.0f, 0.5f)};
   lights.weights = {{0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f}};
+  return lights;
+}
+
+TEST(JointAlbedo, TheGuidedKernelKeepsTheFalloffOfALightNearTheSurface) {
+  // A 2 m floor of albedo 0.5 and one voxel light 15 cm above its centre, shining down (lobe -z):
+  // nothing reflects back or shadows, so the probes' shading is the unshadowed shading G, and
+  // its falloff under the light is steep against the kernel's radius.
+  Scene scene;
+  const SceneMesh floor = FloorOfAlbedoHalf();
+  scene.meshes.push_back(floor);
+  const VoxelLightGrid lights = OneVoxelAboveTheFloor();
   const PathTracer geometry(scene);
   scene.voxel_lights = lights;
   const PathTracer lit(scene);
@@ -254,10 +266,7 @@ TEST(JointAlbedo, TheDirectShadingHasTheShadowOfAnOccluder) {
   // The floor and light above; a 10 cm square 5 cm above the floor at x = 0.3 casts its shadow
   // onto x in [0.375, 0.525], |y| < 0.075 (the light's centre, 15 cm up, seen past the square).
   Scene scene;
-  SceneMesh floor;
-  floor.mesh.vertices = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
-  floor.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
-  floor.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.5f));
+  const SceneMesh floor = FloorOfAlbedoHalf();
   scene.meshes.push_back(floor);
   SceneMesh square;
   square.mesh.vertices = {
@@ -265,13 +274,7 @@ TEST(JointAlbedo, TheDirectShadingHasTheShadowOfAnOccluder) {
   square.mesh.faces = {{0, 1, 2}, {0, 2, 3}};
   square.albedo = SurfaceAlbedo::Constant(Eigen::Vector3f::Constant(0.5f));
   scene.meshes.push_back(square);
-  VoxelLightGrid lights;
-  lights.bounds =
-      Eigen::AlignedBox3d(Eigen::Vector3d(-0.05, -0.05, 0.1), Eigen::Vector3d(0.05, 0.05, 0.2));
-  lights.dims = Eigen::Vector3i::Ones();
-  lights.softening = 0.02;
-  lights.intensity = {Eigen::Vector3f(2.0f, 1.0f, 0.5f)};
-  lights.weights = {{0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f}};
+  const VoxelLightGrid lights = OneVoxelAboveTheFloor();
   const PathTracer geometry(scene);
   const MeshColors layout(floor.mesh, std::vector<int>(floor.mesh.faces.size(), 256));
   const std::vector<PixelSurface> texels = TexelSurfaces(floor.mesh, layout, 0);
