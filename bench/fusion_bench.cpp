@@ -14,7 +14,9 @@
 // walking a circle of --radius m (default 0.4) looking out at the walls, one turn every
 // --per-turn frames (default 400, 0.9 degrees a frame; MakeRoomLoopTrajectory), rendered one at
 // a time (untimed) and tracked and fused with the defaults (--no-loop-closure: without loop
-// closure; --color-weight W: icp_color_weight); a line for each loop closed; every 100 frames a row
+// closure; --color-weight W: icp_color_weight; --trajectory PREFIX: PREFIX_estimate.txt and
+// PREFIX_truth.txt, TUM format, both in the first camera's frame); a line for each loop closed;
+// every 100 frames a row
 // of fps over those frames, blocks, the volume's megabytes, the process's peak memory, the ATE so
 // far and the drift (the last pose against the truth, both relative to the first).
 #include <sys/resource.h>
@@ -52,7 +54,7 @@ constexpr const char* kUsage =
     "         [--set KEY=VALUE ...]\n"
     "       bench_fusion --scale N [--texture M] [--width W] [--per-turn N]\n"
     "         [--radius M] [--depth-bias K] [--color-weight W] [--no-loop-closure]\n"
-    "         [--threads N]\n";
+    "         [--threads N] [--trajectory PREFIX]\n";
 
 // --set KEY=VALUE: any option of the fusion section (genscene-fuse --help lists them).
 using Overrides = std::vector<std::pair<std::string, std::string>>;
@@ -86,7 +88,8 @@ double PeakMegabytes() {
 
 // The long scan of --scale (see the top of the file).
 void LongScan(int frames, double texture, int width, int per_turn, bool loop_closure, double radius,
-              double depth_bias, double color_weight, const Overrides& overrides) {
+              double depth_bias, double color_weight, const Overrides& overrides,
+              const std::string& trajectory_prefix) {
   SyntheticScene room = MakeLivingRoomScene();
   room.texture_tile = texture;
   const int height = width * 3 / 4;
@@ -159,6 +162,17 @@ void LongScan(int frames, double texture, int width, int per_turn, bool loop_clo
       window = 0;
     }
   }
+  if (!trajectory_prefix.empty()) {
+    // Both in the first camera's frame, as fusion's trajectory is.
+    Trajectory truth_in_first;
+    const Eigen::Isometry3d first_from_world = truth.poses()[0].world_from_camera.inverse();
+    for (const StampedPose& p : truth.poses())
+      truth_in_first.Add(p.timestamp, first_from_world * p.world_from_camera);
+    WriteTumTrajectory(trajectory_prefix + "_estimate.txt", kf.trajectory());
+    WriteTumTrajectory(trajectory_prefix + "_truth.txt", truth_in_first);
+    std::printf("trajectories: %s_estimate.txt, %s_truth.txt\n", trajectory_prefix.c_str(),
+                trajectory_prefix.c_str());
+  }
 }
 
 // The raycast of fusion's model (its intrinsics, depth range and normals) at every pose of
@@ -229,6 +243,7 @@ int Run(int argc, char** argv) {
   bool loop_closure = true;
   double radius = 0.4;
   double depth_bias = 0.0;
+  std::string trajectory_prefix;
   double color_weight = -1.0;  // the default
   Overrides overrides;
   for (int i = 1; i < argc; ++i) {
@@ -260,6 +275,8 @@ int Run(int argc, char** argv) {
       color_weight = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--depth-bias") == 0 && i + 1 < argc) {
       depth_bias = std::atof(argv[++i]);
+    } else if (std::strcmp(argv[i], "--trajectory") == 0 && i + 1 < argc) {
+      trajectory_prefix = argv[++i];
     } else if (std::strcmp(argv[i], "--radius") == 0 && i + 1 < argc) {
       radius = std::atof(argv[++i]);
     } else if (std::strcmp(argv[i], "--set") == 0 && i + 1 < argc) {
@@ -280,7 +297,7 @@ int Run(int argc, char** argv) {
   if (scale > 0) {
     SetThreadCount(threads);
     LongScan(scale, texture, width, per_turn, loop_closure, radius, depth_bias, color_weight,
-             overrides);
+             overrides, trajectory_prefix);
     return 0;
   }
   if (folders.empty()) {
