@@ -15,10 +15,10 @@
 // --per-turn frames (default 400, 0.9 degrees a frame; MakeRoomLoopTrajectory), rendered one at
 // a time (untimed) and tracked and fused with the defaults (--no-loop-closure: without loop
 // closure; --color-weight W: icp_color_weight; --trajectory PREFIX: PREFIX_estimate.txt and
-// PREFIX_truth.txt, TUM format, both in the first camera's frame); a line for each loop closed;
-// every 100 frames a row
-// of fps over those frames, blocks, the volume's megabytes, the process's peak memory, the ATE so
-// far and the drift (the last pose against the truth, both relative to the first).
+// PREFIX_truth.txt, TUM format, both in the first kept camera's frame); a line for each loop
+// closed; every 100 frames a row of fps over those frames, blocks, the volume's megabytes, the
+// process's peak memory, the ATE so far and the drift (the last pose against the truth, both
+// relative to the first).
 #include <sys/resource.h>
 
 #include <algorithm>
@@ -162,10 +162,14 @@ void LongScan(int frames, double texture, int width, int per_turn, bool loop_clo
       window = 0;
     }
   }
-  if (!trajectory_prefix.empty()) {
-    // Both in the first camera's frame, as fusion's trajectory is.
+  if (!trajectory_prefix.empty() && !kf.trajectory().poses().empty()) {
+    // Both in the frame of the first camera fusion kept (its trajectory starts at the identity).
+    const double first = kf.trajectory().poses().front().timestamp;
+    const auto truth_first = truth.Nearest(first, 0.0);
+    if (!truth_first)
+      throw std::runtime_error("--trajectory: no true pose at fusion's first frame");
     Trajectory truth_in_first;
-    const Eigen::Isometry3d first_from_world = truth.poses()[0].world_from_camera.inverse();
+    const Eigen::Isometry3d first_from_world = truth_first->world_from_camera.inverse();
     for (const StampedPose& p : truth.poses())
       truth_in_first.Add(p.timestamp, first_from_world * p.world_from_camera);
     WriteTumTrajectory(trajectory_prefix + "_estimate.txt", kf.trajectory());
@@ -294,6 +298,8 @@ int Run(int argc, char** argv) {
       folders.push_back(argv[i]);
     }
   }
+  if (!trajectory_prefix.empty() && scale <= 0)
+    throw std::runtime_error("--trajectory: only with --scale (the long scan)");
   if (scale > 0) {
     SetThreadCount(threads);
     LongScan(scale, texture, width, per_turn, loop_closure, radius, depth_bias, color_weight,

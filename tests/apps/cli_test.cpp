@@ -131,7 +131,9 @@ TEST_F(Apps, HelpListsEachFlagOnceWithOneNamePerMeaning) {
     EXPECT_EQ(required, 0) << command << ": --out shown as REQUIRED";
     EXPECT_EQ(listed.count("--depth-max") + listed.count("--depth-min"), 0u) << command;
     // How many frames to read is --max-frames wherever frames are read.
-    if (listed.count("--max-frames")) EXPECT_EQ(listed.count("--frames"), 0u) << command;
+    if (listed.count("--max-frames")) {
+      EXPECT_EQ(listed.count("--frames"), 0u) << command;
+    }
   }
   const auto run = RunCommand(AppPath("genscene") + " run --help");
   EXPECT_NE(run.output.find("--range-max"), std::string::npos) << run.output;
