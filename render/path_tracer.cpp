@@ -101,13 +101,7 @@ std::optional<PathTracer::SurfacePoint> PathTracer::Hit(const Eigen::Vector3f& o
   // still report one, it faces the ray.
   s.ng = s.area > 0.0f ? Eigen::Vector3f(n / (2.0f * s.area))
                        : Eigen::Vector3f(-direction.normalized());
-  s.ns = s.ng;
-  if (m.smooth_shading) {
-    const auto& vn = m.mesh.normals;
-    const Eigen::Vector3f interpolated = b0 * vn[f[0]] + hit->b1 * vn[f[1]] + hit->b2 * vn[f[2]];
-    if (interpolated.squaredNorm() > 0.0f) s.ns = interpolated.normalized();
-    if (s.ns.dot(s.ng) < 0.0f) s.ns = -s.ns;
-  }
+  s.ns = m.ShadingNormal(static_cast<size_t>(hit->face), hit->b1, hit->b2, s.ng);
   return s;
 }
 

@@ -59,6 +59,17 @@ struct SceneMesh {
   bool smooth_shading = false;
 
   bool IsEmitter() const { return emission.maxCoeff() > 0.0f; }
+  // The shading normal at barycentric (b1, b2) of `face`, on the side of the unit geometric normal
+  // `ng`: with smooth_shading the interpolated vertex normal (ng where it vanishes), else ng.
+  Eigen::Vector3f ShadingNormal(size_t face, float b1, float b2, const Eigen::Vector3f& ng) const {
+    const auto& vn = mesh.normals;
+    if (!smooth_shading || vn.size() != mesh.vertices.size()) return ng;
+    const Eigen::Vector3i& f = mesh.faces[face];
+    const Eigen::Vector3f n = (1.0f - b1 - b2) * vn[f[0]] + b1 * vn[f[1]] + b2 * vn[f[2]];
+    Eigen::Vector3f ns = n.squaredNorm() > 0.0f ? Eigen::Vector3f(n.normalized()) : ng;
+    if (ns.dot(ng) < 0.0f) ns = -ns;
+    return ns;
+  }
 };
 
 struct PointLight {

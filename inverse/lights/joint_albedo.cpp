@@ -192,20 +192,12 @@ std::vector<Eigen::Vector3f> DirectShading(const VoxelLightGrid& lights,
     center[k] = lights.VoxelCenter(lit[k]).cast<float>();
     traced[k] = visibility != nullptr && lights.IntensityOf(lit[k]).maxCoeff() >= 1e-3f * strongest;
   }
-  const auto& vn = mesh.mesh.normals;
-  const bool smooth = mesh.smooth_shading && vn.size() == mesh.mesh.vertices.size();
   std::vector<Eigen::Vector3f> out(at.size(), Eigen::Vector3f::Zero());
   ParallelFor(0, at.size(), [&](size_t i) {
     const PixelSurface& p = at[i];
     if (!p.hit || p.face < 0) return;
     const Eigen::Vector3f ng = p.normal;
-    Eigen::Vector3f ns = ng;
-    if (smooth) {
-      const auto& f = mesh.mesh.faces[static_cast<size_t>(p.face)];
-      const Eigen::Vector3f n = (1.0f - p.b1 - p.b2) * vn[f[0]] + p.b1 * vn[f[1]] + p.b2 * vn[f[2]];
-      if (n.squaredNorm() > 0.0f) ns = n.normalized();
-      if (ns.dot(ng) < 0.0f) ns = -ns;
-    }
+    const Eigen::Vector3f ns = mesh.ShadingNormal(static_cast<size_t>(p.face), p.b1, p.b2, ng);
     // The shadow rays' origin, as the renders' (path::OffsetScale along the face normal).
     const Eigen::Vector3f from = p.position + render::path::OffsetScale(p.position) * ng;
     thread_local std::vector<Eigen::Vector3f> directions;
